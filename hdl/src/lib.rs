@@ -1,0 +1,1 @@
+//! imagine-hdl: the RTL vocabulary (ARCHITECTURE §3).

@@ -1,0 +1,1 @@
+//! Combinational arithmetic: op semantics on raw bits, no host floating point.

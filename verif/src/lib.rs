@@ -1,0 +1,2 @@
+//! imagine-verif: golden models, testbenches, reference renderer and image metrics
+//! (ARCHITECTURE §6).

@@ -1,0 +1,1 @@
+//! imagine-waves: VCD output for the probe registry of `imagine-hdl`.
