@@ -1,1 +1,32 @@
-//! imagine-hdl: the RTL vocabulary (ARCHITECTURE §3).
+//! imagine-hdl: the RTL vocabulary of the model (ARCHITECTURE §3).
+//!
+//! * [`bits`] — bit-accurate field types (`arbitrary-int`) and wide words (`bitvec`);
+//! * [`Reg`] — registers with `q`/`d` and a probe;
+//! * [`PipeTx`]/[`PipeRx`], [`FifoTx`]/[`FifoRx`] — fixed-latency pipes and FIFOs with a
+//!   contract (latency ≥ 1, bandwidth per cycle, one writer and one reader);
+//! * [`Clocks`] — clock domains with exact rational ratios, time in picoseconds, and
+//!   [`AsyncFifoTx`]/[`AsyncFifoRx`] for crossings;
+//! * [`ProbeRegistry`], [`Trace`], [`Tracer`] — named, sized signals and change reporting;
+//! * [`Module`], [`Design`], [`Sim`] — two-phase evaluation (`eval` then `commit`).
+//! * [`demo`] — a small design made only of these parts.
+
+pub mod async_fifo;
+pub mod bits;
+pub mod clock;
+pub mod demo;
+pub mod error;
+pub mod fifo;
+pub mod pipe;
+pub mod probe;
+pub mod reg;
+pub mod sim;
+
+pub use async_fifo::{AsyncFifoRx, AsyncFifoTx};
+pub use bits::{Bits, WideWord, bits_for, wide_word};
+pub use clock::{ClockDomain, ClockError, Clocks, DomainId, DomainSet, Edge, default_domains};
+pub use error::{ContractError, Violation};
+pub use fifo::{FifoRx, FifoTx};
+pub use pipe::{PipeRx, PipeTx};
+pub use probe::{ProbeRegistry, SignalDecl, SignalId, SignalKind, Trace, Tracer};
+pub use reg::Reg;
+pub use sim::{Channel, Design, DesignError, Module, Scope, Sim};

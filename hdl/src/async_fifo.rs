@@ -1,0 +1,171 @@
+//! A synchronising FIFO between two clock domains: the classic dual-clock FIFO with its
+//! write pointer carried into the read domain, and its read pointer carried into the write
+//! domain, through chains of `sync_stages` flip-flops (Cummings, "Simulation and Synthesis
+//! Techniques for Asynchronous FIFO Design", SNUG 2002). Hardware passes Gray-coded
+//! pointers so each synchroniser sees at most one changing bit; here the pointers are
+//! modelled as counts, which gives the same values once synchronised.
+//!
+//! The writer sees occupancy through the delayed read pointer and the reader through the
+//! delayed write pointer, so both are conservative: a full FIFO frees up only
+//! `sync_stages` write-domain edges after a pop. When both clocks rise at the same instant
+//! each synchroniser samples the other side's pointer as it was before that edge.
+
+use std::cell::RefCell;
+use std::collections::VecDeque;
+use std::rc::Rc;
+
+use crate::{Channel, ContractError, DomainId, DomainSet, SignalId, Trace, Violation};
+
+pub(crate) struct AsyncFifoState<T> {
+    path: String,
+    write_domain: DomainId,
+    read_domain: DomainId,
+    capacity: usize,
+    items: VecDeque<T>,
+    /// Total pushes and pops committed so far (the binary pointers).
+    write_ptr: u64,
+    read_ptr: u64,
+    /// Synchroniser chains: the last entry is the value visible in the other domain.
+    write_ptr_sync: VecDeque<u64>,
+    read_ptr_sync: VecDeque<u64>,
+    pushed: Option<T>,
+    popped: bool,
+    ids: [SignalId; 2],
+}
+
+/// The writing end, used in the write clock domain.
+pub struct AsyncFifoTx<T>(Rc<RefCell<AsyncFifoState<T>>>);
+/// The reading end, used in the read clock domain.
+pub struct AsyncFifoRx<T>(Rc<RefCell<AsyncFifoState<T>>>);
+
+pub(crate) fn new_async_fifo<T: 'static>(
+    path: String,
+    (write_domain, read_domain): (DomainId, DomainId),
+    capacity: usize,
+    sync_stages: usize,
+    ids: [SignalId; 2],
+) -> (AsyncFifoTx<T>, AsyncFifoRx<T>, Rc<RefCell<dyn Channel>>) {
+    let state = Rc::new(RefCell::new(AsyncFifoState {
+        path,
+        write_domain,
+        read_domain,
+        capacity,
+        items: VecDeque::with_capacity(capacity),
+        write_ptr: 0,
+        read_ptr: 0,
+        write_ptr_sync: VecDeque::from(vec![0; sync_stages]),
+        read_ptr_sync: VecDeque::from(vec![0; sync_stages]),
+        pushed: None,
+        popped: false,
+        ids,
+    }));
+    (
+        AsyncFifoTx(state.clone()),
+        AsyncFifoRx(state.clone()),
+        state,
+    )
+}
+
+impl<T> AsyncFifoState<T> {
+    fn write_level(&self) -> usize {
+        (self.write_ptr - self.read_ptr_sync.back().copied().unwrap_or(self.read_ptr)) as usize
+    }
+    fn read_level(&self) -> usize {
+        (self
+            .write_ptr_sync
+            .back()
+            .copied()
+            .unwrap_or(self.write_ptr)
+            - self.read_ptr) as usize
+    }
+}
+
+impl<T> AsyncFifoTx<T> {
+    /// Whether the writer may push this cycle (its synchronised view shows room and it has
+    /// not pushed yet this cycle).
+    pub fn can_push(&self) -> bool {
+        let s = self.0.borrow();
+        s.pushed.is_none() && s.write_level() < s.capacity
+    }
+
+    /// Pushes one value (one per write-domain cycle).
+    pub fn push(&mut self, v: T) -> Result<(), ContractError> {
+        let mut s = self.0.borrow_mut();
+        if s.pushed.is_some() {
+            return Err(ContractError::at(
+                &s.path,
+                Violation::OverBandwidth {
+                    written: 2,
+                    bandwidth: 1,
+                },
+            ));
+        }
+        if s.write_level() >= s.capacity {
+            let capacity = s.capacity;
+            return Err(ContractError::at(&s.path, Violation::Overflow { capacity }));
+        }
+        s.pushed = Some(v);
+        Ok(())
+    }
+}
+
+impl<T: Clone> AsyncFifoRx<T> {
+    /// Whether the reader may pop this cycle.
+    pub fn can_pop(&self) -> bool {
+        let s = self.0.borrow();
+        !s.popped && s.read_level() > 0
+    }
+
+    /// Pops one value (one per read-domain cycle).
+    pub fn pop(&mut self) -> Result<T, ContractError> {
+        let mut s = self.0.borrow_mut();
+        if s.popped {
+            return Err(ContractError::at(
+                &s.path,
+                Violation::OverRead { bandwidth: 1 },
+            ));
+        }
+        if s.read_level() == 0 {
+            return Err(ContractError::at(&s.path, Violation::Underflow));
+        }
+        s.popped = true;
+        Ok(s.items[0].clone())
+    }
+}
+
+impl<T> Channel for AsyncFifoState<T> {
+    fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError> {
+        // Sample both pointers before either side updates them.
+        let (write_ptr, read_ptr) = (self.write_ptr, self.read_ptr);
+        if rising.contains(self.write_domain) {
+            if let Some(v) = self.pushed.take() {
+                self.items.push_back(v);
+                self.write_ptr += 1;
+            }
+            if !self.read_ptr_sync.is_empty() {
+                self.read_ptr_sync.pop_front();
+                self.read_ptr_sync.push_back(read_ptr);
+            }
+        }
+        if rising.contains(self.read_domain) {
+            if std::mem::take(&mut self.popped) {
+                self.items.pop_front();
+                self.read_ptr += 1;
+            }
+            if !self.write_ptr_sync.is_empty() {
+                self.write_ptr_sync.pop_front();
+                self.write_ptr_sync.push_back(write_ptr);
+            }
+        }
+        Ok(())
+    }
+
+    fn domain(&self) -> DomainId {
+        self.write_domain
+    }
+
+    fn trace(&self, t: &mut Trace) {
+        t.value(self.ids[0], self.write_level() as u64);
+        t.value(self.ids[1], self.read_level() as u64);
+    }
+}

@@ -1,0 +1,287 @@
+//! Clock domains with exact rational frequency ratios.
+//!
+//! Each domain has an integer frequency in hertz, so the ratio of any two domains is an
+//! exact rational number (500 MHz : 167 MHz = 500 : 167). Edges are ordered by exact
+//! integer cross-multiplication, never by rounded periods, so over any run the number of
+//! edges of each domain is exact. Simulated time is reported in picoseconds (rounded down);
+//! the ordering of edges does not depend on that rounding.
+//!
+//! The scheduler walks half-periods so that falling edges can be shown in waveforms: the
+//! rising edge `k` of a domain with frequency `f` is at `k / f` seconds, its falling edge at
+//! `(k + ½) / f`. Edges of several domains that fall at exactly the same instant are
+//! reported together as one [`Edge`].
+
+use std::fmt;
+
+/// Index of a clock domain within a design (0 is the core clock by convention).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct DomainId(pub u8);
+
+/// A set of clock domains, as a bit mask.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DomainSet(pub u64);
+
+impl DomainSet {
+    pub fn contains(self, d: DomainId) -> bool {
+        self.0 & (1 << d.0) != 0
+    }
+    pub fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+    pub fn insert(&mut self, d: DomainId) {
+        self.0 |= 1 << d.0;
+    }
+}
+
+/// A named clock with an integer frequency.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ClockDomain {
+    pub name: String,
+    pub freq_hz: u64,
+}
+
+impl ClockDomain {
+    pub fn new(name: &str, freq_hz: u64) -> Self {
+        ClockDomain {
+            name: name.to_string(),
+            freq_hz,
+        }
+    }
+    pub fn mhz(name: &str, mhz: u64) -> Self {
+        Self::new(name, mhz * 1_000_000)
+    }
+}
+
+/// The defaults of ARCHITECTURE §4: core 500 MHz, SDRAM 167 MHz.
+pub fn default_domains() -> Vec<ClockDomain> {
+    vec![ClockDomain::mhz("core", 500), ClockDomain::mhz("dram", 167)]
+}
+
+/// An impossible clock description.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ClockError {
+    NoDomains,
+    TooManyDomains(usize),
+    ZeroFrequency(String),
+    DuplicateName(String),
+}
+
+impl fmt::Display for ClockError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ClockError::NoDomains => write!(f, "a design needs at least one clock domain"),
+            ClockError::TooManyDomains(n) => {
+                write!(f, "{n} clock domains; at most 64 are supported")
+            }
+            ClockError::ZeroFrequency(n) => write!(f, "clock domain `{n}` has frequency 0 Hz"),
+            ClockError::DuplicateName(n) => write!(f, "clock domain `{n}` is declared twice"),
+        }
+    }
+}
+
+impl std::error::Error for ClockError {}
+
+/// One step of simulated time: the domains whose clocks rise and fall at `time_ps`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Edge {
+    pub time_ps: u64,
+    pub rising: DomainSet,
+    pub falling: DomainSet,
+}
+
+const PS_PER_S: u128 = 1_000_000_000_000;
+
+/// The edge scheduler for a set of clock domains.
+#[derive(Clone, Debug)]
+pub struct Clocks {
+    domains: Vec<ClockDomain>,
+    /// Per domain, the index of its next half-period edge (even: rising, odd: falling).
+    next_half: Vec<u64>,
+    /// Per domain, the number of rising edges so far.
+    cycles: Vec<u64>,
+    time_ps: u64,
+}
+
+impl Clocks {
+    pub fn new(domains: Vec<ClockDomain>) -> Result<Self, ClockError> {
+        if domains.is_empty() {
+            return Err(ClockError::NoDomains);
+        }
+        if domains.len() > 64 {
+            return Err(ClockError::TooManyDomains(domains.len()));
+        }
+        for (i, d) in domains.iter().enumerate() {
+            if d.freq_hz == 0 {
+                return Err(ClockError::ZeroFrequency(d.name.clone()));
+            }
+            if domains[..i].iter().any(|o| o.name == d.name) {
+                return Err(ClockError::DuplicateName(d.name.clone()));
+            }
+        }
+        let n = domains.len();
+        Ok(Clocks {
+            domains,
+            next_half: vec![0; n],
+            cycles: vec![0; n],
+            time_ps: 0,
+        })
+    }
+
+    pub fn domains(&self) -> &[ClockDomain] {
+        &self.domains
+    }
+
+    /// Looks a domain up by name.
+    pub fn find(&self, name: &str) -> Option<DomainId> {
+        self.domains
+            .iter()
+            .position(|d| d.name == name)
+            .map(|i| DomainId(i as u8))
+    }
+
+    /// The exact ratio `freq(a) : freq(b)` in lowest terms.
+    pub fn ratio(&self, a: DomainId, b: DomainId) -> (u64, u64) {
+        let (fa, fb) = (
+            self.domains[a.0 as usize].freq_hz,
+            self.domains[b.0 as usize].freq_hz,
+        );
+        let g = gcd(fa, fb);
+        (fa / g, fb / g)
+    }
+
+    /// Rising edges of domain `d` so far.
+    pub fn cycles(&self, d: DomainId) -> u64 {
+        self.cycles[d.0 as usize]
+    }
+
+    /// Time of the most recent edge, in picoseconds.
+    pub fn time_ps(&self) -> u64 {
+        self.time_ps
+    }
+
+    /// Time of half-period edge `half` of domain `d`, in picoseconds, rounded down.
+    fn half_edge_ps(&self, d: usize, half: u64) -> u64 {
+        (half as u128 * PS_PER_S / (2 * self.domains[d].freq_hz as u128)) as u64
+    }
+
+    /// Advances to the next instant at which any clock has an edge.
+    pub fn next_edge(&mut self) -> Edge {
+        // Edge time of domain i is next_half[i] / (2 f_i); compare a/fa < b/fb as a·fb < b·fa.
+        let mut first = 0;
+        for i in 1..self.domains.len() {
+            if self.earlier(i, first) {
+                first = i;
+            }
+        }
+        let mut edge = Edge {
+            time_ps: self.half_edge_ps(first, self.next_half[first]),
+            rising: DomainSet::default(),
+            falling: DomainSet::default(),
+        };
+        let fired: Vec<bool> = (0..self.domains.len())
+            .map(|i| i == first || self.simultaneous(i, first))
+            .collect();
+        for (i, fires) in fired.into_iter().enumerate() {
+            if fires {
+                let d = DomainId(i as u8);
+                if self.next_half[i] % 2 == 0 {
+                    edge.rising.insert(d);
+                    self.cycles[i] += 1;
+                } else {
+                    edge.falling.insert(d);
+                }
+                self.next_half[i] += 1;
+            }
+        }
+        self.time_ps = edge.time_ps;
+        edge
+    }
+
+    fn cross(&self, i: usize, j: usize) -> (u128, u128) {
+        (
+            self.next_half[i] as u128 * self.domains[j].freq_hz as u128,
+            self.next_half[j] as u128 * self.domains[i].freq_hz as u128,
+        )
+    }
+    fn earlier(&self, i: usize, j: usize) -> bool {
+        let (a, b) = self.cross(i, j);
+        a < b
+    }
+    fn simultaneous(&self, i: usize, j: usize) -> bool {
+        let (a, b) = self.cross(i, j);
+        a == b
+    }
+}
+
+fn gcd(mut a: u64, mut b: u64) -> u64 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dram_edges_over_a_million_core_cycles_are_exact() {
+        let mut clocks = Clocks::new(default_domains()).unwrap();
+        let (core, dram) = (DomainId(0), DomainId(1));
+        assert_eq!(clocks.ratio(core, dram), (500, 167));
+        let n: u64 = 1_000_000;
+        while clocks.cycles(core) < n {
+            clocks.next_edge();
+        }
+        // Core edge k is at k/500e6 s; the last core edge is k = n-1. DRAM edges at j/167e6 s
+        // with j/167 <= (n-1)/500 number floor((n-1)·167/500) + 1.
+        let expected = (n - 1) * 167 / 500 + 1;
+        assert_eq!(expected, 334_000);
+        assert_eq!(clocks.cycles(dram), expected);
+        assert_eq!(clocks.time_ps(), (n - 1) * 2000);
+    }
+
+    #[test]
+    fn coincident_edges_fire_together_and_time_is_monotonic() {
+        // 4:3 ratio: edges coincide every 3 fast / ... cycles.
+        let mut clocks =
+            Clocks::new(vec![ClockDomain::new("a", 400), ClockDomain::new("b", 300)]).unwrap();
+        let first = clocks.next_edge();
+        assert!(first.rising.contains(DomainId(0)) && first.rising.contains(DomainId(1)));
+        assert_eq!(first.time_ps, 0);
+        let mut last = 0;
+        let mut both = 0;
+        for _ in 0..10_000 {
+            let e = clocks.next_edge();
+            assert!(e.time_ps >= last);
+            last = e.time_ps;
+            if e.rising.contains(DomainId(0)) && e.rising.contains(DomainId(1)) {
+                both += 1;
+            }
+        }
+        assert!(both > 0);
+        // Rising edges per domain stay in the exact 4:3 ratio (within one edge).
+        let (a, b) = (clocks.cycles(DomainId(0)), clocks.cycles(DomainId(1)));
+        assert!((a * 3).abs_diff(b * 4) <= 4, "{a} {b}");
+    }
+
+    #[test]
+    fn falling_edges_are_mid_period() {
+        let mut clocks = Clocks::new(vec![ClockDomain::mhz("core", 500)]).unwrap();
+        let r = clocks.next_edge();
+        let f = clocks.next_edge();
+        let r2 = clocks.next_edge();
+        assert!(!r.rising.is_empty() && r.falling.is_empty());
+        assert!(!f.falling.is_empty() && f.rising.is_empty());
+        assert_eq!((r.time_ps, f.time_ps, r2.time_ps), (0, 1000, 2000));
+    }
+
+    #[test]
+    fn impossible_clocks_are_rejected() {
+        assert_eq!(Clocks::new(vec![]).unwrap_err(), ClockError::NoDomains);
+        let e = Clocks::new(vec![ClockDomain::new("x", 0)]).unwrap_err();
+        assert!(e.to_string().contains("`x`"));
+        let e = Clocks::new(vec![ClockDomain::new("x", 1), ClockDomain::new("x", 2)]).unwrap_err();
+        assert_eq!(e, ClockError::DuplicateName("x".into()));
+    }
+}

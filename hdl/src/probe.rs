@@ -1,0 +1,254 @@
+//! Probes: every module registers its signals (hierarchical name, width, kind) when it is
+//! built, and reports their values after each clock edge to a [`Trace`], which forwards
+//! only the values that changed to a [`Tracer`] (for example a VCD writer).
+//!
+//! With no tracer attached the simulator never calls a module's `trace`, so probing costs
+//! one branch per edge; the `probes` cargo feature (on by default) removes even that.
+
+use std::io;
+
+/// Handle of a registered signal.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct SignalId(pub u32);
+
+/// What a signal is, for waveform viewers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SignalKind {
+    /// Combinational value (an output of logic within the cycle).
+    Wire,
+    /// The output of a register.
+    Reg,
+    /// A clock.
+    Clock,
+}
+
+/// A registered signal.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SignalDecl {
+    /// Full hierarchical path, dot separated: `top.mac.stage2.product`.
+    pub path: String,
+    pub width: u32,
+    pub kind: SignalKind,
+}
+
+impl SignalDecl {
+    /// The enclosing scope's path (`top.mac.stage2`).
+    pub fn scope(&self) -> &str {
+        self.path.rsplit_once('.').map_or("", |(s, _)| s)
+    }
+    /// The signal's own name (`product`).
+    pub fn name(&self) -> &str {
+        self.path.rsplit_once('.').map_or(&self.path, |(_, n)| n)
+    }
+    /// Number of 64-bit words holding a value.
+    pub fn words(&self) -> usize {
+        self.width.div_ceil(64) as usize
+    }
+}
+
+/// All signals of a design, in registration order.
+#[derive(Clone, Debug, Default)]
+pub struct ProbeRegistry {
+    signals: Vec<SignalDecl>,
+}
+
+impl ProbeRegistry {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Registers a signal at `path`. Widths must be at least 1.
+    ///
+    /// # Panics
+    /// On a zero width or a path registered twice: both are construction bugs of a design.
+    pub fn register(&mut self, path: String, width: u32, kind: SignalKind) -> SignalId {
+        assert!(width > 0, "signal `{path}` declared with width 0");
+        debug_assert!(
+            !self.signals.iter().any(|s| s.path == path),
+            "signal `{path}` registered twice"
+        );
+        self.signals.push(SignalDecl { path, width, kind });
+        SignalId(self.signals.len() as u32 - 1)
+    }
+
+    pub fn signals(&self) -> &[SignalDecl] {
+        &self.signals
+    }
+
+    pub fn get(&self, id: SignalId) -> &SignalDecl {
+        &self.signals[id.0 as usize]
+    }
+
+    pub fn find(&self, path: &str) -> Option<SignalId> {
+        self.signals
+            .iter()
+            .position(|s| s.path == path)
+            .map(|i| SignalId(i as u32))
+    }
+
+    pub fn len(&self) -> usize {
+        self.signals.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.signals.is_empty()
+    }
+}
+
+/// Receives signal changes in time order.
+pub trait Tracer {
+    /// Called once, before any time passes, with the complete registry and the clock
+    /// domains (their clock signals are registered as [`SignalKind::Clock`]).
+    fn start(&mut self, probes: &ProbeRegistry, clocks: &[crate::ClockDomain]) -> io::Result<()>;
+    /// Simulated time moves to `time_ps`; `core_cycle` counts rising edges of domain 0.
+    fn time(&mut self, time_ps: u64, core_cycle: u64);
+    /// Signal `id` now holds `value` (little-endian 64-bit words, as many as the width needs).
+    fn change(&mut self, id: SignalId, value: &[u64]);
+    /// The run is over: flush and report any error met while writing.
+    fn finish(&mut self) -> io::Result<()>;
+}
+
+/// Change detector between modules and a tracer: keeps the last value of every signal and
+/// forwards only changes (everything on the first report).
+pub struct Trace {
+    offsets: Vec<usize>,
+    widths: Vec<u32>,
+    last: Vec<u64>,
+    seen: Vec<bool>,
+    tracer: Box<dyn Tracer>,
+}
+
+impl Trace {
+    pub fn new(probes: &ProbeRegistry, tracer: Box<dyn Tracer>) -> Self {
+        let mut offsets = Vec::with_capacity(probes.len());
+        let mut words = 0;
+        for s in probes.signals() {
+            offsets.push(words);
+            words += s.words();
+        }
+        Trace {
+            offsets,
+            widths: probes.signals().iter().map(|s| s.width).collect(),
+            last: vec![0; words],
+            seen: vec![false; probes.len()],
+            tracer,
+        }
+    }
+
+    pub fn tracer(&mut self) -> &mut dyn Tracer {
+        &mut *self.tracer
+    }
+
+    /// Reports a value of up to 64 bits.
+    #[inline]
+    pub fn value(&mut self, id: SignalId, v: u64) {
+        let i = id.0 as usize;
+        debug_assert!(
+            self.widths[i] >= 64 || v >> self.widths[i] == 0,
+            "value {v:#x} does not fit signal {i} of width {}",
+            self.widths[i]
+        );
+        let off = self.offsets[i];
+        if self.last[off] != v || !self.seen[i] {
+            self.last[off] = v;
+            self.seen[i] = true;
+            self.tracer.change(id, &[v]);
+        }
+    }
+
+    /// Reports a value of any width as little-endian words.
+    pub fn wide(&mut self, id: SignalId, words: &[u64]) {
+        let i = id.0 as usize;
+        let off = self.offsets[i];
+        let n = (self.widths[i] as usize).div_ceil(64);
+        debug_assert!(
+            words.len() >= n,
+            "signal {i}: {} words for width {}",
+            words.len(),
+            self.widths[i]
+        );
+        let words = &words[..n];
+        debug_assert!(
+            self.widths[i] % 64 == 0 || words[n - 1] >> (self.widths[i] % 64) == 0,
+            "value does not fit signal {i} of width {}",
+            self.widths[i]
+        );
+        if &self.last[off..off + n] != words || !self.seen[i] {
+            self.last[off..off + n].copy_from_slice(words);
+            self.seen[i] = true;
+            self.tracer.change(id, words);
+        }
+    }
+
+    /// Reports a typed value of up to 128 bits.
+    #[inline]
+    pub fn bits<T: crate::Bits>(&mut self, id: SignalId, v: T) {
+        let x = v.to_u128();
+        if T::WIDTH <= 64 {
+            self.value(id, x as u64);
+        } else {
+            self.wide(id, &[x as u64, (x >> 64) as u64]);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::cell::RefCell;
+    use std::rc::Rc;
+
+    #[derive(Default)]
+    struct Log(Rc<RefCell<Vec<(u32, Vec<u64>)>>>);
+    impl Tracer for Log {
+        fn start(&mut self, _: &ProbeRegistry, _: &[crate::ClockDomain]) -> io::Result<()> {
+            Ok(())
+        }
+        fn time(&mut self, _: u64, _: u64) {}
+        fn change(&mut self, id: SignalId, value: &[u64]) {
+            self.0.borrow_mut().push((id.0, value.to_vec()));
+        }
+        fn finish(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn only_changes_are_forwarded() {
+        let mut reg = ProbeRegistry::new();
+        let a = reg.register("top.a".into(), 8, SignalKind::Reg);
+        let w = reg.register("top.w".into(), 130, SignalKind::Wire);
+        let log = Log::default();
+        let seen = log.0.clone();
+        let mut t = Trace::new(&reg, Box::new(log));
+        t.value(a, 0); // first report always goes out
+        t.value(a, 0);
+        t.value(a, 5);
+        t.wide(w, &[1, 2, 3]);
+        t.wide(w, &[1, 2, 3]);
+        t.wide(w, &[1, 2, 1]);
+        let got = seen.borrow().clone();
+        assert_eq!(
+            got,
+            vec![
+                (0, vec![0]),
+                (0, vec![5]),
+                (1, vec![1, 2, 3]),
+                (1, vec![1, 2, 1])
+            ]
+        );
+        assert_eq!(reg.get(w).words(), 3);
+        assert_eq!(reg.get(a).scope(), "top");
+        assert_eq!(reg.get(a).name(), "a");
+    }
+
+    #[test]
+    #[should_panic(expected = "does not fit")]
+    #[cfg(debug_assertions)]
+    fn a_value_wider_than_its_signal_is_caught() {
+        let mut reg = ProbeRegistry::new();
+        let a = reg.register("top.a".into(), 4, SignalKind::Reg);
+        let mut t = Trace::new(&reg, Box::new(Log::default()));
+        t.value(a, 16);
+    }
+}

@@ -1,0 +1,379 @@
+//! Modules, designs and the two-phase simulator.
+//!
+//! A [`Design`] is built once: modules are constructed inside [`Scope`]s, which give them
+//! hierarchical names and register their probes, registers and channels. The [`Sim`] then
+//! advances the [`Clocks`]; at each instant where clocks rise it calls `eval` on every
+//! module of the rising domains (each computes its next state from the committed state of
+//! itself and its inputs), then `commit` on all of them, then commits every channel. No
+//! event queue and no iteration to a fixed point: evaluation order cannot change results,
+//! and [`Sim::reverse_eval_order`] exists so tests can prove it.
+
+use std::any::Any;
+use std::cell::RefCell;
+use std::fmt;
+use std::io;
+use std::rc::Rc;
+
+use crate::async_fifo::{AsyncFifoRx, AsyncFifoTx, new_async_fifo};
+use crate::fifo::{FifoRx, FifoTx, new_fifo};
+use crate::pipe::{PipeRx, PipeTx, new_pipe};
+use crate::{
+    Bits, ClockDomain, ClockError, Clocks, ContractError, DomainId, DomainSet, Edge, ProbeRegistry,
+    Reg, SignalId, SignalKind, Trace, Tracer, bits_for,
+};
+
+/// A clocked hardware block.
+pub trait Module: Any {
+    /// The clock domain whose rising edges drive this module.
+    fn domain(&self) -> DomainId;
+    /// Computes the next state from the committed state of this module and its inputs.
+    fn eval(&mut self) -> Result<(), ContractError>;
+    /// Makes the next state current (registers take their `d`).
+    fn commit(&mut self);
+    /// Reports the current value of every probe.
+    fn trace(&self, _t: &mut Trace) {}
+}
+
+/// Shared state between two modules that commits on clock edges (pipes, FIFOs).
+pub trait Channel {
+    fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError>;
+    /// The domain whose cycle count locates this channel's errors.
+    fn domain(&self) -> DomainId;
+    fn trace(&self, t: &mut Trace);
+}
+
+/// A mistake in how a design is put together.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum DesignError {
+    Clock(ClockError),
+    /// A pipe or FIFO parameter that cannot be built, e.g. latency 0.
+    Parameter {
+        path: String,
+        problem: String,
+    },
+    UnknownDomain(String),
+}
+
+impl fmt::Display for DesignError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DesignError::Clock(e) => e.fmt(f),
+            DesignError::Parameter { path, problem } => write!(f, "`{path}`: {problem}"),
+            DesignError::UnknownDomain(d) => write!(f, "no clock domain named `{d}`"),
+        }
+    }
+}
+
+impl std::error::Error for DesignError {}
+
+impl From<ClockError> for DesignError {
+    fn from(e: ClockError) -> Self {
+        DesignError::Clock(e)
+    }
+}
+
+/// A design under construction: clocks, probes, channels and modules.
+pub struct Design {
+    clocks: Clocks,
+    probes: ProbeRegistry,
+    clock_ids: Vec<SignalId>,
+    channels: Vec<Rc<RefCell<dyn Channel>>>,
+    modules: Vec<Box<dyn Module>>,
+    top: String,
+}
+
+impl Design {
+    /// A design whose root scope is `top`, with the given clock domains (the first is the
+    /// core clock whose cycles the simulator counts).
+    pub fn new(top: &str, domains: Vec<ClockDomain>) -> Result<Self, DesignError> {
+        let clocks = Clocks::new(domains)?;
+        let mut probes = ProbeRegistry::new();
+        let clock_ids = clocks
+            .domains()
+            .iter()
+            .map(|d| probes.register(format!("{top}.clk_{}", d.name), 1, SignalKind::Clock))
+            .collect();
+        Ok(Design {
+            clocks,
+            probes,
+            clock_ids,
+            channels: Vec::new(),
+            modules: Vec::new(),
+            top: top.into(),
+        })
+    }
+
+    /// The root scope.
+    pub fn scope(&mut self) -> Scope<'_> {
+        let path = self.top.clone();
+        Scope { design: self, path }
+    }
+
+    pub fn domain(&self, name: &str) -> Result<DomainId, DesignError> {
+        self.clocks
+            .find(name)
+            .ok_or_else(|| DesignError::UnknownDomain(name.into()))
+    }
+
+    pub fn add<M: Module>(&mut self, m: M) {
+        self.modules.push(Box::new(m));
+    }
+
+    pub fn probes(&self) -> &ProbeRegistry {
+        &self.probes
+    }
+}
+
+/// A place in the design hierarchy where modules register signals and channels.
+pub struct Scope<'a> {
+    design: &'a mut Design,
+    path: String,
+}
+
+impl Scope<'_> {
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// A nested scope `self.name`.
+    pub fn child(&mut self, name: &str) -> Scope<'_> {
+        let path = format!("{}.{name}", self.path);
+        Scope {
+            design: self.design,
+            path,
+        }
+    }
+
+    pub fn domain(&self, name: &str) -> Result<DomainId, DesignError> {
+        self.design.domain(name)
+    }
+
+    fn full(&self, name: &str) -> String {
+        format!("{}.{name}", self.path)
+    }
+
+    /// Registers a probe `self.name`.
+    pub fn signal(&mut self, name: &str, width: u32, kind: SignalKind) -> SignalId {
+        let path = self.full(name);
+        self.design.probes.register(path, width, kind)
+    }
+
+    /// A register probed as `self.name`.
+    pub fn reg<T: Bits>(&mut self, name: &str, init: T) -> Reg<T> {
+        Reg::new(self, name, init)
+    }
+
+    /// A pipe `self.name` of `latency` ≥ 1 cycles carrying up to `bandwidth` ≥ 1 values per
+    /// cycle; its probe `self.name.valid` counts the values arriving each cycle.
+    pub fn pipe<T: 'static>(
+        &mut self,
+        name: &str,
+        domain: DomainId,
+        latency: usize,
+        bandwidth: usize,
+    ) -> Result<(PipeTx<T>, PipeRx<T>), DesignError> {
+        let path = self.full(name);
+        positive(&path, "latency", latency)?;
+        positive(&path, "bandwidth", bandwidth)?;
+        let valid = self
+            .child(name)
+            .signal("valid", bits_for(bandwidth as u64), SignalKind::Wire);
+        let (tx, rx, ch) = new_pipe(path, domain, latency, bandwidth, valid);
+        self.design.channels.push(ch);
+        Ok((tx, rx))
+    }
+
+    /// A FIFO `self.name` with `capacity` ≥ 1 entries and up to `bandwidth` pushes and pops
+    /// per cycle; its probe `self.name.level` is the committed occupancy.
+    pub fn fifo<T: Clone + 'static>(
+        &mut self,
+        name: &str,
+        domain: DomainId,
+        capacity: usize,
+        bandwidth: usize,
+    ) -> Result<(FifoTx<T>, FifoRx<T>), DesignError> {
+        let path = self.full(name);
+        positive(&path, "capacity", capacity)?;
+        positive(&path, "bandwidth", bandwidth)?;
+        let level = self
+            .child(name)
+            .signal("level", bits_for(capacity as u64), SignalKind::Wire);
+        let (tx, rx, ch) = new_fifo(path, domain, capacity, bandwidth, level);
+        self.design.channels.push(ch);
+        Ok((tx, rx))
+    }
+
+    /// A synchronising FIFO `self.name` from `write` to `read` domain, with `sync_stages`
+    /// ≥ 1 flip-flops in each pointer synchroniser; probes `self.name.write_level` and
+    /// `self.name.read_level` are the occupancy each side sees.
+    pub fn async_fifo<T: Clone + 'static>(
+        &mut self,
+        name: &str,
+        (write, read): (DomainId, DomainId),
+        capacity: usize,
+        sync_stages: usize,
+    ) -> Result<(AsyncFifoTx<T>, AsyncFifoRx<T>), DesignError> {
+        let path = self.full(name);
+        positive(&path, "capacity", capacity)?;
+        positive(&path, "sync_stages", sync_stages)?;
+        let width = bits_for(capacity as u64);
+        let mut s = self.child(name);
+        let ids = [
+            s.signal("write_level", width, SignalKind::Wire),
+            s.signal("read_level", width, SignalKind::Wire),
+        ];
+        let (tx, rx, ch) = new_async_fifo(path, (write, read), capacity, sync_stages, ids);
+        self.design.channels.push(ch);
+        Ok((tx, rx))
+    }
+}
+
+fn positive(path: &str, what: &str, v: usize) -> Result<(), DesignError> {
+    if v == 0 {
+        return Err(DesignError::Parameter {
+            path: path.into(),
+            problem: format!("{what} must be at least 1"),
+        });
+    }
+    Ok(())
+}
+
+/// Runs a design.
+pub struct Sim {
+    design: Design,
+    #[cfg(feature = "probes")]
+    trace: Option<Trace>,
+    core: DomainId,
+}
+
+impl Sim {
+    pub fn new(design: Design) -> Self {
+        Sim {
+            design,
+            #[cfg(feature = "probes")]
+            trace: None,
+            core: DomainId(0),
+        }
+    }
+
+    /// Attaches a tracer; from now on every change of every probe reaches it. Without the
+    /// `probes` feature this does nothing.
+    pub fn attach(&mut self, mut tracer: Box<dyn Tracer>) -> io::Result<()> {
+        tracer.start(&self.design.probes, self.design.clocks.domains())?;
+        #[cfg(feature = "probes")]
+        {
+            self.trace = Some(Trace::new(&self.design.probes, tracer));
+        }
+        Ok(())
+    }
+
+    /// Ends tracing: flushes the tracer and reports any write error it met.
+    pub fn finish(&mut self) -> io::Result<()> {
+        #[cfg(feature = "probes")]
+        if let Some(mut t) = self.trace.take() {
+            return t.tracer().finish();
+        }
+        Ok(())
+    }
+
+    pub fn clocks(&self) -> &Clocks {
+        &self.design.clocks
+    }
+
+    pub fn probes(&self) -> &ProbeRegistry {
+        &self.design.probes
+    }
+
+    /// Core-domain cycles so far.
+    pub fn core_cycles(&self) -> u64 {
+        self.design.clocks.cycles(self.core)
+    }
+
+    /// Evaluates modules and commits channels in the reverse of their construction order,
+    /// for tests that show evaluation order does not matter.
+    pub fn reverse_eval_order(&mut self) {
+        self.design.modules.reverse();
+        self.design.channels.reverse();
+    }
+
+    /// The modules of type `M`, for inspecting their state.
+    pub fn modules_of<M: Module>(&self) -> impl Iterator<Item = &M> {
+        self.design
+            .modules
+            .iter()
+            .filter_map(|m| (&**m as &dyn Any).downcast_ref::<M>())
+    }
+
+    /// Advances to the next clock edge of any domain.
+    pub fn step(&mut self) -> Result<Edge, ContractError> {
+        let edge = self.design.clocks.next_edge();
+        if !edge.rising.is_empty() {
+            self.clock_edge(edge.rising)?;
+        }
+        #[cfg(feature = "probes")]
+        if let Some(t) = &mut self.trace {
+            let clocks = &self.design.clocks;
+            t.tracer()
+                .time(edge.time_ps, clocks.cycles(self.core).saturating_sub(1));
+            for (i, id) in self.design.clock_ids.iter().enumerate() {
+                let d = DomainId(i as u8);
+                if edge.rising.contains(d) {
+                    t.value(*id, 1);
+                } else if edge.falling.contains(d) {
+                    t.value(*id, 0);
+                }
+            }
+            if !edge.rising.is_empty() {
+                for m in &self.design.modules {
+                    m.trace(t);
+                }
+                for c in &self.design.channels {
+                    c.borrow().trace(t);
+                }
+            }
+        }
+        Ok(edge)
+    }
+
+    fn clock_edge(&mut self, rising: DomainSet) -> Result<(), ContractError> {
+        let clocks = &self.design.clocks;
+        let stamp = |e: ContractError, d: DomainId| {
+            let cycle = clocks.cycles(d).saturating_sub(1);
+            e.in_cycle(&clocks.domains()[d.0 as usize].name, cycle)
+        };
+        for m in self.design.modules.iter_mut() {
+            if rising.contains(m.domain()) {
+                m.eval().map_err(|e| stamp(e, m.domain()))?;
+            }
+        }
+        for m in self.design.modules.iter_mut() {
+            if rising.contains(m.domain()) {
+                m.commit();
+            }
+        }
+        for c in &self.design.channels {
+            let mut c = c.borrow_mut();
+            c.commit(rising).map_err(|e| stamp(e, c.domain()))?;
+        }
+        Ok(())
+    }
+
+    /// Runs until `n` more core-clock cycles have elapsed, calling `progress` every
+    /// 65,536 core cycles with the cycles done.
+    pub fn run_core_cycles(
+        &mut self,
+        n: u64,
+        mut progress: impl FnMut(u64),
+    ) -> Result<(), ContractError> {
+        let end = self.core_cycles() + n;
+        let start = self.core_cycles();
+        while self.core_cycles() < end {
+            let edge = self.step()?;
+            let done = self.core_cycles() - start;
+            if edge.rising.contains(self.core) && done % 65_536 == 0 {
+                progress(done);
+            }
+        }
+        Ok(())
+    }
+}
