@@ -198,8 +198,10 @@ mod tests {
     use std::cell::RefCell;
     use std::rc::Rc;
 
+    type Changes = Rc<RefCell<Vec<(u32, Vec<u64>)>>>;
+
     #[derive(Default)]
-    struct Log(Rc<RefCell<Vec<(u32, Vec<u64>)>>>);
+    struct Log(Changes);
     impl Tracer for Log {
         fn start(&mut self, _: &ProbeRegistry, _: &[crate::ClockDomain]) -> io::Result<()> {
             Ok(())

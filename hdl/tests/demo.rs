@@ -38,9 +38,11 @@ fn a_wrong_result_would_be_noticed() {
     assert!(!r.matches_golden());
 }
 
+type Changes = Vec<(u64, u32, Vec<u64>)>;
+
 /// Records every (time, signal, value) the design reports.
 #[derive(Clone, Default)]
-struct Recorder(Rc<RefCell<Vec<(u64, u32, Vec<u64>)>>>, Rc<RefCell<u64>>);
+struct Recorder(Rc<RefCell<Changes>>, Rc<RefCell<u64>>);
 
 impl Tracer for Recorder {
     fn start(&mut self, _: &ProbeRegistry, _: &[ClockDomain]) -> io::Result<()> {
@@ -58,7 +60,7 @@ impl Tracer for Recorder {
     }
 }
 
-fn traced_run(reverse: bool, cycles: u64) -> (DemoReport, Vec<(u64, u32, Vec<u64>)>) {
+fn traced_run(reverse: bool, cycles: u64) -> (DemoReport, Changes) {
     let mut sim = demo::build(default_domains(), DemoConfig::default()).unwrap();
     if reverse {
         sim.reverse_eval_order();
