@@ -1,1 +1,60 @@
-fn main() {}
+//! `imagine`: the command-line front end of the stream-processor model.
+
+mod commands;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "imagine",
+    version,
+    about = "Bit-accurate, cycle-clocked model of an Imagine-style stream processor for graphics",
+    long_about = "Bit-accurate, cycle-clocked model of an Imagine-style stream processor for \
+graphics.\n\nHardware blocks (functional units, register files, scratchpad, switches, stream \
+register file, microcontroller, DRAM scheduler) are clocked RTL-style modules; kernels run as \
+compiled microcode. Every run can dump VCD waveforms for GTKWave."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene on the modelled machine (PNG, statistics, VCD)
+    Render(commands::render::RenderArgs),
+    /// Check hardware blocks against golden models
+    #[command(subcommand)]
+    Verify(commands::verify::VerifyCommand),
+    /// Assemble, disassemble, inspect, check and run kernels
+    #[command(subcommand)]
+    Kernel(commands::pending::KernelCommand),
+    /// List, show and benchmark machine descriptions
+    #[command(subcommand)]
+    Machine(commands::pending::MachineCommand),
+    /// Replay a DRAM request trace through the memory access scheduler
+    Dram(commands::pending::DramArgs),
+    /// Run the demonstration design (a pipelined MAC crossing into the DRAM clock domain)
+    Demo(commands::demo::DemoArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(a) => commands::render::run(a),
+        Command::Verify(c) => commands::verify::run(c),
+        Command::Kernel(c) => commands::pending::kernel(c),
+        Command::Machine(c) => commands::pending::machine(c),
+        Command::Dram(a) => commands::pending::dram(a),
+        Command::Demo(a) => commands::demo::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

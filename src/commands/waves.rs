@@ -1,0 +1,61 @@
+//! The waveform options shared by every subcommand that runs a design.
+
+use std::collections::BTreeSet;
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use imagine_hdl::Sim;
+use imagine_waves::{CycleWindow, VcdOptions, VcdWriter, gtkw_path, parse_window};
+
+#[derive(Args)]
+pub struct WaveArgs {
+    /// Write a VCD waveform to FILE (and a GTKWave save file next to it, FILE.gtkw)
+    #[arg(long, value_name = "FILE")]
+    vcd: Option<PathBuf>,
+    /// Dump only core cycles FROM (inclusive) to TO (exclusive); `FROM:` dumps to the end
+    #[arg(long, value_name = "FROM:TO", requires = "vcd", value_parser = parse_window)]
+    vcd_window: Option<CycleWindow>,
+    /// Dump only signals under scopes matching GLOB, e.g. 'top.mac' or '*.s2.*'
+    /// (repeatable; clocks are always dumped)
+    #[arg(long, value_name = "GLOB", requires = "vcd")]
+    vcd_scope: Vec<String>,
+}
+
+/// The files a traced run writes.
+pub struct WavePaths {
+    pub vcd: PathBuf,
+    pub gtkw: PathBuf,
+}
+
+impl WaveArgs {
+    /// Attaches a VCD writer to `sim` if `--vcd` was given.
+    pub fn attach(&self, sim: &mut Sim) -> Result<Option<WavePaths>> {
+        let Some(path) = &self.vcd else {
+            return Ok(None);
+        };
+        let options = VcdOptions {
+            window: self.vcd_window.unwrap_or_default(),
+            scopes: self.vcd_scope.clone(),
+        };
+        let unmatched = options
+            .unmatched_scopes(sim.probes())
+            .map_err(anyhow::Error::msg)?;
+        if !unmatched.is_empty() {
+            let modules: BTreeSet<&str> =
+                sim.probes().signals().iter().map(|s| s.scope()).collect();
+            bail!(
+                "--vcd-scope {} matches no signal; the design's scopes are: {}",
+                unmatched.join(", "),
+                modules.into_iter().collect::<Vec<_>>().join(", ")
+            );
+        }
+        let writer = VcdWriter::create(path, &options)?;
+        sim.attach(Box::new(writer))
+            .with_context(|| format!("cannot write `{}`", path.display()))?;
+        Ok(Some(WavePaths {
+            vcd: path.clone(),
+            gtkw: gtkw_path(path),
+        }))
+    }
+}
