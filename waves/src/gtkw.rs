@@ -1,0 +1,296 @@
+//! GTKWave save files (`.gtkw`): which signals to show, how, and where to look first.
+//!
+//! A save file written next to `out.vcd` as `out.gtkw` opens with `gtkwave out.gtkw`: it
+//! names the dump file, starts the view at the first dumped instant zoomed to a few dozen
+//! core cycles, shows the clocks first and then one group per scope (module) holding that
+//! scope's selected signals, 1-bit signals in binary and vectors in hexadecimal.
+
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::fs;
+use std::io;
+use std::path::{Path, PathBuf};
+
+use imagine_hdl::{ProbeRegistry, SignalDecl, SignalId, SignalKind};
+
+/// GTKWave trace flags (`@…` lines, hexadecimal), from GTKWave's `TR_*` bits.
+mod flags {
+    pub const HEX: u32 = 0x2;
+    pub const BIN: u32 = 0x8;
+    pub const RJUSTIFY: u32 = 0x20;
+    pub const BLANK: u32 = 0x200;
+    pub const COLLAPSED: u32 = 0x1000;
+    pub const CLOSED: u32 = 0x40_0000;
+    pub const GRP_BEGIN: u32 = 0x80_0000;
+    pub const GRP_END: u32 = 0x100_0000;
+}
+
+/// Beyond this many signals, groups start closed so the signal list stays navigable.
+const OPEN_GROUPS_MAX_SIGNALS: usize = 200;
+/// The width of the waveform pane the initial zoom is computed for, in pixels: a 1600-pixel
+/// window less the signal tree and the signal list.
+const WAVE_PANE_PX: f64 = 980.0;
+/// GTKWave shows `2^-zoom / 200` time units per pixel (its `pixelsperframe` is 200).
+const GTKWAVE_ZOOM_SCALE: f64 = 200.0;
+/// How many core cycles the initial view shows (fewer if the dump is shorter).
+const INITIAL_CYCLES: u64 = 32;
+
+/// Where the initial view of a save file starts and how much it shows.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GtkwView {
+    /// Time of the first dumped instant, picoseconds.
+    pub start_ps: u64,
+    /// Time of the last dumped instant, picoseconds, if known.
+    pub end_ps: Option<u64>,
+    /// Period of the core clock, picoseconds, if known: the view then spans a few dozen
+    /// core cycles.
+    pub core_period_ps: Option<u64>,
+}
+
+/// The save-file path that goes with a dump: `out.vcd` → `out.gtkw`.
+pub fn gtkw_path(vcd_path: &Path) -> PathBuf {
+    vcd_path.with_extension("gtkw")
+}
+
+/// The name GTKWave gives a signal of a VCD written by [`crate::VcdWriter`]: the full
+/// hierarchical path, with the bit range for vectors (`top.mac.s2.pp_lo[23:0]`).
+pub fn gtkw_signal_name(s: &SignalDecl) -> String {
+    if s.width > 1 {
+        format!("{}[{}:0]", s.path, s.width - 1)
+    } else {
+        s.path.clone()
+    }
+}
+
+/// Writes the save file for the dump at `vcd_path` (see [`gtkw_path`]) listing the
+/// `selected` signals of `probes`: clocks first, then a group per scope in the order the
+/// scopes were first registered, signals in registration order within a group. Returns
+/// the save file's path.
+pub fn write_gtkw(
+    vcd_path: &Path,
+    probes: &ProbeRegistry,
+    selected: &[SignalId],
+    view: &GtkwView,
+) -> io::Result<PathBuf> {
+    let path = gtkw_path(vcd_path);
+    // Absolute paths for both files: GTKWave uses them to find a dump moved together with
+    // its save file, too.
+    let abs = |p: &Path| -> PathBuf { std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()) };
+    let text = render_gtkw(&abs(vcd_path), &abs(&path), probes, selected, view);
+    fs::write(&path, text)?;
+    Ok(path)
+}
+
+/// The text of a save file (see [`write_gtkw`]), for the dump at `dump` and the save file at
+/// `save`, paths written as given.
+pub fn render_gtkw(
+    dump: &Path,
+    save: &Path,
+    probes: &ProbeRegistry,
+    selected: &[SignalId],
+    view: &GtkwView,
+) -> String {
+    let mut o = String::new();
+    let mut line = |s: &str| {
+        o.push_str(s);
+        o.push('\n');
+    };
+    line("[*]");
+    line(&format!(
+        "[*] imagine-waves {} GTKWave save file",
+        env!("CARGO_PKG_VERSION")
+    ));
+    line("[*]");
+    line(&format!("[dumpfile] \"{}\"", dump.display()));
+    line(&format!("[savefile] \"{}\"", save.display()));
+    line(&format!("[timestart] {}", view.start_ps));
+    line("[size] 1600 900");
+    line("[pos] -1 -1");
+    line(&format!("*{:.6} -1{}", zoom(view), " -1".repeat(26)));
+
+    let decls: Vec<&SignalDecl> = selected.iter().map(|&id| probes.get(id)).collect();
+    // Open the signal search tree along every scope that holds a selected signal.
+    let mut opened: Vec<&str> = Vec::new();
+    for s in &decls {
+        let scope = s.scope();
+        for (i, _) in scope
+            .match_indices('.')
+            .chain(std::iter::once((scope.len(), "")))
+        {
+            let prefix = &scope[..i];
+            if !prefix.is_empty() && !opened.contains(&prefix) {
+                opened.push(prefix);
+            }
+        }
+        if opened.len() > 64 {
+            break;
+        }
+    }
+    for t in opened.iter().take(64) {
+        line(&format!("[treeopen] {t}."));
+    }
+    line("[sst_width] 260");
+    line("[signals_width] 320");
+    line("[sst_expanded] 1");
+    line("[sst_vpaned_height] 260");
+
+    let mut flags_now = None;
+    let mut set_flags = |o: &mut String, f: u32| {
+        if flags_now != Some(f) {
+            let _ = writeln!(o, "@{f:x}");
+            flags_now = Some(f);
+        }
+    };
+    let trace = |o: &mut String, s: &SignalDecl, set: &mut dyn FnMut(&mut String, u32)| {
+        let f = if s.width == 1 {
+            flags::BIN | flags::RJUSTIFY
+        } else {
+            flags::HEX | flags::RJUSTIFY
+        };
+        set(o, f);
+        o.push_str(&gtkw_signal_name(s));
+        o.push('\n');
+    };
+
+    for s in decls.iter().filter(|s| s.kind == SignalKind::Clock) {
+        trace(&mut o, s, &mut set_flags);
+    }
+    // Scopes in the order they first appear, a scope counting as appearing with its first
+    // descendant, so that a module's group comes before its sub-modules' groups.
+    let mut rank: HashMap<&str, usize> = HashMap::new();
+    let mut groups: HashMap<&str, Vec<&SignalDecl>> = HashMap::new();
+    for s in decls.iter().filter(|s| s.kind != SignalKind::Clock) {
+        let scope = s.scope();
+        for (i, _) in scope
+            .match_indices('.')
+            .chain(std::iter::once((scope.len(), "")))
+        {
+            let next = rank.len();
+            rank.entry(&scope[..i]).or_insert(next);
+        }
+        groups.entry(scope).or_default().push(s);
+    }
+    let mut groups: Vec<(&str, Vec<&SignalDecl>)> = groups.into_iter().collect();
+    groups.sort_by_key(|(scope, _)| rank[scope]);
+    let closed = decls.len() > OPEN_GROUPS_MAX_SIGNALS;
+    for (scope, signals) in &groups {
+        let name = if scope.is_empty() {
+            "(top level)"
+        } else {
+            scope
+        };
+        let (begin, end) = if closed {
+            (
+                flags::GRP_BEGIN | flags::BLANK | flags::CLOSED,
+                flags::GRP_END | flags::BLANK | flags::CLOSED | flags::COLLAPSED,
+            )
+        } else {
+            (
+                flags::GRP_BEGIN | flags::BLANK,
+                flags::GRP_END | flags::BLANK,
+            )
+        };
+        set_flags(&mut o, begin);
+        let _ = writeln!(o, "-{name}");
+        for s in signals {
+            trace(&mut o, s, &mut set_flags);
+        }
+        set_flags(&mut o, end);
+        let _ = writeln!(o, "-{name}");
+    }
+    o
+}
+
+/// GTKWave's zoom for a view of about [`INITIAL_CYCLES`] core cycles (or the whole dump if
+/// shorter) across the waveform pane: `2^-zoom / 200` time units per pixel.
+fn zoom(view: &GtkwView) -> f64 {
+    let mut span = match view.core_period_ps {
+        Some(p) if p > 0 => (p * INITIAL_CYCLES) as f64,
+        _ => 64_000.0,
+    };
+    if let Some(end) = view.end_ps {
+        let dumped = end.saturating_sub(view.start_ps);
+        if dumped > 0 {
+            span = span.min(dumped as f64);
+        }
+    }
+    -(GTKWAVE_ZOOM_SCALE * span / WAVE_PANE_PX).max(1.0).log2()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn groups_clocks_and_flags() {
+        let mut r = ProbeRegistry::new();
+        let clk = r.register("top.clk_core".into(), 1, SignalKind::Clock);
+        let a = r.register("top.mac.s1.a".into(), 16, SignalKind::Reg);
+        let v = r.register("top.mac.s1.valid".into(), 1, SignalKind::Reg);
+        let st = r.register("top.mac.stalled".into(), 1, SignalKind::Reg);
+        let p = r.register("top.mac.s2.pp_lo".into(), 24, SignalKind::Reg);
+        let text = render_gtkw(
+            Path::new("/x/out.vcd"),
+            Path::new("/x/out.gtkw"),
+            &r,
+            &[a, v, st, p, clk],
+            &GtkwView {
+                start_ps: 2000,
+                end_ps: Some(10_000_000),
+                core_period_ps: Some(2000),
+            },
+        );
+        assert!(text.contains("[dumpfile] \"/x/out.vcd\"\n"), "{text}");
+        assert!(text.contains("[timestart] 2000\n"));
+        let body: Vec<&str> = text
+            .lines()
+            .skip_while(|l| !l.starts_with("[sst_vpaned_height]"))
+            .skip(1)
+            .collect();
+        assert_eq!(
+            body,
+            [
+                "@28",
+                "top.clk_core",
+                "@800200",
+                "-top.mac",
+                "@28",
+                "top.mac.stalled",
+                "@1000200",
+                "-top.mac",
+                "@800200",
+                "-top.mac.s1",
+                "@22",
+                "top.mac.s1.a[15:0]",
+                "@28",
+                "top.mac.s1.valid",
+                "@1000200",
+                "-top.mac.s1",
+                "@800200",
+                "-top.mac.s2",
+                "@22",
+                "top.mac.s2.pp_lo[23:0]",
+                "@1000200",
+                "-top.mac.s2",
+            ]
+        );
+        assert!(text.contains("[treeopen] top.\n[treeopen] top.mac.\n[treeopen] top.mac.s1.\n"));
+    }
+
+    #[test]
+    fn zoom_shows_a_few_dozen_cycles() {
+        let v = GtkwView {
+            start_ps: 0,
+            end_ps: None,
+            core_period_ps: Some(2000),
+        };
+        // 32 cycles of 2 ns over 980 px: 65.3 ps per pixel.
+        let ps_per_px = |z: f64| 2f64.powf(-z) / 200.0;
+        assert!((ps_per_px(zoom(&v)) - 64_000.0 / 980.0).abs() < 1e-6);
+        let short = GtkwView {
+            end_ps: Some(6000),
+            ..v
+        };
+        assert!((ps_per_px(zoom(&short)) - 6000.0 / 980.0).abs() < 1e-6);
+    }
+}
