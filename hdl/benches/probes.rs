@@ -46,7 +46,11 @@ fn probes(c: &mut Criterion) {
     let mut g = c.benchmark_group("demo_100k_core_cycles");
     g.throughput(Throughput::Elements(CYCLES));
     g.sample_size(20);
-    let label = if cfg!(feature = "probes") { "tracer_off" } else { "probes_compiled_out" };
+    let label = if cfg!(feature = "probes") {
+        "tracer_off"
+    } else {
+        "probes_compiled_out"
+    };
     g.bench_function(label, |b| b.iter(|| black_box(run(false))));
     if cfg!(feature = "probes") {
         g.bench_function("tracer_discarding", |b| b.iter(|| black_box(run(true))));

@@ -106,6 +106,11 @@ pub trait Tracer {
     fn change(&mut self, id: SignalId, value: &[u64]);
     /// The run is over: flush and report any error met while writing.
     fn finish(&mut self) -> io::Result<()>;
+    /// False once the tracer ignores every further change (for example past the end of a
+    /// cycle window), so the simulator can stop reporting them.
+    fn wants_changes(&self) -> bool {
+        true
+    }
 }
 
 /// Change detector between modules and a tracer: keeps the last value of every signal and

@@ -311,7 +311,9 @@ impl Sim {
             self.clock_edge(edge.rising)?;
         }
         #[cfg(feature = "probes")]
-        if let Some(t) = &mut self.trace {
+        if let Some(t) = &mut self.trace
+            && t.tracer().wants_changes()
+        {
             let clocks = &self.design.clocks;
             t.tracer()
                 .time(edge.time_ps, clocks.cycles(self.core).saturating_sub(1));

@@ -109,3 +109,50 @@ fn demo_needs_both_domains() {
         .unwrap();
     assert_eq!(e, DesignError::UnknownDomain("dram".into()));
 }
+
+/// Accepts changes only until a given time, then declines further reports.
+struct UntilTime {
+    until_ps: u64,
+    now: u64,
+    late_changes: Rc<RefCell<u64>>,
+}
+
+impl Tracer for UntilTime {
+    fn start(&mut self, _: &ProbeRegistry, _: &[ClockDomain]) -> io::Result<()> {
+        Ok(())
+    }
+    fn time(&mut self, t: u64, _: u64) {
+        self.now = t;
+    }
+    fn change(&mut self, _: SignalId, _: &[u64]) {
+        if self.now > self.until_ps {
+            *self.late_changes.borrow_mut() += 1;
+        }
+    }
+    fn finish(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+    fn wants_changes(&self) -> bool {
+        self.now <= self.until_ps
+    }
+}
+
+#[test]
+fn a_tracer_that_declines_changes_gets_no_more() {
+    let mut sim = demo::build(default_domains(), DemoConfig::default()).unwrap();
+    let late = Rc::new(RefCell::new(0));
+    let tracer = UntilTime {
+        until_ps: 10_000,
+        now: 0,
+        late_changes: late.clone(),
+    };
+    sim.attach(Box::new(tracer)).unwrap();
+    sim.run_core_cycles(1000, |_| {}).unwrap();
+    // Only the instant that crossed the limit can still report.
+    assert!(
+        *late.borrow() <= 40,
+        "{} changes after the tracer declined",
+        late.borrow()
+    );
+    assert!(DemoReport::of(&sim).matches_golden());
+}

@@ -531,6 +531,10 @@ impl<W: Write> Tracer for VcdWriter<W> {
     }
 
     #[inline]
+    fn wants_changes(&self) -> bool {
+        self.phase != Phase::Done
+    }
+
     fn change(&mut self, id: SignalId, value: &[u64]) {
         if self.phase == Phase::Done {
             return;
