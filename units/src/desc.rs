@@ -21,6 +21,10 @@ pub struct MachineDesc {
     #[serde(default)]
     pub arithmetic: Arithmetic,
     pub latency: Latency,
+    pub lrf: Lrf,
+    pub scratchpad: Scratchpad,
+    pub srf: Srf,
+    pub microcontroller: Microcontroller,
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
@@ -38,6 +42,60 @@ pub struct Cluster {
     pub adders: usize,
     pub multipliers: usize,
     pub divsqrt: usize,
+    /// Scratchpads per cluster (each with its own address and data LRFs).
+    pub scratchpads: usize,
+    /// Intercluster communication units per cluster.
+    pub comm_units: usize,
+    /// Condition-code registers (1 bit each) per cluster.
+    pub condition_codes: usize,
+}
+
+/// Local register files: one per functional-unit input.
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct Lrf {
+    /// Entries of an ordinary LRF.
+    pub entries: usize,
+    /// Entries of the larger LRFs.
+    pub large_entries: usize,
+    /// The LRFs that are large, named `unit.input` (e.g. `add0.a`).
+    pub large: Vec<String>,
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct Scratchpad {
+    /// Words per cluster per scratchpad.
+    pub words: usize,
+}
+
+/// The stream register file.
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct Srf {
+    /// Capacity in 32-bit words.
+    pub words: usize,
+    pub banks: usize,
+    /// Allocation and transfer unit; streams start on block boundaries.
+    pub block_words: usize,
+    /// Total SRF bandwidth, words per core cycle.
+    pub words_per_cycle: usize,
+    pub stream_buffers: usize,
+    /// Streams one kernel may address.
+    pub kernel_streams: usize,
+    /// Unconditional stream words per cluster per cycle.
+    pub cluster_words_per_cycle: usize,
+    /// Conditional stream words per cluster per cycle.
+    pub conditional_words_per_cycle: usize,
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct Microcontroller {
+    /// Microcode store, in VLIW instructions.
+    pub store_words: usize,
+    /// Nested loops the loop stack holds.
+    pub loop_depth: usize,
 }
 
 #[derive(Clone, Debug, Default, Deserialize, PartialEq, Eq)]
@@ -62,22 +120,45 @@ pub struct Latency {
     pub sqrt: u32,
     /// Cycles between issues to one divide/sqrt unit (1 = fully pipelined).
     pub divsqrt_issue_interval: u32,
+    pub scratchpad_read: u32,
+    pub scratchpad_write: u32,
+    pub comm: u32,
+    /// From a stream buffer to an LRF, or from an LRF into a stream buffer.
+    pub stream: u32,
 }
 
 /// A machine description that cannot be read or built.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum DescError {
-    Io { path: String, message: String },
-    Parse { source: String, message: String },
-    Invalid { machine: String, key: &'static str, problem: String },
+    Io {
+        path: String,
+        message: String,
+    },
+    Parse {
+        source: String,
+        message: String,
+    },
+    Invalid {
+        machine: String,
+        key: &'static str,
+        problem: String,
+    },
 }
 
 impl fmt::Display for DescError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            DescError::Io { path, message } => write!(f, "cannot read machine description {path}: {message}"),
-            DescError::Parse { source, message } => write!(f, "machine description {source}: {}", message.trim_end()),
-            DescError::Invalid { machine, key, problem } => write!(f, "machine `{machine}`: `{key}` {problem}"),
+            DescError::Io { path, message } => {
+                write!(f, "cannot read machine description {path}: {message}")
+            }
+            DescError::Parse { source, message } => {
+                write!(f, "machine description {source}: {}", message.trim_end())
+            }
+            DescError::Invalid {
+                machine,
+                key,
+                problem,
+            } => write!(f, "machine `{machine}`: `{key}` {problem}"),
         }
     }
 }
@@ -90,43 +171,219 @@ const MAX_UNITS: usize = 32;
 const MAX_LATENCY: u32 = 256;
 const MAX_MHZ: u64 = 100_000;
 
+/// The machine descriptions in `machines/`, built into the binary.
+pub const BUILTIN: &[(&str, &str)] = &[
+    ("gold8", include_str!("../../machines/gold8.toml")),
+    ("gold1", include_str!("../../machines/gold1.toml")),
+    ("gold16", include_str!("../../machines/gold16.toml")),
+    ("gold32", include_str!("../../machines/gold32.toml")),
+    ("gold8+F", include_str!("../../machines/gold8+F.toml")),
+    ("gold8+C", include_str!("../../machines/gold8+C.toml")),
+    ("gold8+F+C", include_str!("../../machines/gold8+F+C.toml")),
+    (
+        "gold8+srf4x",
+        include_str!("../../machines/gold8+srf4x.toml"),
+    ),
+    (
+        "gold32combo",
+        include_str!("../../machines/gold32combo.toml"),
+    ),
+];
+
+/// How many `base` links a description may follow (a longer chain is taken for a cycle).
+const MAX_BASE_DEPTH: usize = 8;
+
 impl MachineDesc {
-    /// Parses a description; `source` names it in errors (a path or a built-in name).
+    /// Parses a description; `source` names it in errors (a path or a built-in name). A
+    /// description may name a built-in `base` and give only the keys it changes.
     pub fn parse(text: &str, source: &str) -> Result<Self, DescError> {
-        let desc: MachineDesc = toml::from_str(text)
-            .map_err(|e| DescError::Parse { source: source.into(), message: e.to_string() })?;
+        let table = resolve_base(text, source, 0)?;
+        let desc: MachineDesc =
+            table
+                .try_into()
+                .map_err(|e: toml::de::Error| DescError::Parse {
+                    source: source.into(),
+                    message: e.to_string(),
+                })?;
         desc.validate()?;
         Ok(desc)
     }
 
     pub fn load(path: &Path) -> Result<Self, DescError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| DescError::Io { path: path.display().to_string(), message: e.to_string() })?;
+        let text = std::fs::read_to_string(path).map_err(|e| DescError::Io {
+            path: path.display().to_string(),
+            message: e.to_string(),
+        })?;
         Self::parse(&text, &path.display().to_string())
+    }
+
+    /// A built-in machine by name, or a description file by path.
+    pub fn resolve(name_or_path: &str) -> Result<Self, DescError> {
+        match builtin_text(name_or_path) {
+            Some(text) => Self::parse(text, name_or_path),
+            None if name_or_path.ends_with(".toml") || Path::new(name_or_path).exists() => {
+                Self::load(Path::new(name_or_path))
+            }
+            None => Err(DescError::Io {
+                path: name_or_path.into(),
+                message: format!(
+                    "no such machine; built-in machines are {}",
+                    BUILTIN
+                        .iter()
+                        .map(|(n, _)| *n)
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            }),
+        }
     }
 
     /// The built-in default machine, `machines/gold8.toml`.
     pub fn gold8() -> Self {
-        Self::parse(include_str!("../../machines/gold8.toml"), "gold8").expect("gold8 is valid")
+        Self::resolve("gold8").expect("gold8 is valid")
     }
 
     pub fn fp_mode(&self) -> FpMode {
-        FpMode { flush_to_zero: self.arithmetic.flush_to_zero }
+        FpMode {
+            flush_to_zero: self.arithmetic.flush_to_zero,
+        }
+    }
+
+    /// The LRFs of a cluster, one per functional-unit input, named `unit.input`: adders
+    /// `addN.a/b`, multipliers `mulN.a/b`, divide/sqrt `dsqN.a/b`, scratchpads `spN.addr/data`,
+    /// communication units `commN.data/perm`, and the stream output port `sout.data`.
+    pub fn lrf_names(&self) -> Vec<String> {
+        let c = &self.cluster;
+        let mut names = Vec::new();
+        for (unit, n, inputs) in [
+            ("add", c.adders, ["a", "b"]),
+            ("mul", c.multipliers, ["a", "b"]),
+            ("dsq", c.divsqrt, ["a", "b"]),
+            ("sp", c.scratchpads, ["addr", "data"]),
+            ("comm", c.comm_units, ["data", "perm"]),
+        ] {
+            for i in 0..n {
+                names.extend(inputs.iter().map(|input| format!("{unit}{i}.{input}")));
+            }
+        }
+        names.push("sout.data".into());
+        names
+    }
+
+    /// Entries of the LRF called `name` (see [`lrf_names`](Self::lrf_names)).
+    pub fn lrf_entries(&self, name: &str) -> usize {
+        if self.lrf.large.iter().any(|l| l == name) {
+            self.lrf.large_entries
+        } else {
+            self.lrf.entries
+        }
     }
 
     /// Rejects descriptions that cannot be built.
     pub fn validate(&self) -> Result<(), DescError> {
-        let bad = |key, problem: String| Err(DescError::Invalid { machine: self.name.clone(), key, problem });
+        let bad = |key, problem: String| {
+            Err(DescError::Invalid {
+                machine: self.name.clone(),
+                key,
+                problem,
+            })
+        };
         let c = &self.cluster;
         if !(1..=MAX_CLUSTERS).contains(&c.count) {
-            return bad("cluster.count", format!("is {}, must be 1..={MAX_CLUSTERS}", c.count));
+            return bad(
+                "cluster.count",
+                format!("is {}, must be 1..={MAX_CLUSTERS}", c.count),
+            );
         }
-        for (key, n) in [("cluster.adders", c.adders), ("cluster.multipliers", c.multipliers), ("cluster.divsqrt", c.divsqrt)] {
+        for (key, n) in [
+            ("cluster.adders", c.adders),
+            ("cluster.multipliers", c.multipliers),
+            ("cluster.divsqrt", c.divsqrt),
+            ("cluster.scratchpads", c.scratchpads),
+            ("cluster.comm_units", c.comm_units),
+        ] {
             if !(1..=MAX_UNITS).contains(&n) {
                 return bad(key, format!("is {n}, must be 1..={MAX_UNITS}"));
             }
         }
-        for (key, mhz) in [("clocks.core_mhz", self.clocks.core_mhz), ("clocks.dram_mhz", self.clocks.dram_mhz)] {
+        let sizes = [
+            ("cluster.condition_codes", c.condition_codes, 1, 256),
+            ("lrf.entries", self.lrf.entries, 2, 1024),
+            ("lrf.large_entries", self.lrf.large_entries, 2, 1024),
+            ("scratchpad.words", self.scratchpad.words, 1, 1 << 16),
+            ("srf.banks", self.srf.banks, 1, 256),
+            ("srf.block_words", self.srf.block_words, 1, 1 << 16),
+            ("srf.words_per_cycle", self.srf.words_per_cycle, 1, 1 << 12),
+            ("srf.stream_buffers", self.srf.stream_buffers, 2, 256),
+            ("srf.kernel_streams", self.srf.kernel_streams, 1, 256),
+            (
+                "srf.cluster_words_per_cycle",
+                self.srf.cluster_words_per_cycle,
+                1,
+                64,
+            ),
+            (
+                "srf.conditional_words_per_cycle",
+                self.srf.conditional_words_per_cycle,
+                1,
+                64,
+            ),
+            (
+                "microcontroller.store_words",
+                self.microcontroller.store_words,
+                1,
+                1 << 20,
+            ),
+            (
+                "microcontroller.loop_depth",
+                self.microcontroller.loop_depth,
+                1,
+                64,
+            ),
+        ];
+        for (key, v, lo, hi) in sizes {
+            if !(lo..=hi).contains(&v) {
+                return bad(key, format!("is {v}, must be {lo}..={hi}"));
+            }
+        }
+        let srf = &self.srf;
+        if !srf.words.is_multiple_of(srf.block_words * srf.banks)
+            || srf.words == 0
+            || srf.words > 1 << 26
+        {
+            return bad(
+                "srf.words",
+                format!(
+                    "is {}, must be a positive multiple of banks × block_words = {} (at most 2^26)",
+                    srf.words,
+                    srf.banks * srf.block_words
+                ),
+            );
+        }
+        if srf.kernel_streams > srf.stream_buffers {
+            return bad(
+                "srf.kernel_streams",
+                format!(
+                    "is {}, more than the {} stream buffers",
+                    srf.kernel_streams, srf.stream_buffers
+                ),
+            );
+        }
+        for name in &self.lrf.large {
+            if !self.lrf_names().contains(name) {
+                return bad(
+                    "lrf.large",
+                    format!(
+                        "names `{name}`, which is not an LRF of this cluster ({})",
+                        self.lrf_names().join(", ")
+                    ),
+                );
+            }
+        }
+        for (key, mhz) in [
+            ("clocks.core_mhz", self.clocks.core_mhz),
+            ("clocks.dram_mhz", self.clocks.dram_mhz),
+        ] {
             if !(1..=MAX_MHZ).contains(&mhz) {
                 return bad(key, format!("is {mhz}, must be 1..={MAX_MHZ}"));
             }
@@ -139,6 +396,10 @@ impl MachineDesc {
             ("latency.div", l.div),
             ("latency.sqrt", l.sqrt),
             ("latency.divsqrt_issue_interval", l.divsqrt_issue_interval),
+            ("latency.scratchpad_read", l.scratchpad_read),
+            ("latency.scratchpad_write", l.scratchpad_write),
+            ("latency.comm", l.comm),
+            ("latency.stream", l.stream),
         ] {
             if !(1..=MAX_LATENCY).contains(&v) {
                 return bad(key, format!("is {v}, must be 1..={MAX_LATENCY} cycles"));
@@ -148,10 +409,61 @@ impl MachineDesc {
         if l.divsqrt_issue_interval > shortest {
             return bad(
                 "latency.divsqrt_issue_interval",
-                format!("is {}, longer than the divide/sqrt latency {shortest}", l.divsqrt_issue_interval),
+                format!(
+                    "is {}, longer than the divide/sqrt latency {shortest}",
+                    l.divsqrt_issue_interval
+                ),
             );
         }
         Ok(())
+    }
+}
+
+fn builtin_text(name: &str) -> Option<&'static str> {
+    BUILTIN.iter().find(|(n, _)| *n == name).map(|(_, t)| *t)
+}
+
+/// Parses `text` and, if it names a `base`, lays its keys over the base's (tables merge key
+/// by key; any other value replaces the base's).
+fn resolve_base(text: &str, source: &str, depth: usize) -> Result<toml::Table, DescError> {
+    let parse_error = |message: String| DescError::Parse {
+        source: source.into(),
+        message,
+    };
+    let mut table: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| parse_error(e.to_string()))?;
+    let Some(base) = table.remove("base") else {
+        return Ok(table);
+    };
+    let Some(base) = base.as_str() else {
+        return Err(parse_error(
+            "`base` must be the name of a built-in machine".into(),
+        ));
+    };
+    if depth >= MAX_BASE_DEPTH {
+        return Err(parse_error(format!(
+            "`base` chain is longer than {MAX_BASE_DEPTH} (a cycle?)"
+        )));
+    }
+    let Some(base_text) = builtin_text(base) else {
+        return Err(parse_error(format!(
+            "`base` names `{base}`, which is not a built-in machine"
+        )));
+    };
+    let mut merged = resolve_base(base_text, base, depth + 1)?;
+    merge(&mut merged, table);
+    Ok(merged)
+}
+
+fn merge(into: &mut toml::Table, from: toml::Table) {
+    for (key, value) in from {
+        match (into.get_mut(&key), value) {
+            (Some(toml::Value::Table(a)), toml::Value::Table(b)) => merge(a, b),
+            (_, value) => {
+                into.insert(key, value);
+            }
+        }
     }
 }
 
@@ -164,11 +476,119 @@ mod tests {
     #[test]
     fn gold8_has_the_architecture_defaults() {
         let m = MachineDesc::gold8();
-        assert_eq!((m.cluster.count, m.cluster.adders, m.cluster.multipliers, m.cluster.divsqrt), (8, 3, 2, 1));
-        assert_eq!((m.latency.int, m.latency.fp_add, m.latency.mul, m.latency.div), (2, 4, 4, 16));
+        assert_eq!(
+            (
+                m.cluster.count,
+                m.cluster.adders,
+                m.cluster.multipliers,
+                m.cluster.divsqrt
+            ),
+            (8, 3, 2, 1)
+        );
+        assert_eq!(
+            (
+                m.latency.int,
+                m.latency.fp_add,
+                m.latency.mul,
+                m.latency.div
+            ),
+            (2, 4, 4, 16)
+        );
         assert_eq!(m.latency.divsqrt_issue_interval, 8);
+        // 2×32 + 15×16 LRF entries per cluster.
+        let names = m.lrf_names();
+        assert_eq!(names.len(), 17);
+        let sizes: Vec<usize> = names.iter().map(|n| m.lrf_entries(n)).collect();
+        assert_eq!(sizes.iter().filter(|&&e| e == 32).count(), 2);
+        assert_eq!(sizes.iter().filter(|&&e| e == 16).count(), 15);
+        assert_eq!(
+            (
+                m.srf.words,
+                m.srf.banks,
+                m.srf.block_words,
+                m.srf.words_per_cycle
+            ),
+            (32768, 8, 32, 16)
+        );
+        assert_eq!(
+            (
+                m.scratchpad.words,
+                m.cluster.condition_codes,
+                m.microcontroller.store_words
+            ),
+            (256, 16, 2048)
+        );
         assert_eq!((m.clocks.core_mhz, m.clocks.dram_mhz), (500, 167));
         assert!(!m.fp_mode().flush_to_zero);
+    }
+
+    #[test]
+    fn every_builtin_machine_is_valid_and_differs_as_named() {
+        for (name, _) in BUILTIN {
+            let m = MachineDesc::resolve(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert_eq!(&m.name, name);
+        }
+        let get = |n| MachineDesc::resolve(n).unwrap();
+        assert_eq!(get("gold1").cluster.count, 1);
+        assert_eq!(
+            (get("gold16").cluster.count, get("gold16").srf.words),
+            (16, 65536)
+        );
+        assert_eq!(
+            (get("gold32").cluster.count, get("gold32").srf.words),
+            (32, 131072)
+        );
+        let f = get("gold8+F");
+        assert_eq!(
+            (
+                f.cluster.adders,
+                f.cluster.multipliers,
+                f.latency.divsqrt_issue_interval
+            ),
+            (6, 4, 1)
+        );
+        let c = get("gold8+C");
+        assert_eq!(
+            (
+                c.cluster.comm_units,
+                c.cluster.scratchpads,
+                c.cluster.adders
+            ),
+            (3, 3, 3)
+        );
+        let fc = get("gold8+F+C");
+        assert_eq!((fc.cluster.adders, fc.cluster.comm_units), (6, 3));
+        assert_eq!(get("gold8+srf4x").srf.words, 4 * get("gold8").srf.words);
+        let combo = get("gold32combo");
+        assert_eq!(
+            (
+                combo.cluster.count,
+                combo.cluster.adders,
+                combo.cluster.comm_units
+            ),
+            (32, 6, 3)
+        );
+        // Inherited keys stay as the base has them.
+        assert_eq!(get("gold16").latency, get("gold8").latency);
+    }
+
+    #[test]
+    fn bad_bases_and_unknown_machines_are_named() {
+        let e = MachineDesc::parse("name = \"x\"\nbase = \"gold9\"", "x.toml").unwrap_err();
+        assert!(e.to_string().contains("gold9"), "{e}");
+        let e = MachineDesc::resolve("gold7").unwrap_err();
+        assert!(
+            e.to_string().contains("gold7") && e.to_string().contains("gold8+F"),
+            "{e}"
+        );
+        let e = MachineDesc::parse(
+            "name = \"x\"\nbase = \"gold8\"\n[cluster]\ncount = 0",
+            "x.toml",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("cluster.count"), "{e}");
+        let e = MachineDesc::parse("name = \"x\"\nbase = 3", "x.toml").unwrap_err();
+        assert!(e.to_string().contains("base"), "{e}");
     }
 
     #[test]
@@ -177,13 +597,22 @@ mod tests {
         assert!(e.to_string().contains("addres"), "{e}");
         let e = MachineDesc::parse(&GOLD8.replace("count = 8", "count = 0"), "t").unwrap_err();
         assert!(e.to_string().contains("cluster.count"), "{e}");
-        let e = MachineDesc::parse(&GOLD8.replace("divsqrt_issue_interval = 8", "divsqrt_issue_interval = 17"), "t")
-            .unwrap_err();
+        let e = MachineDesc::parse(
+            &GOLD8.replace("divsqrt_issue_interval = 8", "divsqrt_issue_interval = 17"),
+            "t",
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("divsqrt_issue_interval"), "{e}");
         let e = MachineDesc::parse(&GOLD8.replace("mul = 4", "mul = 0"), "t").unwrap_err();
         assert!(e.to_string().contains("latency.mul"), "{e}");
-        let e = MachineDesc::parse(&GOLD8.replace("core_mhz = 500", "core_mhz = -5"), "t").unwrap_err();
+        let e =
+            MachineDesc::parse(&GOLD8.replace("core_mhz = 500", "core_mhz = -5"), "t").unwrap_err();
         assert!(e.to_string().contains("core_mhz"), "{e}");
+        let e =
+            MachineDesc::parse(&GOLD8.replace("words = 32768", "words = 1000"), "t").unwrap_err();
+        assert!(e.to_string().contains("srf.words"), "{e}");
+        let e = MachineDesc::parse(&GOLD8.replace("\"add0.a\"", "\"add9.a\""), "t").unwrap_err();
+        assert!(e.to_string().contains("add9.a"), "{e}");
         let e = MachineDesc::load(Path::new("/nonexistent/m.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/m.toml"), "{e}");
     }
