@@ -33,7 +33,7 @@ enum Command {
     Kernel(commands::pending::KernelCommand),
     /// List, show and benchmark machine descriptions
     #[command(subcommand)]
-    Machine(commands::pending::MachineCommand),
+    Machine(commands::machine::MachineCommand),
     /// Replay a DRAM request trace through the memory access scheduler
     Dram(commands::pending::DramArgs),
     /// Run the demonstration design (a pipelined MAC crossing into the DRAM clock domain)
@@ -46,7 +46,7 @@ fn main() -> ExitCode {
         Command::Render(a) => commands::render::run(a),
         Command::Verify(c) => commands::verify::run(c),
         Command::Kernel(c) => commands::pending::kernel(c),
-        Command::Machine(c) => commands::pending::machine(c),
+        Command::Machine(c) => commands::machine::run(c),
         Command::Dram(a) => commands::pending::dram(a),
         Command::Demo(a) => commands::demo::run(a),
     };

@@ -40,7 +40,8 @@ fn bad_arguments_are_errors_not_panics() {
         &["demo", "--core-mhz", "99999999999999"],
         &["demo", "--crossing-capacity", "0"],
         &["render"],
-        &["machine", "list"],
+        &["machine", "show", "gold9"],
+        &["machine", "show", "/nonexistent/m.toml"],
     ] {
         let o = imagine(args);
         let err = stderr(&o);
@@ -83,4 +84,100 @@ fn demo_reports_a_result_matching_its_model() {
     // 30000 core cycles at 500 MHz are 10020 DRAM cycles at 167 MHz (edges 0..=10019).
     assert!(out.contains("dram cycles        10020"), "{out}");
     assert!(out.contains("results match the behavioural model"), "{out}");
+}
+
+fn imagine_with_stdin(args: &[&str], input: &str) -> Output {
+    use std::io::Write;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_imagine"))
+        .args(args)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("run imagine");
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn verify_fpu_passes_committed_softfloat_vectors() {
+    let vectors = include_str!("../units/tests/vectors/f32_div.txt");
+    let o = imagine_with_stdin(&["verify", "fpu", "f32_div"], vectors);
+    assert!(o.status.success(), "{}{}", stdout(&o), stderr(&o));
+    let lines = vectors.lines().count();
+    assert!(
+        stdout(&o)
+            .trim_end()
+            .ends_with(&format!("{lines} passed, 0 failed")),
+        "{}",
+        stdout(&o)
+    );
+}
+
+#[test]
+fn verify_fpu_reports_mismatches_and_fails() {
+    // 1 + 2 = 3 exactly: the second line's expected result and flags are wrong.
+    let o = imagine_with_stdin(
+        &["verify", "fpu", "f32_add"],
+        "3F800000 40000000 40400000 00\n3F800000 40000000 40400001 01\n",
+    );
+    assert!(!o.status.success());
+    let out = stdout(&o);
+    assert!(out.contains("line 2") && out.contains("40400001"), "{out}");
+    assert!(out.trim_end().ends_with("1 passed, 1 failed"), "{out}");
+}
+
+#[test]
+fn verify_fpu_rejects_malformed_input_and_unknown_ops() {
+    let o = imagine_with_stdin(
+        &["verify", "fpu", "f32_sqrt"],
+        "3F800000 3F800000 00\n12345 3F800000\n",
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("line 2"), "{}", stderr(&o));
+    let o = imagine_with_stdin(&["verify", "fpu", "f64_add"], "");
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("f64_add") && stderr(&o).contains("f32_add"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn machine_list_and_show_describe_every_builtin() {
+    let o = imagine(&["machine", "list"]);
+    assert!(o.status.success());
+    let list = stdout(&o);
+    for name in [
+        "gold8",
+        "gold1",
+        "gold16",
+        "gold32",
+        "gold8+F",
+        "gold8+C",
+        "gold8+F+C",
+        "gold8+srf4x",
+        "gold32combo",
+    ] {
+        assert!(
+            list.lines()
+                .any(|l| l.split_whitespace().next() == Some(name)),
+            "{name} missing:\n{list}"
+        );
+        let o = imagine(&["machine", "show", name]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert!(
+            stdout(&o).contains(&format!("machine      {name}")),
+            "{}",
+            stdout(&o)
+        );
+    }
+    let show = stdout(&imagine(&["machine", "show", "gold8+F"]));
+    assert!(show.contains("6 adders, 4 multipliers"), "{show}");
 }

@@ -1,6 +1,8 @@
 //! One module per subcommand.
 
+pub mod bench;
 pub mod demo;
+pub mod machine;
 pub mod pending;
 pub mod render;
 pub mod verify;

@@ -23,16 +23,6 @@ pub enum KernelCommand {
     Run { file: PathBuf },
 }
 
-#[derive(Subcommand)]
-pub enum MachineCommand {
-    /// List the machine descriptions
-    List,
-    /// Show one machine description
-    Show { name: String },
-    /// Measure simulated cycles per host second on a compute-dense loop
-    Bench,
-}
-
 #[derive(Args)]
 pub struct DramArgs {
     /// Request trace: `<hex byte address> READ|WRITE <DRAM cycle>` per line
@@ -54,15 +44,6 @@ pub fn kernel(c: KernelCommand) -> Result<ExitCode> {
         KernelCommand::Run { .. } => "kernel run",
     };
     not_yet(what, "the microcode format and kernel compiler")
-}
-
-pub fn machine(c: MachineCommand) -> Result<ExitCode> {
-    let what = match c {
-        MachineCommand::List => "machine list",
-        MachineCommand::Show { .. } => "machine show",
-        MachineCommand::Bench => "machine bench",
-    };
-    not_yet(what, "the composed machine")
 }
 
 pub fn dram(_: DramArgs) -> Result<ExitCode> {

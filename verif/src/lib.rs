@@ -1,2 +1,4 @@
 //! imagine-verif: golden models, testbenches, reference renderer and image metrics
 //! (ARCHITECTURE §6).
+
+pub mod testfloat;

@@ -1,0 +1,217 @@
+//! Fully pipelined units: the [`Adder`] and the [`Multiplier`], both a [`Pipelined`] unit
+//! of a [`UnitClass`], differing only in which ops they accept.
+//!
+//! A pipelined unit accepts one op per cycle, whatever its latency; ops of different latency
+//! (an adder's 2-cycle integer ops and 4-cycle fp ops) travel down the same pipeline and leave
+//! through one result port, so an issue whose result would leave in the same cycle as an
+//! earlier op's is a writeback conflict (e.g. `iadd` two cycles after `fadd` on a
+//! 2-cycle-int/4-cycle-fp adder).
+//!
+//! The value is computed at issue by [`Op::eval_lanes`] and held in the stage registers until
+//! the op's latency has elapsed. The stage registers are a ring of per-cycle slots, each with
+//! a preallocated word and flag buffer for every lane: no allocation after construction, one
+//! slot write per issue and an index increment per commit. The probes `stage{k}.valid` and
+//! `stage{k}.op` show, after each clock edge, the op issued `k` cycles ago (stage 1 is the
+//! first register after the operand latch; stage `L` is the op's output register).
+
+use std::marker::PhantomData;
+
+use imagine_hdl::{ContractError, Scope, Trace};
+
+use super::{
+    Completion, Issue, IssueLatch, Ring, Slot, UnitProbes, issue_path, operands, second_issue,
+    wrong_class,
+};
+use crate::arith::flags::Flags;
+use crate::arith::fp32::FpMode;
+use crate::desc::MachineDesc;
+use crate::ops::{Op, UnitClass};
+
+/// The unit class of a [`Pipelined`] unit, at the type level.
+pub trait PipelinedKind: 'static {
+    const CLASS: UnitClass;
+}
+
+/// Marker of [`Adder`].
+#[derive(Debug)]
+pub enum AdderKind {}
+/// Marker of [`Multiplier`].
+#[derive(Debug)]
+pub enum MultiplierKind {}
+
+impl PipelinedKind for AdderKind {
+    const CLASS: UnitClass = UnitClass::Adder;
+}
+impl PipelinedKind for MultiplierKind {
+    const CLASS: UnitClass = UnitClass::Multiplier;
+}
+
+/// A cluster adder slot in every cluster.
+pub type Adder = Pipelined<AdderKind>;
+/// A cluster multiplier slot in every cluster.
+pub type Multiplier = Pipelined<MultiplierKind>;
+
+/// A fully pipelined unit of class `K::CLASS`, one copy per lane (cluster).
+#[derive(Debug)]
+pub struct Pipelined<K: PipelinedKind> {
+    path: String,
+    lanes: usize,
+    mode: FpMode,
+    /// Latency of each opcode on this unit; 0 for ops of other classes.
+    latency: Box<[u32]>,
+    max_latency: u32,
+    ring: Ring,
+    /// Per slot, `lanes` result words / flags.
+    values: Vec<u32>,
+    flags: Vec<Flags>,
+    /// An op was issued in the current cycle.
+    issued: bool,
+    latch: IssueLatch,
+    probes: UnitProbes,
+    _kind: PhantomData<K>,
+}
+
+impl<K: PipelinedKind> Pipelined<K> {
+    /// The unit slot `name` (e.g. `add0`) in `lanes` clusters, with the latencies and fp mode
+    /// of `desc`; probes under `<scope>.cluster{c}.{name}`.
+    pub fn new(scope: &mut Scope<'_>, name: &str, lanes: usize, desc: &MachineDesc) -> Self {
+        assert!(lanes > 0, "unit `{name}` needs at least one lane");
+        let class = K::CLASS;
+        let latency: Box<[u32]> = Op::ALL
+            .iter()
+            .map(|op| {
+                if op.unit() == class {
+                    op.latency(&desc.latency)
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let max_latency = latency.iter().copied().max().unwrap_or(1).max(1);
+        let ports = Op::ALL
+            .iter()
+            .filter(|op| op.unit() == class)
+            .map(|op| op.arity())
+            .max()
+            .unwrap_or(1);
+        let ring = Ring::new(max_latency);
+        let depth = ring.slots.len();
+        Pipelined {
+            path: issue_path(scope, name),
+            lanes,
+            mode: desc.fp_mode(),
+            latency,
+            max_latency,
+            ring,
+            values: vec![0; depth * lanes],
+            flags: vec![Flags::NONE; depth * lanes],
+            issued: false,
+            latch: IssueLatch::new(lanes),
+            probes: UnitProbes::new(scope, name, lanes, ports, 1..=max_latency),
+            _kind: PhantomData,
+        }
+    }
+
+    /// Issues an op in the current cycle (see the [module](super) doc for the contract).
+    #[inline]
+    pub fn issue(&mut self, is: Issue<'_>) -> Result<(), ContractError> {
+        if self.issued {
+            return Err(second_issue(&self.path));
+        }
+        let lat = self.latency[is.op.opcode() as usize];
+        if lat == 0 {
+            return Err(wrong_class(&self.path, is.op, K::CLASS));
+        }
+        let (a, b, c) = operands(&self.path, self.lanes, &is)?;
+        let s = self.ring.slot_after(lat);
+        if self.ring.slots[s].valid {
+            return Err(self.ring.conflict(&self.path, is.op, lat));
+        }
+        let n = self.lanes;
+        let range = s * n..(s + 1) * n;
+        is.op.eval_lanes(
+            a,
+            b,
+            c,
+            self.mode,
+            &mut self.values[range.clone()],
+            &mut self.flags[range],
+        );
+        self.ring.slots[s] = Slot {
+            valid: true,
+            op: is.op,
+            tag: is.tag,
+            latency: lat,
+            issued: self.ring.cycle,
+        };
+        self.latch.capture(&is);
+        self.issued = true;
+        Ok(())
+    }
+
+    /// The op completing in the current cycle, if any (from committed state).
+    #[inline]
+    pub fn completed(&self) -> Option<Completion<'_>> {
+        let s = self.ring.current()?;
+        let n = self.lanes;
+        let range = self.ring.head * n..(self.ring.head + 1) * n;
+        Some(Completion {
+            op: s.op,
+            tag: s.tag,
+            values: &self.values[range.clone()],
+            flags: &self.flags[range],
+        })
+    }
+
+    /// Ends the cycle: every op moves one stage on; the completed op (if any) leaves.
+    #[inline]
+    pub fn commit(&mut self) {
+        self.ring.advance();
+        self.latch.valid = self.issued;
+        self.issued = false;
+    }
+
+    /// Reports every probe (after a commit).
+    pub fn trace(&self, t: &mut Trace) {
+        let stages = self.ring.stages(self.max_latency);
+        self.probes.trace(t, &self.latch, self.completed(), &stages);
+    }
+
+    /// The latency of `op` on this unit, or `None` if the unit does not execute it.
+    pub fn latency_of(&self, op: Op) -> Option<u32> {
+        Some(self.latency[op.opcode() as usize]).filter(|&l| l > 0)
+    }
+
+    /// Whether issuing `op` now would be accepted (no issue yet this cycle, right class, no
+    /// writeback conflict).
+    pub fn can_issue(&self, op: Op) -> bool {
+        self.latency_of(op)
+            .is_some_and(|l| !self.issued && !self.ring.slots[self.ring.slot_after(l)].valid)
+    }
+
+    /// The unit's class.
+    pub fn class(&self) -> UnitClass {
+        K::CLASS
+    }
+
+    /// The path that errors name: `<scope>.cluster*.<name>.issue`.
+    pub fn path(&self) -> &str {
+        &self.path
+    }
+
+    pub fn lanes(&self) -> usize {
+        self.lanes
+    }
+
+    /// Cycles committed since construction.
+    pub fn cycle(&self) -> u64 {
+        self.ring.cycle
+    }
+
+    /// Ops issued and not yet completed-and-committed.
+    pub fn in_flight(&self) -> usize {
+        self.ring.in_flight()
+    }
+}
+
+super::impl_functional_unit!([K: PipelinedKind] Pipelined<K>);
