@@ -184,7 +184,7 @@ impl Clocks {
         for (i, fires) in fired.into_iter().enumerate() {
             if fires {
                 let d = DomainId(i as u8);
-                if self.next_half[i] % 2 == 0 {
+                if self.next_half[i].is_multiple_of(2) {
                     edge.rising.insert(d);
                     self.cycles[i] += 1;
                 } else {

@@ -174,7 +174,7 @@ impl Trace {
         );
         let words = &words[..n];
         debug_assert!(
-            self.widths[i] % 64 == 0 || words[n - 1] >> (self.widths[i] % 64) == 0,
+            self.widths[i].is_multiple_of(64) || words[n - 1] >> (self.widths[i] % 64) == 0,
             "value does not fit signal {i} of width {}",
             self.widths[i]
         );

@@ -372,7 +372,7 @@ impl Sim {
         while self.core_cycles() < end {
             let edge = self.step()?;
             let done = self.core_cycles() - start;
-            if edge.rising.contains(self.core) && done % 65_536 == 0 {
+            if edge.rising.contains(self.core) && done.is_multiple_of(65_536) {
                 progress(done);
             }
         }

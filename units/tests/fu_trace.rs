@@ -113,11 +113,11 @@ impl Module for Fus {
             2 => plan.push((0, Op::IAdd)),
             _ => plan.push((0, Op::FAdd)),
         }
-        if t % 2 == 0 {
+        if t & 1 == 0 {
             plan.push((1, Op::FMul));
         }
         if self.dsq.can_issue(Op::FDiv) {
-            plan.push((2, if t % 16 == 0 { Op::FDiv } else { Op::FSqrt }));
+            plan.push((2, if t & 15 == 0 { Op::FDiv } else { Op::FSqrt }));
         }
         for (unit, op) in plan {
             let (a, b) = self.operands(t * 3 + unit);

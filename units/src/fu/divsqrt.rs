@@ -19,7 +19,7 @@
 //! machines) the core does all 12 steps in one cycle and the unit accepts an op every cycle.
 //! Issuing while the core is busy, or so that the result would leave in the same cycle as an
 //! earlier op's (possible when `latency.div ≠ latency.sqrt`), is a [`ContractError`] with
-//! [`Violation::Busy`](imagine_hdl::Violation::Busy).
+//! [`Violation::Busy`].
 //!
 //! Probes, per cluster under `<scope>.cluster{c}.{name}`: the common unit probes, the core
 //! register `core.valid`, `core.op`, `core.rem` (partial remainder), `core.quotient` (quotient
@@ -192,10 +192,10 @@ impl DivSqrt {
             op => return Err(wrong_class(&self.path, op, UnitClass::DivSqrt)),
         };
         let (a, b, _) = operands(&self.path, self.lanes, &is)?;
-        if let Some((t0, s0)) = self.last {
-            if self.ring.cycle < t0 + u64::from(self.interval) {
-                return Err(self.core_busy(is.op, t0, s0));
-            }
+        if let Some((t0, s0)) = self.last
+            && self.ring.cycle < t0 + u64::from(self.interval)
+        {
+            return Err(self.core_busy(is.op, t0, s0));
         }
         let s = self.ring.slot_after(lat);
         if self.ring.slots[s].valid {

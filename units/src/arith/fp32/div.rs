@@ -108,14 +108,12 @@ pub fn div_setup(a: u32, b: u32, mode: FpMode) -> Setup<DivJob> {
     let a = flush_input(a, mode);
     let b = flush_input(b, mode);
     let sign = (a ^ b) & SIGN;
-    if a & EXP_MASK == EXP_MASK
-        || b & EXP_MASK == EXP_MASK
-        || a & EXP_MASK == 0
-        || b & EXP_MASK == 0
+    // Only an operand with an all-ones or all-zeros exponent can be special.
+    let unusual = |x: u32| x & EXP_MASK == EXP_MASK || x & EXP_MASK == 0;
+    if (unusual(a) || unusual(b))
+        && let Some((r, f)) = div_special(a, b)
     {
-        if let Some((r, f)) = div_special(a, b) {
-            return Setup::Done(r, f);
-        }
+        return Setup::Done(r, f);
     }
     let (ea, ma) = super::unpack_normalised(a);
     let (eb, mb) = super::unpack_normalised(b);
