@@ -557,7 +557,7 @@ impl<W: Write> Tracer for VcdWriter<W> {
             cur[..value.len()].copy_from_slice(value);
         }
         // Bits above the width are not part of the value.
-        if s.width % 64 != 0 {
+        if !s.width.is_multiple_of(64) {
             cur[n - 1] &= (1u64 << (s.width % 64)) - 1;
         }
         self.cur_known[slot] = true;
@@ -573,10 +573,10 @@ impl<W: Write> Tracer for VcdWriter<W> {
         }
         self.close_window(None);
         self.drain();
-        if self.error.is_none() {
-            if let Err(e) = self.vcd.flush() {
-                self.fail(e);
-            }
+        if self.error.is_none()
+            && let Err(e) = self.vcd.flush()
+        {
+            self.fail(e);
         }
         if let Some(e) = self.error.take() {
             return Err(e);
