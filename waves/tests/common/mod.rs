@@ -208,7 +208,7 @@ pub fn model(
                 let w = widths[id];
                 let mut v = v.clone();
                 v.resize(w.div_ceil(64) as usize, 0);
-                if w % 64 != 0 {
+                if !w.is_multiple_of(64) {
                     let n = v.len();
                     v[n - 1] &= (1 << (w % 64)) - 1;
                 }
