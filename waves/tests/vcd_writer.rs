@@ -52,7 +52,7 @@ fn events(reg: &ProbeRegistry, cycles: u64, seed: u64) -> Vec<Event> {
         ev.push(Event::Time(t, k / 2));
         ev.push(Event::Change(0, vec![(k + 1) % 2]));
         for (i, s) in reg.signals().iter().enumerate().skip(1) {
-            if s.path == "top.x.silent" || rng.next() % 3 == 0 {
+            if s.path == "top.x.silent" || rng.next().is_multiple_of(3) {
                 continue;
             }
             let mut v: Vec<u64> = (0..s.words()).map(|_| rng.next()).collect();
