@@ -56,7 +56,7 @@ fn events(reg: &ProbeRegistry, cycles: u64, seed: u64) -> Vec<Event> {
                 continue;
             }
             let mut v: Vec<u64> = (0..s.words()).map(|_| rng.next()).collect();
-            if rng.next() % 4 == 0 {
+            if rng.next().is_multiple_of(4) {
                 v.iter_mut().for_each(|w| *w &= 3); // small values, frequent repeats
             }
             if s.width % 64 != 0 {
