@@ -360,6 +360,22 @@ impl Sim {
         Ok(())
     }
 
+    /// Runs until `done` holds (checked after every core-clock edge) or `max` more core
+    /// cycles have elapsed; returns whether `done` held.
+    pub fn run_until(
+        &mut self,
+        max: u64,
+        mut done: impl FnMut(&Sim) -> bool,
+    ) -> Result<bool, ContractError> {
+        let end = self.core_cycles() + max;
+        while self.core_cycles() < end {
+            if self.step()?.rising.contains(self.core) && done(self) {
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    }
+
     /// Runs until `n` more core-clock cycles have elapsed, calling `progress` every
     /// 65,536 core cycles with the cycles done.
     pub fn run_core_cycles(

@@ -8,11 +8,27 @@
 //!   every op, shared by the interpreter and the clocked units.
 //! * [`fu`] — the clocked, lane-batched functional units: pipelined adders and multipliers,
 //!   and the iterative divide/sqrt unit.
+//! * [`microcode`] — the clusters' VLIW instructions: the semantic model, the checks that a
+//!   program fits the machine, the binary word layout, and the assembler/disassembler.
+//! * the cluster's blocks: [`lrf`] (local register files), [`switch`] (intracluster
+//!   switch), [`ccfile`] (condition codes), [`scratchpad`], [`comm`] (intercluster network),
+//!   [`delay`] (result pipeline registers), and the [`microcontroller`];
+//! * [`machine`] — the composed machine that runs microcode kernels cycle by cycle.
 //! * [`srf`] — the stream register file: block-interleaved storage, stream buffers and the
 //!   arbiter that grants the SRF port to them.
 
 pub mod arith;
+pub mod ccfile;
+pub mod comm;
+pub mod delay;
 pub mod desc;
 pub mod fu;
+pub mod lrf;
+pub mod machine;
+pub mod microcode;
+pub mod microcontroller;
 pub mod ops;
+pub mod runner;
+pub mod scratchpad;
 pub mod srf;
+pub mod switch;

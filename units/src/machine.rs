@@ -1,0 +1,852 @@
+//! The composed machine (ARCHITECTURE §4): the microcontroller, the clusters (functional
+//! units, LRFs, intracluster switch, condition codes, scratchpads, intercluster network,
+//! stream ports) and the SRF, built from a [`MachineDesc`] and clocked as one hdl
+//! [`Module`] in the core domain.
+//!
+//! The clusters are lane-batched: each unit object models one unit slot in every cluster,
+//! so one microinstruction is executed for all clusters in tight loops over lanes.
+//!
+//! Each cycle:
+//!
+//! 1. the microcontroller fetches the instruction (entering or skipping loops) and decides
+//!    which software-pipeline stages are live;
+//! 2. if a live stream access cannot proceed (an input stream buffer without the words, an
+//!    output stream buffer without room), the whole cluster array stalls: no unit advances
+//!    and the instruction issues again next cycle; only the SRF keeps moving data;
+//! 3. otherwise results due this cycle go through the switch to LRFs, condition codes and
+//!    output streams, the live slots read their operands and issue, and the microcontroller
+//!    picks the next instruction;
+//! 4. at the edge every block commits.
+//!
+//! After the `Done` instruction the machine waits for every result in flight, then flushes
+//! the output stream buffers into the SRF; then the kernel is over.
+
+use std::fmt;
+
+use imagine_hdl::{ContractError, DomainId, Module, Scope, Trace, Violation};
+
+use crate::ccfile::CcFile;
+use crate::comm::CommUnit;
+use crate::delay::DelayLine;
+use crate::desc::MachineDesc;
+use crate::fu::{Adder, Completion, DivSqrt, Issue, Multiplier};
+use crate::lrf::Lrf;
+use crate::microcode::{Dests, ImmValue, Instruction, Permutation, Program, StreamDir};
+use crate::microcontroller::{LoopEnv, Microcontroller, Phase};
+use crate::ops::Op;
+use crate::scratchpad::Scratchpad;
+use crate::srf::Srf;
+use crate::switch::{StreamSink, route};
+
+/// Where a kernel's stream lives in the SRF: its first word and its length (inputs) or the
+/// room reserved for it (outputs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StreamBinding {
+    pub start: usize,
+    pub words: usize,
+}
+
+/// A kernel that cannot be started on this machine.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StartError(pub String);
+
+impl fmt::Display for StartError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for StartError {}
+
+/// What a kernel run did.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct KernelStats {
+    /// Cycles from start to the end of the output flush.
+    pub cycles: u64,
+    /// Cycles the clusters stalled on stream buffers.
+    pub stall_cycles: u64,
+    /// Instructions issued.
+    pub instructions: u64,
+    /// Ops issued per FU slot (adders, multipliers, divide/sqrt), counting each slot once
+    /// per cycle (an op covers every cluster).
+    pub fu_ops: Vec<u64>,
+    /// Ops squashed (not issued) in software-pipeline prologues and epilogues.
+    pub squashed: u64,
+}
+
+impl KernelStats {
+    /// Arithmetic ops per cycle across all clusters.
+    pub fn ops_per_cycle(&self, clusters: usize) -> f64 {
+        self.fu_ops.iter().sum::<u64>() as f64 * clusters as f64 / self.cycles.max(1) as f64
+    }
+}
+
+struct Kernel {
+    program: Program,
+    bindings: Vec<StreamBinding>,
+    stats: KernelStats,
+    flushing: bool,
+}
+
+/// The SRF seen through a kernel's stream bindings (stream `i` uses stream buffer `i`).
+struct Streams<'a> {
+    srf: &'a mut Srf,
+    lanes: usize,
+}
+
+impl StreamSink for Streams<'_> {
+    fn append(
+        &mut self,
+        stream: u16,
+        values: &[u32],
+        mask: Option<&[bool]>,
+    ) -> Result<(), ContractError> {
+        match mask {
+            None => self.srf.write(stream as usize, values),
+            Some(m) => {
+                let mut packed = [0u32; 256];
+                let mut n = 0;
+                for c in 0..self.lanes {
+                    if m[c] {
+                        packed[n] = values[c];
+                        n += 1;
+                    }
+                }
+                self.srf.write_conditional(stream as usize, &packed[..n])
+            }
+        }
+    }
+}
+
+struct Env<'a> {
+    srf: &'a Srf,
+    cc: &'a CcFile,
+    lanes: usize,
+}
+
+impl LoopEnv for Env<'_> {
+    fn rows_left(&self, stream: u16) -> u64 {
+        self.srf.remaining(stream as usize).div_ceil(self.lanes) as u64
+    }
+    fn exhausted(&self, stream: u16) -> bool {
+        self.srf.remaining(stream as usize) == 0
+    }
+    fn cc_all(&self, cc: u16) -> Result<bool, ContractError> {
+        self.cc.all(cc)
+    }
+}
+
+/// The arithmetic units of a cluster, addressed by FU slot (adders, then multipliers, then
+/// divide/sqrt units), as the microcode numbers them.
+struct Fus {
+    adders: Vec<Adder>,
+    multipliers: Vec<Multiplier>,
+    divsqrts: Vec<DivSqrt>,
+}
+
+impl Fus {
+    fn completed(&self, slot: usize) -> Option<Completion<'_>> {
+        let (a, m) = (self.adders.len(), self.multipliers.len());
+        if slot < a {
+            self.adders[slot].completed()
+        } else if slot < a + m {
+            self.multipliers[slot - a].completed()
+        } else {
+            self.divsqrts[slot - a - m].completed()
+        }
+    }
+
+    fn issue(&mut self, slot: usize, is: Issue<'_>) -> Result<(), ContractError> {
+        let (a, m) = (self.adders.len(), self.multipliers.len());
+        if slot < a {
+            self.adders[slot].issue(is)
+        } else if slot < a + m {
+            self.multipliers[slot - a].issue(is)
+        } else {
+            self.divsqrts[slot - a - m].issue(is)
+        }
+    }
+
+    fn in_flight(&self) -> usize {
+        self.adders.iter().map(|u| u.in_flight()).sum::<usize>()
+            + self
+                .multipliers
+                .iter()
+                .map(|u| u.in_flight())
+                .sum::<usize>()
+            + self.divsqrts.iter().map(|u| u.in_flight()).sum::<usize>()
+    }
+
+    fn commit(&mut self) {
+        self.adders.iter_mut().for_each(|u| u.commit());
+        self.multipliers.iter_mut().for_each(|u| u.commit());
+        self.divsqrts.iter_mut().for_each(|u| u.commit());
+    }
+
+    fn trace(&self, t: &mut Trace) {
+        self.adders.iter().for_each(|u| u.trace(t));
+        self.multipliers.iter().for_each(|u| u.trace(t));
+        self.divsqrts.iter().for_each(|u| u.trace(t));
+    }
+}
+
+/// The machine.
+pub struct Machine {
+    desc: MachineDesc,
+    lanes: usize,
+    path: String,
+    fus: Fus,
+    lrfs: Vec<Lrf>,
+    cc: CcFile,
+    scratchpads: Vec<Scratchpad>,
+    comms: Vec<CommUnit>,
+    stream_reads: Vec<DelayLine>,
+    immediates: DelayLine,
+    srf: Srf,
+    uc: Microcontroller,
+    kernel: Option<Kernel>,
+    /// LRF indices of each slot's inputs.
+    fu_inputs: Vec<[usize; 2]>,
+    sp_inputs: Vec<[usize; 2]>,
+    comm_inputs: Vec<[usize; 2]>,
+    sout_input: usize,
+    stalled: bool,
+    all_lanes: Vec<bool>,
+    buf: [Vec<u32>; 3],
+    mask: Vec<bool>,
+}
+
+impl Machine {
+    /// Builds the machine of `desc` under `scope` (probes `scope.cluster3.add0.result`, …).
+    pub fn new(scope: &mut Scope<'_>, desc: &MachineDesc) -> Self {
+        let lanes = desc.cluster.count;
+        let c = &desc.cluster;
+        let l = &desc.latency;
+        let names = desc.lrf_names();
+        let index = |n: String| {
+            names
+                .iter()
+                .position(|m| *m == n)
+                .expect("LRF names are complete")
+        };
+        let units = |prefix: &str, n: usize, inputs: [&str; 2]| -> Vec<[usize; 2]> {
+            (0..n)
+                .map(|i| inputs.map(|inp| index(format!("{prefix}{i}.{inp}"))))
+                .collect()
+        };
+        let mut fu_inputs = units("add", c.adders, ["a", "b"]);
+        fu_inputs.extend(units("mul", c.multipliers, ["a", "b"]));
+        fu_inputs.extend(units("dsq", c.divsqrt, ["a", "b"]));
+        let sp_inputs = units("sp", c.scratchpads, ["addr", "data"]);
+        let comm_inputs = units("comm", c.comm_units, ["data", "perm"]);
+        let path = scope.path().to_string();
+        let max_latency = l.stream.max(1);
+        Machine {
+            fus: Fus {
+                adders: (0..c.adders)
+                    .map(|i| Adder::new(scope, &format!("add{i}"), lanes, desc))
+                    .collect(),
+                multipliers: (0..c.multipliers)
+                    .map(|i| Multiplier::new(scope, &format!("mul{i}"), lanes, desc))
+                    .collect(),
+                divsqrts: (0..c.divsqrt)
+                    .map(|i| DivSqrt::new(scope, &format!("dsq{i}"), lanes, desc))
+                    .collect(),
+            },
+            lrfs: names
+                .iter()
+                .map(|n| Lrf::new(scope, n, desc.lrf_entries(n), lanes))
+                .collect(),
+            cc: CcFile::new(scope, c.condition_codes, lanes),
+            scratchpads: (0..c.scratchpads)
+                .map(|i| {
+                    Scratchpad::new(
+                        scope,
+                        &format!("sp{i}"),
+                        desc.scratchpad.words,
+                        lanes,
+                        l.scratchpad_read,
+                        l.scratchpad_write,
+                    )
+                })
+                .collect(),
+            comms: (0..c.comm_units)
+                .map(|i| CommUnit::new(scope, &format!("comm{i}"), lanes, l.comm))
+                .collect(),
+            stream_reads: (0..desc.srf.cluster_words_per_cycle)
+                .map(|i| DelayLine::new(format!("{path}.sin{i}"), lanes, max_latency))
+                .collect(),
+            immediates: DelayLine::new(format!("{path}.imm"), lanes, 1),
+            srf: Srf::new(&mut scope.child("srf"), desc),
+            uc: Microcontroller::new(
+                scope,
+                desc.microcontroller.store_words,
+                desc.microcontroller.loop_depth,
+            ),
+            kernel: None,
+            fu_inputs,
+            sp_inputs,
+            comm_inputs,
+            sout_input: index("sout.data".into()),
+            stalled: false,
+            all_lanes: vec![true; lanes],
+            buf: [vec![0; lanes], vec![0; lanes], vec![0; lanes]],
+            mask: vec![true; lanes],
+            lanes,
+            path,
+            desc: desc.clone(),
+        }
+    }
+
+    pub fn desc(&self) -> &MachineDesc {
+        &self.desc
+    }
+
+    pub fn lanes(&self) -> usize {
+        self.lanes
+    }
+
+    pub fn srf(&self) -> &Srf {
+        &self.srf
+    }
+
+    pub fn srf_mut(&mut self) -> &mut Srf {
+        &mut self.srf
+    }
+
+    pub fn lrf(&self, name: &str) -> Option<&Lrf> {
+        self.desc
+            .lrf_names()
+            .iter()
+            .position(|n| n == name)
+            .map(|i| &self.lrfs[i])
+    }
+
+    pub fn scratchpad(&self, i: usize) -> &Scratchpad {
+        &self.scratchpads[i]
+    }
+
+    /// Starts `program` with its streams bound to SRF regions (stream `i` on stream buffer
+    /// `i`). The program must fit this machine.
+    pub fn start(
+        &mut self,
+        program: &Program,
+        bindings: &[StreamBinding],
+    ) -> Result<(), StartError> {
+        if self.kernel.is_some() && self.uc.phase() != Phase::Idle {
+            return Err(StartError(format!(
+                "kernel `{}` is still running",
+                self.kernel.as_ref().unwrap().program.name
+            )));
+        }
+        program
+            .check(&self.desc)
+            .map_err(|e| StartError(e.to_string()))?;
+        if bindings.len() != program.streams.len() {
+            return Err(StartError(format!(
+                "kernel `{}` has {} streams, {} bound",
+                program.name,
+                program.streams.len(),
+                bindings.len()
+            )));
+        }
+        if let Some(k) = self.kernel.take() {
+            for i in 0..k.program.streams.len() {
+                self.srf.unbind(i).map_err(|e| StartError(e.to_string()))?;
+            }
+        }
+        for (i, (s, b)) in program.streams.iter().zip(bindings).enumerate() {
+            let bound = match s.dir {
+                StreamDir::In => {
+                    if b.words % self.lanes != 0 {
+                        return Err(StartError(format!(
+                            "kernel `{}`: input stream `{}` has {} words, not a multiple of the {} clusters",
+                            program.name, s.name, b.words, self.lanes
+                        )));
+                    }
+                    self.srf.bind_input(i, b.start, b.words)
+                }
+                StreamDir::Out => self.srf.bind_output(i, b.start, b.words),
+            };
+            bound.map_err(|e| {
+                StartError(format!(
+                    "kernel `{}`, stream `{}`: {e}",
+                    program.name, s.name
+                ))
+            })?;
+        }
+        self.uc
+            .start(&program.code)
+            .map_err(|e| StartError(e.to_string()))?;
+        let fu_slots = self.fu_inputs.len();
+        self.kernel = Some(Kernel {
+            program: program.clone(),
+            bindings: bindings.to_vec(),
+            stats: KernelStats {
+                fu_ops: vec![0; fu_slots],
+                ..KernelStats::default()
+            },
+            flushing: false,
+        });
+        Ok(())
+    }
+
+    /// Whether no kernel is running.
+    pub fn is_idle(&self) -> bool {
+        self.uc.phase() == Phase::Idle
+    }
+
+    /// Statistics of the current or last kernel.
+    pub fn stats(&self) -> Option<&KernelStats> {
+        self.kernel.as_ref().map(|k| &k.stats)
+    }
+
+    /// Words the last kernel wrote to its stream `i` (an output stream).
+    pub fn output_len(&self, i: usize) -> usize {
+        self.srf.output_len(i)
+    }
+
+    /// The binding of the current or last kernel's stream `i`.
+    pub fn binding(&self, i: usize) -> Option<StreamBinding> {
+        self.kernel
+            .as_ref()
+            .and_then(|k| k.bindings.get(i).copied())
+    }
+
+    fn in_flight(&self) -> usize {
+        self.fus.in_flight()
+            + self
+                .scratchpads
+                .iter()
+                .map(|u| u.in_flight())
+                .sum::<usize>()
+            + self.comms.iter().map(|u| u.in_flight()).sum::<usize>()
+            + self
+                .stream_reads
+                .iter()
+                .map(|u| u.in_flight())
+                .sum::<usize>()
+            + self.immediates.in_flight()
+    }
+
+    /// Whether a live stream access of `inst` cannot proceed this cycle (an error if it can
+    /// never proceed: reading past the end of a stream).
+    fn must_stall(
+        &self,
+        kernel: &Kernel,
+        inst: &Instruction,
+        live: crate::microcontroller::Liveness,
+    ) -> Result<bool, ContractError> {
+        let mut need_in = [0usize; 64];
+        let mut need_out = [0usize; 64];
+        for s in inst.sin.iter().flatten().filter(|s| live.live(s.stage)) {
+            need_in[s.stream as usize] += match s.cond {
+                None => self.lanes,
+                Some(cc) => self.cc.read(cc)?.iter().filter(|&&b| b).count(),
+            };
+        }
+        if let Some(s) = inst.sout.filter(|s| live.live(s.stage)) {
+            need_out[s.stream as usize] += match s.cond {
+                None => self.lanes,
+                Some(cc) => self.cc.read(cc)?.iter().filter(|&&b| b).count(),
+            };
+        }
+        // Results due this cycle that go to output streams.
+        let mut due = |dests: &Dests, mask: Option<&[bool]>| {
+            for d in dests.iter().flatten() {
+                if let crate::microcode::Dest::Stream { stream } = d {
+                    need_out[*stream as usize] +=
+                        mask.map_or(self.lanes, |m| m.iter().filter(|&&b| b).count());
+                }
+            }
+        };
+        let code = &kernel.program.code;
+        for slot in 0..self.fu_inputs.len() {
+            if let Some(c) = self.fus.completed(slot) {
+                due(
+                    &code[c.tag as usize].fu[slot]
+                        .expect("a completing op has a slot")
+                        .dests,
+                    None,
+                );
+            }
+        }
+        for (i, sp) in self.scratchpads.iter().enumerate() {
+            if let Some(r) = sp.completed() {
+                due(
+                    &code[r.tag as usize].sp[i].expect("slot").dests,
+                    r.masked.then_some(&r.mask[..]),
+                );
+            }
+        }
+        for (i, cu) in self.comms.iter().enumerate() {
+            if let Some(r) = cu.completed() {
+                due(&code[r.tag as usize].comm[i].expect("slot").dests, None);
+            }
+        }
+        for (i, line) in self.stream_reads.iter().enumerate() {
+            if let Some(r) = line.current() {
+                due(
+                    &code[r.tag as usize].sin[i].expect("slot").dests,
+                    r.masked.then_some(&r.mask[..]),
+                );
+            }
+        }
+        if let Some(r) = self.immediates.current() {
+            due(&code[r.tag as usize].imm.expect("slot").dests, None);
+        }
+        for (stream, &need) in need_in
+            .iter()
+            .enumerate()
+            .take(kernel.program.streams.len())
+        {
+            if need == 0 {
+                continue;
+            }
+            let remaining = self.srf.remaining(stream);
+            if need > remaining {
+                return Err(ContractError::at(
+                    &format!("{}.sin", self.path),
+                    Violation::Other(format!(
+                        "kernel `{}` reads {need} words of stream `{}` with only {remaining} left",
+                        kernel.program.name, kernel.program.streams[stream].name
+                    )),
+                ));
+            }
+            if need > self.srf.available(stream) {
+                return Ok(true);
+            }
+        }
+        for (stream, &need) in need_out
+            .iter()
+            .enumerate()
+            .take(kernel.program.streams.len())
+        {
+            if need > 0 && need > self.srf.space(stream) {
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    }
+
+    /// Routes every result due this cycle through the switch.
+    fn writeback(&mut self, code: &[Instruction]) -> Result<(), ContractError> {
+        let mut streams = Streams {
+            srf: &mut self.srf,
+            lanes: self.lanes,
+        };
+        for slot in 0..self.fu_inputs.len() {
+            if let Some(c) = self.fus.completed(slot) {
+                let dests = &code[c.tag as usize].fu[slot].expect("slot").dests;
+                route(
+                    dests,
+                    c.values,
+                    None,
+                    &self.all_lanes,
+                    &mut self.lrfs,
+                    &mut self.cc,
+                    &mut streams,
+                )?;
+            }
+        }
+        for (i, sp) in self.scratchpads.iter().enumerate() {
+            if let Some(r) = sp.completed() {
+                let dests = &code[r.tag as usize].sp[i].expect("slot").dests;
+                let mask = r.masked.then_some(&r.mask[..]);
+                route(
+                    dests,
+                    &r.values,
+                    mask,
+                    &self.all_lanes,
+                    &mut self.lrfs,
+                    &mut self.cc,
+                    &mut streams,
+                )?;
+            }
+        }
+        for (i, cu) in self.comms.iter().enumerate() {
+            if let Some(r) = cu.completed() {
+                let dests = &code[r.tag as usize].comm[i].expect("slot").dests;
+                route(
+                    dests,
+                    &r.values,
+                    None,
+                    &self.all_lanes,
+                    &mut self.lrfs,
+                    &mut self.cc,
+                    &mut streams,
+                )?;
+            }
+        }
+        for (i, line) in self.stream_reads.iter().enumerate() {
+            if let Some(r) = line.current() {
+                let dests = &code[r.tag as usize].sin[i].expect("slot").dests;
+                let mask = r.masked.then_some(&r.mask[..]);
+                route(
+                    dests,
+                    &r.values,
+                    mask,
+                    &self.all_lanes,
+                    &mut self.lrfs,
+                    &mut self.cc,
+                    &mut streams,
+                )?;
+            }
+        }
+        if let Some(r) = self.immediates.current() {
+            let dests = &code[r.tag as usize].imm.expect("slot").dests;
+            route(
+                dests,
+                &r.values,
+                None,
+                &self.all_lanes,
+                &mut self.lrfs,
+                &mut self.cc,
+                &mut streams,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Issues the live slots of instruction `pc`.
+    fn issue(
+        &mut self,
+        kernel: &mut Kernel,
+        pc: u16,
+        live: crate::microcontroller::Liveness,
+    ) -> Result<(), ContractError> {
+        let inst = &kernel.program.code[pc as usize];
+        let stats = &mut kernel.stats;
+        stats.instructions += 1;
+        for (slot, fu) in inst.fu.iter().enumerate() {
+            let Some(fu) = fu else { continue };
+            if !live.live(fu.stage) {
+                stats.squashed += 1;
+                continue;
+            }
+            let [la, lb] = self.fu_inputs[slot];
+            let arity = fu.op.arity();
+            let [a, b, c] = &mut self.buf;
+            a.copy_from_slice(self.lrfs[la].read(fu.a)?);
+            if arity >= 2 {
+                b.copy_from_slice(self.lrfs[lb].read(fu.b)?);
+            }
+            if fu.op == Op::Select {
+                // select(cond, a, b): the condition code is the first operand.
+                for (dst, &bit) in c.iter_mut().zip(self.cc.read(fu.cc)?) {
+                    *dst = bit as u32;
+                }
+                let is = Issue {
+                    op: fu.op,
+                    a: c,
+                    b: a,
+                    c: b,
+                    tag: pc,
+                };
+                self.fus.issue(slot, is)?;
+            } else {
+                let is = Issue {
+                    op: fu.op,
+                    a,
+                    b: if arity >= 2 { b } else { &[] },
+                    c: &[],
+                    tag: pc,
+                };
+                self.fus.issue(slot, is)?;
+            }
+            stats.fu_ops[slot] += 1;
+        }
+        for (i, sp) in inst.sp.iter().enumerate() {
+            let Some(sp) = sp else { continue };
+            if !live.live(sp.stage) {
+                stats.squashed += 1;
+                continue;
+            }
+            let [laddr, ldata] = self.sp_inputs[i];
+            let [offsets, data, _] = &mut self.buf;
+            let offsets = match sp.offset {
+                Some(e) => {
+                    offsets.copy_from_slice(self.lrfs[laddr].read(e)?);
+                    Some(&offsets[..])
+                }
+                None => None,
+            };
+            if sp.write {
+                data.copy_from_slice(self.lrfs[ldata].read(sp.data)?);
+                self.scratchpads[i].write(sp.base, offsets, data, &self.all_lanes)?;
+            } else {
+                self.scratchpads[i].read(sp.base, offsets, &self.all_lanes, pc)?;
+            }
+        }
+        for (i, cs) in inst.comm.iter().enumerate() {
+            let Some(cs) = cs else { continue };
+            if !live.live(cs.stage) {
+                stats.squashed += 1;
+                continue;
+            }
+            let [ldata, lperm] = self.comm_inputs[i];
+            let [data, perm, _] = &mut self.buf;
+            data.copy_from_slice(self.lrfs[ldata].read(cs.data)?);
+            let regs = match cs.perm {
+                Permutation::PerCluster(e) => {
+                    perm.copy_from_slice(self.lrfs[lperm].read(e)?);
+                    Some(&perm[..])
+                }
+                _ => None,
+            };
+            self.comms[i].send(data, cs.perm, regs, pc)?;
+        }
+        let stream_latency = self.desc.latency.stream;
+        for (i, s) in inst.sin.iter().enumerate() {
+            let Some(s) = s else { continue };
+            if !live.live(s.stage) {
+                stats.squashed += 1;
+                continue;
+            }
+            let stream = s.stream as usize;
+            match s.cond {
+                None => {
+                    let words = self.srf.read(stream, self.lanes)?;
+                    self.stream_reads[i]
+                        .insert(stream_latency, pc, None, |v| v.copy_from_slice(words))?;
+                }
+                Some(cc) => {
+                    // Conditional input: clusters whose code is set take the next elements
+                    // in cluster order (routed over the intercluster network).
+                    self.mask.copy_from_slice(self.cc.read(cc)?);
+                    let n = self.mask.iter().filter(|&&b| b).count();
+                    let words = self.srf.read_conditional(stream, n)?;
+                    let mask = &self.mask;
+                    self.stream_reads[i].insert(stream_latency, pc, Some(mask), |v| {
+                        let mut next = words.iter();
+                        for (dst, &m) in v.iter_mut().zip(mask) {
+                            *dst = if m { *next.next().expect("n words") } else { 0 };
+                        }
+                    })?;
+                }
+            }
+        }
+        if let Some(s) = inst.sout {
+            if live.live(s.stage) {
+                let data = self.lrfs[self.sout_input].read(s.data)?;
+                let mask = match s.cond {
+                    Some(cc) => Some(self.cc.read(cc)?),
+                    None => None,
+                };
+                Streams {
+                    srf: &mut self.srf,
+                    lanes: self.lanes,
+                }
+                .append(s.stream, data, mask)?;
+            } else {
+                stats.squashed += 1;
+            }
+        }
+        if let Some(imm) = inst.imm {
+            if live.live(imm.stage) {
+                self.immediates.insert(1, pc, None, |v| match imm.value {
+                    ImmValue::Const(x) => v.fill(x),
+                    ImmValue::ClusterId => {
+                        v.iter_mut().enumerate().for_each(|(c, x)| *x = c as u32)
+                    }
+                })?;
+            } else {
+                stats.squashed += 1;
+            }
+        }
+        Ok(())
+    }
+
+    fn cycle(&mut self) -> Result<(), ContractError> {
+        self.stalled = false;
+        let Some(mut kernel) = self.kernel.take() else {
+            return Ok(());
+        };
+        let result = self.kernel_cycle(&mut kernel);
+        self.kernel = Some(kernel);
+        result
+    }
+
+    fn kernel_cycle(&mut self, kernel: &mut Kernel) -> Result<(), ContractError> {
+        match self.uc.phase() {
+            Phase::Idle => return Ok(()),
+            Phase::Finishing => {
+                kernel.stats.cycles += 1;
+                self.writeback(&kernel.program.code)?;
+                if self.in_flight() == 0 && !kernel.flushing {
+                    kernel.flushing = true;
+                    for (i, s) in kernel.program.streams.iter().enumerate() {
+                        if s.dir == StreamDir::Out {
+                            self.srf.flush(i)?;
+                        }
+                    }
+                }
+                if kernel.flushing && self.srf.idle() {
+                    self.uc.finish();
+                }
+                return Ok(());
+            }
+            Phase::Running => {}
+        }
+        kernel.stats.cycles += 1;
+        let env = Env {
+            srf: &self.srf,
+            cc: &self.cc,
+            lanes: self.lanes,
+        };
+        let Some((pc, live)) = self.uc.fetch(&kernel.program.code, &env)? else {
+            return Ok(());
+        };
+        if self.must_stall(kernel, &kernel.program.code[pc as usize], live)? {
+            self.uc.discard();
+            self.stalled = true;
+            kernel.stats.stall_cycles += 1;
+            return Ok(());
+        }
+        self.writeback(&kernel.program.code)?;
+        self.issue(kernel, pc, live)?;
+        let env = Env {
+            srf: &self.srf,
+            cc: &self.cc,
+            lanes: self.lanes,
+        };
+        self.uc.advance(&kernel.program.code, &env)
+    }
+}
+
+impl Module for Machine {
+    fn domain(&self) -> DomainId {
+        DomainId(0)
+    }
+
+    fn eval(&mut self) -> Result<(), ContractError> {
+        self.cycle()?;
+        self.srf.eval();
+        Ok(())
+    }
+
+    fn commit(&mut self) {
+        self.srf.commit();
+        self.uc.commit();
+        if self.stalled {
+            return;
+        }
+        self.fus.commit();
+        self.lrfs.iter_mut().for_each(|u| u.commit());
+        self.cc.commit();
+        self.scratchpads.iter_mut().for_each(|u| u.commit());
+        self.comms.iter_mut().for_each(|u| u.commit());
+        self.stream_reads.iter_mut().for_each(|u| u.commit());
+        self.immediates.commit();
+    }
+
+    fn trace(&self, t: &mut Trace) {
+        self.uc.trace(t);
+        self.fus.trace(t);
+        self.lrfs.iter().for_each(|u| u.trace(t));
+        self.cc.trace(t);
+        self.scratchpads.iter().for_each(|u| u.trace(t));
+        self.comms.iter().for_each(|u| u.trace(t));
+        self.srf.trace(t);
+    }
+}

@@ -1,0 +1,197 @@
+//! The microcode of the clusters: one VLIW instruction per cycle, issued by the
+//! microcontroller to every cluster at once (SIMD).
+//!
+//! An [`Instruction`] has one slot per unit of a cluster, as the machine description counts
+//! them, plus a control field for the microcontroller:
+//!
+//! | slot | reads | does | result goes |
+//! |---|---|---|---|
+//! | `addN`, `mulN`, `dsqN` ([`FuSlot`]) | entry of its own input LRFs `unit.a`, `unit.b`; a condition code for `select` | an [`Op`] | through the intracluster switch to up to two [`Dest`]s, `latency(op)` cycles later |
+//! | `spN` ([`SpSlot`]) | `spN.addr` (offset), `spN.data` (write data) | scratchpad read or write at `base + offset` | reads: to [`Dest`]s after `scratchpad_read` cycles |
+//! | `commN` ([`CommSlot`]) | `commN.data`, `commN.perm` (per-cluster source) | sends one word per cluster over the intercluster network | the word from the source cluster, to [`Dest`]s after `comm` cycles |
+//! | `sinN` ([`StreamIn`]) | — | takes the next element of an input stream (conditionally: only clusters whose condition code is set) | to [`Dest`]s after `stream` cycles |
+//! | `sout` ([`StreamOut`]) | `sout.data` | appends to an output stream (conditionally: only clusters whose condition code is set, order kept) | the stream buffer |
+//! | `imm` ([`Immediate`]) | — | a constant, or the cluster's index | to [`Dest`]s the next cycle |
+//!
+//! A [`Dest`] is an LRF entry, a condition code, or an output stream (a result may be
+//! appended to a stream directly from the switch).
+//!
+//! Every slot carries a software-pipeline `stage`. In a loop whose body is marked with
+//! `stages = S` and which runs `N` iterations, the microcontroller runs `N + S − 1` passes
+//! and squashes (suppresses the writes and stream accesses of) every op of stage `s` in pass
+//! `p` unless `s ≤ p < N + s`: the prologue and epilogue of a modulo-scheduled loop come
+//! for free from one copy of the kernel (Rau 1994; Imagine's microcontroller did the same).
+//!
+//! [`layout`] packs instructions into bit words whose fields and widths follow from the
+//! machine description; [`asm`] is the text form.
+
+pub mod asm;
+pub mod check;
+pub mod layout;
+
+pub use asm::{AsmError, assemble, disassemble};
+pub use check::{MAX_STAGES, MicrocodeError};
+pub use layout::InstructionLayout;
+
+use crate::ops::Op;
+
+/// Where a result is written through the intracluster switch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Dest {
+    /// Entry `entry` of LRF number `lrf` (index into `MachineDesc::lrf_names`).
+    Lrf { lrf: u16, entry: u16 },
+    /// Condition code `index`: bit 0 of the result.
+    Cc { index: u16 },
+    /// Appended to the kernel's stream `stream` (an output stream).
+    Stream { stream: u16 },
+}
+
+/// Up to two destinations of one result.
+pub type Dests = [Option<Dest>; 2];
+
+/// An arithmetic op on an adder, multiplier or divide/sqrt unit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FuSlot {
+    pub op: Op,
+    /// Entries of the unit's `a` and `b` LRFs (unused inputs are 0).
+    pub a: u16,
+    pub b: u16,
+    /// Condition code that `select` tests (0 for other ops).
+    pub cc: u16,
+    pub dests: Dests,
+    pub stage: u8,
+}
+
+/// Scratchpad access at `base + offset`, the offset read from the `spN.addr` LRF (or 0).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpSlot {
+    pub write: bool,
+    pub base: u16,
+    /// Entry of `spN.addr` holding the offset; `None` means offset 0.
+    pub offset: Option<u16>,
+    /// Entry of `spN.data` holding the word to write (writes only).
+    pub data: u16,
+    /// Where a read's word goes (reads only).
+    pub dests: Dests,
+    pub stage: u8,
+}
+
+/// Where each cluster takes its word from on the intercluster network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Permutation {
+    /// Cluster `c` receives from cluster `(c + k) mod C` (a pattern from the microcontroller).
+    Rotate(u16),
+    /// Cluster `c` receives from cluster `c xor k` (butterfly).
+    Xor(u16),
+    /// Every cluster receives cluster `k`'s word.
+    Broadcast(u16),
+    /// Cluster `c` receives from the cluster named by entry `e` of its `commN.perm` LRF
+    /// (computed per cluster, modulo the cluster count).
+    PerCluster(u16),
+}
+
+/// A word sent over the intercluster network.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CommSlot {
+    /// Entry of `commN.data` holding the word to send.
+    pub data: u16,
+    pub perm: Permutation,
+    pub dests: Dests,
+    pub stage: u8,
+}
+
+/// Read the next element of an input stream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StreamIn {
+    pub stream: u16,
+    /// Conditional input: only clusters whose condition code is set receive an element,
+    /// in cluster order; the others' destinations are not written.
+    pub cond: Option<u16>,
+    pub dests: Dests,
+    pub stage: u8,
+}
+
+/// Append a word from `sout.data` to an output stream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StreamOut {
+    pub stream: u16,
+    /// Entry of `sout.data`.
+    pub data: u16,
+    /// Conditional output: only clusters whose condition code is set append, in cluster order.
+    pub cond: Option<u16>,
+    pub stage: u8,
+}
+
+/// A constant written through the switch.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImmValue {
+    Const(u32),
+    /// The cluster's own index.
+    ClusterId,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Immediate {
+    pub value: ImmValue,
+    pub dests: Dests,
+    pub stage: u8,
+}
+
+/// How a loop decides whether to run again.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoopKind {
+    /// A fixed number of iterations.
+    Counted(u32),
+    /// One iteration per `clusters` elements of an input stream, until it is exhausted.
+    UntilStreamEmpty(u16),
+    /// Until condition code `cc` is set in every cluster (tested at the end of each pass).
+    UntilCc(u16),
+}
+
+/// The microcontroller's field.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Control {
+    #[default]
+    Next,
+    /// This instruction starts a loop body that runs to the matching `LoopEnd`; `stages`
+    /// is its software-pipeline depth (1 for an ordinary loop).
+    LoopBegin { kind: LoopKind, stages: u8 },
+    /// Last instruction of the innermost loop body.
+    LoopEnd,
+    /// Last instruction of the kernel: output streams are flushed when its results land.
+    Done,
+}
+
+/// One VLIW instruction.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Instruction {
+    pub control: Control,
+    /// Adders, then multipliers, then divide/sqrt units, as the machine counts them.
+    pub fu: Vec<Option<FuSlot>>,
+    pub sp: Vec<Option<SpSlot>>,
+    pub comm: Vec<Option<CommSlot>>,
+    pub sin: Vec<Option<StreamIn>>,
+    pub sout: Option<StreamOut>,
+    pub imm: Option<Immediate>,
+}
+
+/// Direction of a kernel stream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StreamDir {
+    In,
+    Out,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StreamDecl {
+    pub name: String,
+    pub dir: StreamDir,
+}
+
+/// A microcode program: the kernel's streams and its instructions.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Program {
+    pub name: String,
+    pub streams: Vec<StreamDecl>,
+    pub code: Vec<Instruction>,
+}

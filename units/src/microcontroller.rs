@@ -1,0 +1,310 @@
+//! The microcontroller (ARCHITECTURE §4): holds the kernel's microcode, sequences it one
+//! VLIW instruction per cycle to every cluster, runs loops (counted, until a stream is
+//! exhausted, until a condition code is set in every cluster) with no arbitrary branches,
+//! and squashes the ops of software-pipeline stages that are not yet (prologue) or no
+//! longer (epilogue) live.
+//!
+//! A loop body spans from the instruction carrying `LoopBegin { kind, stages: S }` to the
+//! matching `LoopEnd`. For a loop of `N` iterations the body runs `N + S − 1` passes and an
+//! op of stage `s` is live in pass `p` iff `s ≤ p < N + s` (Rau, "Iterative modulo
+//! scheduling", 1994, kernel-only code with stage predicates). `N` is known on entry for
+//! counted loops and for stream loops with `S > 1` (rows left in the stream); a stream loop
+//! with `S = 1` instead tests "stream exhausted" at the end of every pass, which also serves
+//! conditional streams; a condition loop tests its code at the end of every pass. A loop
+//! whose first pass would do nothing (`N = 0`) is skipped.
+//!
+//! State changes are computed during the cycle and committed at the edge, like every block.
+
+use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
+
+use crate::microcode::{Control, Instruction, LoopKind};
+
+/// What the microcontroller needs to know about the rest of the machine to sequence a loop.
+pub trait LoopEnv {
+    /// Rows (`clusters` elements) left to read in kernel stream `stream`.
+    fn rows_left(&self, stream: u16) -> u64;
+    /// Whether every element of kernel stream `stream` has been read.
+    fn exhausted(&self, stream: u16) -> bool;
+    /// Whether condition code `cc` is set in every cluster.
+    fn cc_all(&self, cc: u16) -> Result<bool, ContractError>;
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Frame {
+    begin: u16,
+    end: u16,
+    kind: LoopKind,
+    stages: u8,
+    /// Iterations, when known on entry.
+    iterations: Option<u64>,
+    pass: u64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    Idle,
+    Running,
+    /// The `Done` instruction has issued; results still in flight land.
+    Finishing,
+}
+
+/// Sequencer state (committed) and its next value.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct State {
+    phase: Phase,
+    pc: u16,
+    /// The instruction at `pc` was reached by a loop's back edge (its frame exists).
+    looped_back: bool,
+    frames: Vec<Frame>,
+}
+
+pub struct Microcontroller {
+    path: String,
+    store_words: usize,
+    loop_depth: usize,
+    /// For each instruction carrying `LoopBegin`, the index of its `LoopEnd`.
+    loop_end: Vec<u16>,
+    q: State,
+    d: State,
+    /// `d` has been prepared from `q` this cycle.
+    dirty: bool,
+    probes: [SignalId; 5],
+}
+
+/// The ops of one instruction that are live this pass, by software-pipeline stage.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Liveness {
+    /// Bit `s` set: ops of stage `s` are live.
+    pub stages: u64,
+}
+
+impl Liveness {
+    #[inline]
+    pub fn live(self, stage: u8) -> bool {
+        stage < 64 && self.stages & (1 << stage) != 0
+    }
+}
+
+impl Microcontroller {
+    pub fn new(scope: &mut Scope<'_>, store_words: usize, loop_depth: usize) -> Self {
+        let mut s = scope.child("uc");
+        let pc_bits = bits_for(store_words as u64);
+        let probes = [
+            s.signal("pc", pc_bits, SignalKind::Reg),
+            s.signal("phase", 2, SignalKind::Reg),
+            s.signal("loop_depth", bits_for(loop_depth as u64), SignalKind::Reg),
+            s.signal("pass", 32, SignalKind::Reg),
+            s.signal("iterations", 32, SignalKind::Reg),
+        ];
+        let idle = State {
+            phase: Phase::Idle,
+            pc: 0,
+            looped_back: false,
+            frames: Vec::with_capacity(loop_depth),
+        };
+        Microcontroller {
+            path: s.path().to_string(),
+            store_words,
+            loop_depth,
+            loop_end: Vec::new(),
+            q: idle.clone(),
+            d: idle,
+            dirty: false,
+            probes,
+        }
+    }
+
+    /// Loads a kernel's microcode and starts it at instruction 0. The code must have passed
+    /// the microcode check (loops nested, one `Done` at the end).
+    pub fn start(&mut self, code: &[Instruction]) -> Result<(), ContractError> {
+        if code.len() > self.store_words || code.is_empty() {
+            return Err(ContractError::at(
+                &format!("{}.store", self.path),
+                Violation::Other(format!(
+                    "{} instructions do not fit the microcode store of {}",
+                    code.len(),
+                    self.store_words
+                )),
+            ));
+        }
+        self.loop_end = vec![0; code.len()];
+        let mut open = Vec::new();
+        for (i, inst) in code.iter().enumerate() {
+            if matches!(inst.control, Control::LoopBegin { .. }) {
+                open.push(i);
+            }
+            if matches!(inst.control, Control::LoopEnd) {
+                let b = open
+                    .pop()
+                    .ok_or_else(|| self.malformed(i, "LoopEnd without a loop"))?;
+                self.loop_end[b] = i as u16;
+            }
+        }
+        if !open.is_empty() {
+            return Err(self.malformed(open[0], "loop without an end"));
+        }
+        self.q = State {
+            phase: Phase::Running,
+            pc: 0,
+            looped_back: false,
+            frames: Vec::new(),
+        };
+        self.d = self.q.clone();
+        self.dirty = false;
+        Ok(())
+    }
+
+    fn malformed(&self, at: usize, what: &str) -> ContractError {
+        ContractError::at(
+            &format!("{}.store", self.path),
+            Violation::Other(format!("instruction {at}: {what}")),
+        )
+    }
+
+    pub fn phase(&self) -> Phase {
+        self.q.phase
+    }
+
+    pub fn pc(&self) -> u16 {
+        self.q.pc
+    }
+
+    /// Decides this cycle's instruction: enters or skips loops starting at `pc`. Returns the
+    /// instruction index to issue and which stages are live, or `None` if nothing issues.
+    pub fn fetch(
+        &mut self,
+        code: &[Instruction],
+        env: &impl LoopEnv,
+    ) -> Result<Option<(u16, Liveness)>, ContractError> {
+        self.prepare();
+        if self.q.phase != Phase::Running {
+            return Ok(None);
+        }
+        let mut pc = self.q.pc;
+        // Enter loops that start here (a skipped loop may be followed by another).
+        loop {
+            let Control::LoopBegin { kind, stages } = code[pc as usize].control else {
+                break;
+            };
+            if self.d.looped_back {
+                break;
+            }
+            if self.d.frames.len() == self.loop_depth {
+                return Err(self.malformed(pc as usize, "loops nested deeper than the loop stack"));
+            }
+            let iterations = match kind {
+                LoopKind::Counted(n) => Some(n as u64),
+                LoopKind::UntilStreamEmpty(s) if stages > 1 => Some(env.rows_left(s)),
+                LoopKind::UntilStreamEmpty(s) if env.exhausted(s) => Some(0),
+                LoopKind::UntilStreamEmpty(_) | LoopKind::UntilCc(_) => None,
+            };
+            let end = self.loop_end[pc as usize];
+            if iterations == Some(0) {
+                pc = end + 1;
+                continue;
+            }
+            self.d.frames.push(Frame {
+                begin: pc,
+                end,
+                kind,
+                stages: stages.max(1),
+                iterations,
+                pass: 0,
+            });
+            break;
+        }
+        self.d.pc = pc;
+        let live = match self.d.frames.last() {
+            Some(f) => {
+                let mut bits = 0u64;
+                for s in 0..f.stages.min(64) as u64 {
+                    let live = match f.iterations {
+                        Some(n) => s <= f.pass && f.pass < n + s,
+                        None => s == 0,
+                    };
+                    bits |= (live as u64) << s;
+                }
+                Liveness { stages: bits }
+            }
+            None => Liveness { stages: 1 },
+        };
+        Ok(Some((pc, live)))
+    }
+
+    /// Computes the next instruction after the one `fetch` returned has issued.
+    pub fn advance(
+        &mut self,
+        code: &[Instruction],
+        env: &impl LoopEnv,
+    ) -> Result<(), ContractError> {
+        let pc = self.d.pc;
+        self.d.looped_back = false;
+        match code[pc as usize].control {
+            Control::Done => {
+                self.d.phase = Phase::Finishing;
+                return Ok(());
+            }
+            Control::LoopEnd => {
+                let f = self.d.frames.last_mut().expect("a LoopEnd closes a frame");
+                f.pass += 1;
+                let again = match (f.kind, f.iterations) {
+                    (_, Some(n)) => f.pass < n + f.stages as u64 - 1,
+                    (LoopKind::UntilCc(cc), None) => !env.cc_all(cc)?,
+                    (LoopKind::UntilStreamEmpty(s), None) => !env.exhausted(s),
+                    (LoopKind::Counted(_), None) => {
+                        unreachable!("counted loops know their iterations")
+                    }
+                };
+                if again {
+                    self.d.pc = f.begin;
+                    self.d.looped_back = true;
+                    return Ok(());
+                }
+                self.d.frames.pop();
+            }
+            _ => {}
+        }
+        self.d.pc = pc + 1;
+        Ok(())
+    }
+
+    /// The kernel has finished draining.
+    pub fn finish(&mut self) {
+        self.prepare();
+        self.d.phase = Phase::Idle;
+    }
+
+    /// Forgets this cycle's decisions: the clusters stalled and nothing issued.
+    pub fn discard(&mut self) {
+        self.dirty = false;
+    }
+
+    fn prepare(&mut self) {
+        if !self.dirty {
+            self.d.clone_from(&self.q);
+            self.dirty = true;
+        }
+    }
+
+    /// The edge: the next state computed this cycle (if any) becomes current. A cycle in
+    /// which nothing was fetched (a stall) leaves the state as it was.
+    pub fn commit(&mut self) {
+        if std::mem::take(&mut self.dirty) {
+            std::mem::swap(&mut self.q, &mut self.d);
+        }
+    }
+
+    pub fn trace(&self, t: &mut Trace) {
+        let [pc, phase, depth, pass, iterations] = self.probes;
+        t.value(pc, self.q.pc as u64);
+        t.value(phase, self.q.phase as u64);
+        t.value(depth, self.q.frames.len() as u64);
+        let top = self.q.frames.last();
+        t.value(pass, top.map_or(0, |f| f.pass & 0xFFFF_FFFF));
+        t.value(
+            iterations,
+            top.and_then(|f| f.iterations)
+                .map_or(0, |n| n & 0xFFFF_FFFF),
+        );
+    }
+}

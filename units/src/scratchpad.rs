@@ -1,0 +1,211 @@
+//! The scratchpad (ARCHITECTURE §4): a small indexed memory in every cluster (256 words on
+//! gold8), addressed by an instruction base plus a per-cluster register offset, one access
+//! (read or write) per cycle. Reads return after `scratchpad_read` cycles, writes are
+//! visible `scratchpad_write` cycles after issue. An address outside the memory in an
+//! active cluster is a [`ContractError`] naming the cluster and the address.
+
+use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
+
+use crate::delay::{DelayLine, InFlight};
+
+pub struct Scratchpad {
+    path: String,
+    words: usize,
+    lanes: usize,
+    /// Word-major: `data[addr * lanes + lane]`.
+    data: Vec<u32>,
+    read_latency: u32,
+    write_latency: u32,
+    reads: DelayLine,
+    /// Writes in flight: the address per lane is kept in `values` of a second delay line.
+    write_addrs: DelayLine,
+    write_data: DelayLine,
+    accessed: bool,
+    addr_scratch: Vec<u32>,
+    probes: SpProbes,
+}
+
+struct SpProbes {
+    access: SignalId,
+    write: SignalId,
+    lane_addr: Vec<SignalId>,
+    lane_data: Vec<SignalId>,
+    last: Option<bool>,
+    last_addr: Vec<u32>,
+    last_data: Vec<u32>,
+}
+
+impl Scratchpad {
+    /// Scratchpad `name` (e.g. `sp0`) in every cluster.
+    pub fn new(
+        scope: &mut Scope<'_>,
+        name: &str,
+        words: usize,
+        lanes: usize,
+        read_latency: u32,
+        write_latency: u32,
+    ) -> Self {
+        let path = format!("{}.cluster*.{name}", scope.path());
+        let addr_bits = bits_for(words as u64 - 1);
+        let mut unit = scope.child(name);
+        let access = unit.signal("access", 1, SignalKind::Wire);
+        let write = unit.signal("write", 1, SignalKind::Wire);
+        drop(unit);
+        let mut lane_addr = Vec::new();
+        let mut lane_data = Vec::new();
+        for c in 0..lanes {
+            let mut s = scope.child(&format!("cluster{c}"));
+            let mut s = s.child(name);
+            lane_addr.push(s.signal("addr", addr_bits, SignalKind::Wire));
+            lane_data.push(s.signal("data", 32, SignalKind::Wire));
+        }
+        Scratchpad {
+            reads: DelayLine::new(format!("{path}.read"), lanes, read_latency),
+            write_addrs: DelayLine::new(format!("{path}.write"), lanes, write_latency),
+            write_data: DelayLine::new(format!("{path}.write"), lanes, write_latency),
+            path,
+            words,
+            lanes,
+            data: vec![0; words * lanes],
+            read_latency,
+            write_latency,
+            accessed: false,
+            addr_scratch: vec![0; lanes],
+            probes: SpProbes {
+                access,
+                write,
+                lane_addr,
+                lane_data,
+                last: None,
+                last_addr: vec![0; lanes],
+                last_data: vec![0; lanes],
+            },
+        }
+    }
+
+    fn addresses(
+        &mut self,
+        base: u16,
+        offsets: Option<&[u32]>,
+        mask: &[bool],
+    ) -> Result<(), ContractError> {
+        if std::mem::replace(&mut self.accessed, true) {
+            return Err(ContractError::at(
+                &format!("{}.port", self.path),
+                Violation::OverBandwidth {
+                    written: 2,
+                    bandwidth: 1,
+                },
+            ));
+        }
+        for c in 0..self.lanes {
+            let addr = (base as u32).wrapping_add(offsets.map_or(0, |o| o[c]));
+            if mask[c] && addr as usize >= self.words {
+                return Err(ContractError::at(
+                    &self.path.replace("cluster*", &format!("cluster{c}")),
+                    Violation::Other(format!(
+                        "address {addr} is outside the {} words",
+                        self.words
+                    )),
+                ));
+            }
+            self.addr_scratch[c] = addr;
+        }
+        Ok(())
+    }
+
+    /// Reads `base + offset` in the clusters `mask` selects; the words leave
+    /// `scratchpad_read` cycles later with `tag`.
+    pub fn read(
+        &mut self,
+        base: u16,
+        offsets: Option<&[u32]>,
+        mask: &[bool],
+        tag: u16,
+    ) -> Result<(), ContractError> {
+        self.addresses(base, offsets, mask)?;
+        let (data, lanes, addrs) = (&self.data, self.lanes, &self.addr_scratch);
+        let masked = mask.iter().any(|&m| !m).then_some(mask);
+        self.reads.insert(self.read_latency, tag, masked, |v| {
+            for c in 0..lanes {
+                v[c] = if mask[c] {
+                    data[addrs[c] as usize * lanes + c]
+                } else {
+                    0
+                };
+            }
+        })?;
+        self.probes.last = Some(false);
+        self.probes.last_addr.copy_from_slice(&self.addr_scratch);
+        Ok(())
+    }
+
+    /// Writes `values` to `base + offset` in the clusters `mask` selects.
+    pub fn write(
+        &mut self,
+        base: u16,
+        offsets: Option<&[u32]>,
+        values: &[u32],
+        mask: &[bool],
+    ) -> Result<(), ContractError> {
+        self.addresses(base, offsets, mask)?;
+        let addrs = &self.addr_scratch;
+        self.write_addrs
+            .insert(self.write_latency, 0, Some(mask), |v| {
+                v.copy_from_slice(addrs)
+            })?;
+        self.write_data
+            .insert(self.write_latency, 0, None, |v| v.copy_from_slice(values))?;
+        self.probes.last = Some(true);
+        self.probes.last_addr.copy_from_slice(&self.addr_scratch);
+        self.probes.last_data.copy_from_slice(values);
+        Ok(())
+    }
+
+    /// The read result leaving this cycle.
+    #[inline]
+    pub fn completed(&self) -> Option<&InFlight> {
+        self.reads.current()
+    }
+
+    /// Accesses still in flight.
+    pub fn in_flight(&self) -> usize {
+        self.reads.in_flight() + self.write_addrs.in_flight()
+    }
+
+    pub fn commit(&mut self) {
+        // A write issued with latency L becomes visible to reads L cycles after its issue, so
+        // it lands at the edge before the cycle in which its delay line releases it.
+        if let (Some(a), Some(d)) = (self.write_addrs.due_next(), self.write_data.due_next()) {
+            for c in 0..self.lanes {
+                if a.mask[c] {
+                    self.data[a.values[c] as usize * self.lanes + c] = d.values[c];
+                }
+            }
+        }
+        self.reads.commit();
+        self.write_addrs.commit();
+        self.write_data.commit();
+        if !std::mem::take(&mut self.accessed) {
+            self.probes.last = None;
+        }
+    }
+
+    /// The committed word at `addr` in cluster `lane` (for inspection and tests).
+    pub fn peek(&self, addr: usize, lane: usize) -> u32 {
+        self.data[addr * self.lanes + lane]
+    }
+
+    pub fn trace(&self, t: &mut Trace) {
+        let p = &self.probes;
+        t.value(p.access, p.last.is_some() as u64);
+        t.value(p.write, (p.last == Some(true)) as u64);
+        for c in 0..self.lanes {
+            t.value(
+                p.lane_addr[c],
+                p.last_addr[c] as u64 & ((1 << bits_for(self.words as u64 - 1)) - 1),
+            );
+            t.value(p.lane_data[c], p.last_data[c] as u64);
+        }
+    }
+}
