@@ -30,7 +30,7 @@ enum Command {
     Verify(commands::verify::VerifyCommand),
     /// Assemble, disassemble, inspect, check and run kernels
     #[command(subcommand)]
-    Kernel(commands::pending::KernelCommand),
+    Kernel(commands::kernel::KernelCommand),
     /// List, show and benchmark machine descriptions
     #[command(subcommand)]
     Machine(commands::machine::MachineCommand),
@@ -45,7 +45,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(a) => commands::render::run(a),
         Command::Verify(c) => commands::verify::run(c),
-        Command::Kernel(c) => commands::pending::kernel(c),
+        Command::Kernel(c) => commands::kernel::run(c),
         Command::Machine(c) => commands::machine::run(c),
         Command::Dram(a) => commands::pending::dram(a),
         Command::Demo(a) => commands::demo::run(a),

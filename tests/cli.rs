@@ -181,3 +181,106 @@ fn machine_list_and_show_describe_every_builtin() {
     let show = stdout(&imagine(&["machine", "show", "gold8+F"]));
     assert!(show.contains("6 adders, 4 multipliers"), "{show}");
 }
+
+fn temp(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("imagine-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+const MADD: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/units/tests/microcode/madd.uc");
+
+#[test]
+fn kernel_asm_disasm_round_trip() {
+    let image = temp("madd.imuc");
+    let o = imagine(&["kernel", "asm", MADD, "-o", image.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("kernel `madd`"), "{}", stdout(&o));
+    let from_image = imagine(&["kernel", "disasm", image.to_str().unwrap()]);
+    let from_text = imagine(&["kernel", "disasm", MADD]);
+    assert!(from_image.status.success(), "{}", stderr(&from_image));
+    assert_eq!(stdout(&from_image), stdout(&from_text));
+    assert!(
+        stdout(&from_image).contains("fmul a[0], b[0]"),
+        "{}",
+        stdout(&from_image)
+    );
+    // An image is tied to its machine's instruction layout.
+    let o = imagine(&[
+        "kernel",
+        "disasm",
+        image.to_str().unwrap(),
+        "--machine",
+        "gold8+F",
+    ]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("gold8+F"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn kernel_run_prints_output_streams_and_cycles() {
+    let o = imagine(&[
+        "kernel",
+        "run",
+        MADD,
+        "--format",
+        "f32",
+        "--input",
+        "x=1.0,2.0,3.0,4.0,5.0,6.0,7.0,8.0",
+        "--input",
+        "y=2.0,2.0,2.0,2.0,2.0,2.0,2.0,2.0",
+        "--input",
+        "w=0.5,0.5,0.5,0.5,0.5,0.5,0.5,0.5",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("z (8 words):"), "{out}");
+    assert!(out.contains("2.5 4.5 6.5 8.5 10.5 12.5 14.5 16.5"), "{out}");
+    assert!(out.contains("cycles "), "{out}");
+}
+
+#[test]
+fn kernel_errors_name_the_problem() {
+    let bad = temp("bad.uc");
+    std::fs::write(
+        &bad,
+        "kernel k\nin x\nout y\n    add0 fmul a[0], b[0]\ndone\n",
+    )
+    .unwrap();
+    let o = imagine(&["kernel", "asm", bad.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("4:") && stderr(&o).contains("fmul"),
+        "{}",
+        stderr(&o)
+    );
+    let o = imagine(&["kernel", "run", MADD, "--input", "x=1,2"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("`y`"), "{}", stderr(&o));
+    let o = imagine(&[
+        "kernel",
+        "run",
+        MADD,
+        "--input",
+        "x=1,2,3,4,5,6,7",
+        "--input",
+        "y=1",
+        "--input",
+        "w=1",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("multiple of the 8 clusters"),
+        "{}",
+        stderr(&o)
+    );
+    let o = imagine(&["kernel", "run", MADD, "--input", "x=1,zz"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("`zz`"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -178,11 +178,15 @@ impl Clocks {
             rising: DomainSet::default(),
             falling: DomainSet::default(),
         };
-        let fired: Vec<bool> = (0..self.domains.len())
-            .map(|i| i == first || self.simultaneous(i, first))
-            .collect();
-        for (i, fires) in fired.into_iter().enumerate() {
-            if fires {
+        // Decide every domain against the same instant before advancing any of them.
+        let mut fired = 0u64;
+        for i in 0..self.domains.len() {
+            if i == first || self.simultaneous(i, first) {
+                fired |= 1 << i;
+            }
+        }
+        for i in 0..self.domains.len() {
+            if fired & (1 << i) != 0 {
                 let d = DomainId(i as u8);
                 if self.next_half[i].is_multiple_of(2) {
                     edge.rising.insert(d);

@@ -20,6 +20,9 @@ pub enum MachineCommand {
         /// Machine name or description file
         #[arg(long, default_value = "gold8")]
         machine: String,
+        /// Core cycles to simulate
+        #[arg(long, default_value_t = 4_000_000)]
+        cycles: u64,
     },
 }
 
@@ -32,7 +35,9 @@ pub fn run(c: MachineCommand) -> Result<ExitCode> {
             }
         }
         MachineCommand::Show { name } => print!("{}", describe(&MachineDesc::resolve(&name)?)),
-        MachineCommand::Bench { machine } => return super::bench::machine(&machine),
+        MachineCommand::Bench { machine, cycles } => {
+            return super::bench::machine(&machine, cycles);
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

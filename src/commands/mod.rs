@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod demo;
+pub mod kernel;
 pub mod machine;
 pub mod pending;
 pub mod render;

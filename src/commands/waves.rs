@@ -8,7 +8,7 @@ use clap::Args;
 use imagine_hdl::Sim;
 use imagine_waves::{CycleWindow, VcdOptions, VcdWriter, gtkw_path, parse_window};
 
-#[derive(Args)]
+#[derive(Args, Clone)]
 pub struct WaveArgs {
     /// Write a VCD waveform to FILE (and a GTKWave save file next to it, FILE.gtkw)
     #[arg(long, value_name = "FILE")]

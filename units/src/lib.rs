@@ -32,3 +32,4 @@ pub mod runner;
 pub mod scratchpad;
 pub mod srf;
 pub mod switch;
+pub mod workloads;

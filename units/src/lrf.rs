@@ -7,6 +7,8 @@
 //! port conflict, reported as a [`ContractError`] naming the register file.
 //! Reads see the state committed at the last edge; writes land at the edge.
 
+use std::cell::Cell;
+
 use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
 
 pub struct Lrf {
@@ -15,7 +17,8 @@ pub struct Lrf {
     lanes: usize,
     /// Entry-major: `data[entry * lanes + lane]`.
     data: Vec<u32>,
-    read_entry: Option<u16>,
+    /// The read port's use this cycle (a `Cell`, so reads share the file).
+    read_entry: Cell<Option<u16>>,
     write_entry: Option<u16>,
     write_values: Vec<u32>,
     write_mask: Vec<bool>,
@@ -73,7 +76,7 @@ impl Lrf {
             entries,
             lanes,
             data: vec![0; entries * lanes],
-            read_entry: None,
+            read_entry: Cell::new(None),
             write_entry: None,
             write_values: vec![0; lanes],
             write_mask: vec![true; lanes],
@@ -89,6 +92,7 @@ impl Lrf {
         &self.path
     }
 
+    #[inline]
     fn check_entry(&self, entry: u16, port: &str) -> Result<usize, ContractError> {
         let e = entry as usize;
         if e >= self.entries {
@@ -102,8 +106,8 @@ impl Lrf {
 
     /// Reads `entry` in every cluster (the read port, once per cycle).
     #[inline]
-    pub fn read(&mut self, entry: u16) -> Result<&[u32], ContractError> {
-        if let Some(prev) = self.read_entry {
+    pub fn read(&self, entry: u16) -> Result<&[u32], ContractError> {
+        if let Some(prev) = self.read_entry.get() {
             return Err(ContractError::at(
                 &format!("{}.read", self.path),
                 Violation::Other(format!(
@@ -112,7 +116,7 @@ impl Lrf {
             ));
         }
         let e = self.check_entry(entry, "read")?;
-        self.read_entry = Some(entry);
+        self.read_entry.set(Some(entry));
         Ok(&self.data[e * self.lanes..(e + 1) * self.lanes])
     }
 
@@ -166,9 +170,9 @@ impl Lrf {
                     *d = v;
                 }
             }
-            // The write buffers become the probe's copy; the next write overwrites them.
-            p.last_values.copy_from_slice(&self.write_values);
-            p.last_mask.copy_from_slice(&self.write_mask);
+            // The write buffers become the probe's copy; the next write refills the others.
+            std::mem::swap(&mut p.last_values, &mut self.write_values);
+            std::mem::swap(&mut p.last_mask, &mut self.write_mask);
         }
     }
 

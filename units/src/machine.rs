@@ -626,34 +626,36 @@ impl Machine {
             }
             let [la, lb] = self.fu_inputs[slot];
             let arity = fu.op.arity();
-            let [a, b, c] = &mut self.buf;
-            a.copy_from_slice(self.lrfs[la].read(fu.a)?);
-            if arity >= 2 {
-                b.copy_from_slice(self.lrfs[lb].read(fu.b)?);
-            }
-            if fu.op == Op::Select {
+            // Operands go from the LRF read ports straight to the unit's input latches.
+            let a = self.lrfs[la].read(fu.a)?;
+            let b: &[u32] = if arity >= 2 {
+                self.lrfs[lb].read(fu.b)?
+            } else {
+                &[]
+            };
+            let is = if fu.op == Op::Select {
                 // select(cond, a, b): the condition code is the first operand.
-                for (dst, &bit) in c.iter_mut().zip(self.cc.read(fu.cc)?) {
+                let cond = &mut self.buf[2];
+                for (dst, &bit) in cond.iter_mut().zip(self.cc.read(fu.cc)?) {
                     *dst = bit as u32;
                 }
-                let is = Issue {
+                Issue {
                     op: fu.op,
-                    a: c,
+                    a: cond,
                     b: a,
                     c: b,
                     tag: pc,
-                };
-                self.fus.issue(slot, is)?;
+                }
             } else {
-                let is = Issue {
+                Issue {
                     op: fu.op,
                     a,
-                    b: if arity >= 2 { b } else { &[] },
+                    b,
                     c: &[],
                     tag: pc,
-                };
-                self.fus.issue(slot, is)?;
-            }
+                }
+            };
+            self.fus.issue(slot, is)?;
             stats.fu_ops[slot] += 1;
         }
         for (i, sp) in inst.sp.iter().enumerate() {

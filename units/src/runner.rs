@@ -4,7 +4,7 @@
 
 use std::fmt;
 
-use imagine_hdl::{ClockDomain, ContractError, Design, Sim, Tracer};
+use imagine_hdl::{ClockDomain, ContractError, Design, Sim};
 
 use crate::desc::MachineDesc;
 use crate::machine::{KernelStats, Machine, StreamBinding};
@@ -38,19 +38,21 @@ impl From<ContractError> for RunError {
     }
 }
 
+/// Called with the simulator before the first cycle, e.g. to attach a VCD writer.
+pub type OnStart = Box<dyn FnOnce(&mut Sim) -> Result<(), String>>;
+
 /// How to run a kernel.
 pub struct RunOptions {
     /// Give up after this many core cycles.
     pub max_cycles: u64,
-    /// Attach this tracer (e.g. a VCD writer) to the run.
-    pub tracer: Option<Box<dyn Tracer>>,
+    pub on_start: Option<OnStart>,
 }
 
 impl Default for RunOptions {
     fn default() -> Self {
         RunOptions {
             max_cycles: 10_000_000,
-            tracer: None,
+            on_start: None,
         }
     }
 }
@@ -90,9 +92,8 @@ pub fn run_kernel(
         .map_err(|e| RunError::Setup(e.to_string()))?;
     design.add(machine);
     let mut sim = Sim::new(design);
-    if let Some(t) = options.tracer {
-        sim.attach(t)
-            .map_err(|e| RunError::Setup(format!("cannot start the trace: {e}")))?;
+    if let Some(on_start) = options.on_start {
+        on_start(&mut sim).map_err(RunError::Setup)?;
     }
     let finished = sim.run_until(options.max_cycles, |sim| machine_of(sim).is_idle())?;
     sim.finish()

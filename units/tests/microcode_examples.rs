@@ -247,26 +247,22 @@ impl<'a> Exec<'a> {
                 self.land(u64::from(l.stream), cl, &s.dests, value);
             }
         }
-        if let Some(s) = &ins.sout {
-            if active(s.stage) {
-                for cl in 0..self.c {
-                    if s.cond.is_some_and(|k| !self.cc[cl][usize::from(k)]) {
-                        continue;
-                    }
-                    let value = self.read(cl, "sout", "data", s.data);
-                    self.outputs[usize::from(s.stream)].push(value);
+        if let Some(s) = ins.sout.filter(|s| active(s.stage)) {
+            for cl in 0..self.c {
+                if s.cond.is_some_and(|k| !self.cc[cl][usize::from(k)]) {
+                    continue;
                 }
+                let value = self.read(cl, "sout", "data", s.data);
+                self.outputs[usize::from(s.stream)].push(value);
             }
         }
-        if let Some(s) = &ins.imm {
-            if active(s.stage) {
-                for cl in 0..self.c {
-                    let value = match s.value {
-                        ImmValue::Const(v) => v,
-                        ImmValue::ClusterId => cl as u32,
-                    };
-                    self.land(1, cl, &s.dests, value);
-                }
+        if let Some(s) = ins.imm.filter(|s| active(s.stage)) {
+            for cl in 0..self.c {
+                let value = match s.value {
+                    ImmValue::Const(v) => v,
+                    ImmValue::ClusterId => cl as u32,
+                };
+                self.land(1, cl, &s.dests, value);
             }
         }
     }

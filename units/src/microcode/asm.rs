@@ -35,12 +35,19 @@
 //! | `loop stream NAME[, stages S]:` | … a loop that runs until input stream `NAME` is exhausted |
 //! | `loop until cc[K]:` | … a loop that runs until condition code `K` is set in every cluster |
 //! | `end` | the previous instruction ends the innermost loop |
-//! | `done` | the previous instruction is the kernel's last (`Done`); if it already ends a loop (or there is none), `done` adds an empty instruction that is |
+//! | `done` | the previous instruction is the kernel's last (`Done`); nothing follows |
 //!
 //! An instruction line that ends in `|` continues on the next line. `stages S` is the
-//! software-pipeline depth (default 1). A loop body has at least two instructions, two loops
-//! cannot begin (or end) on the same instruction, and nothing follows `done` — a `nop`
-//! separates them where a program needs it (the instruction word has one control field).
+//! software-pipeline depth (default 1). Names (kernel, streams) are identifiers: a letter or
+//! `_`, then letters, digits, `_` or `.`; the grammar is positional, so a stream may be
+//! called `in`, `cc` or `stream`.
+//!
+//! An instruction word has one control field, so one instruction cannot both begin and end a
+//! loop, begin two loops, or end two: a loop body has at least two instructions, and where
+//! two `loop` lines (or two `end` lines) would meet, a `nop` separates them. `done` after an
+//! `end` (or with no instruction before it) adds an empty instruction to carry `Done`;
+//! writing `nop` before that `done` gives the same program, and [`disassemble`] prints the
+//! short form.
 //!
 //! # Slots
 //!
@@ -61,6 +68,30 @@
 //! [`lrf_names`](crate::desc::MachineDesc::lrf_names) name), a condition code `cc[2]` (bit 0
 //! of the result), or an output stream `stream NAME`. Op mnemonics are [`Op::name`]s.
 //! Numbers in other places are decimal or `0x` hex.
+//!
+//! # Grammar
+//!
+//! ```text
+//! program  = "kernel" NAME NL { ("in" | "out") NAME NL } { body NL }
+//! body     = instr | "nop" | "end" | "done"
+//!          | "loop" ("count" INT | "stream" NAME | "until" "cc" "[" INT "]") ["," "stages" INT] ":"
+//! instr    = slot { "|" [NL] slot }
+//! slot     = FU OP operands [dests] [stage]            ; FU = addN | mulN | dsqN
+//!          | SP "ld" INT ["," "addr" "[" INT "]"] [dests] [stage]
+//!          | SP "st" INT ["," "addr" "[" INT "]"] "," "data" "[" INT "]" [stage]
+//!          | COMM "data" "[" INT "]" "," perm [dests] [stage]
+//!          | SIN NAME [cond] [dests] [stage]
+//!          | "sout" NAME "," "data" "[" INT "]" [cond] [stage]
+//!          | "imm" (NUMBER | "cid") [dests] [stage]
+//! operands = "a" "[" INT "]"                                    ; one-operand ops
+//!          | "a" "[" INT "]" "," "b" "[" INT "]"                ; two-operand ops
+//!          | "cc" "[" INT "]" "," "a" "[" INT "]" "," "b" "[" INT "]"   ; select
+//! perm     = ("rotate" | "xor" | "bcast") INT | "perm" "[" INT "]"
+//! cond     = "if" "cc" "[" INT "]"
+//! dests    = "->" dest ["," dest]
+//! dest     = LRF "[" INT "]" | "cc" "[" INT "]" | "stream" NAME
+//! stage    = "@" INT
+//! ```
 //!
 //! # Disassembly
 //!
@@ -86,7 +117,7 @@ pub struct AsmError {
     pub col: usize,
     pub message: String,
     /// The check failure, when the text parsed but the program does not fit the machine.
-    pub check: Option<MicrocodeError>,
+    pub check: Option<Box<MicrocodeError>>,
 }
 
 impl fmt::Display for AsmError {
@@ -677,7 +708,7 @@ impl Assembler<'_> {
                 line: pos.line,
                 col: pos.col,
                 message: e.to_string(),
-                check: Some(e),
+                check: Some(Box::new(e)),
             });
         }
         Ok(program)

@@ -3,9 +3,9 @@
 //!
 //! What is checked (everything that can be decided from the program text alone):
 //!
-//! * **shape** — one slot per unit as the machine counts them: `fu` = adders + multipliers
-//!   + divide/sqrt units, `sp` = scratchpads, `comm` = communication units, `sin` =
-//!   `srf.cluster_words_per_cycle`;
+//! * **shape** — one slot per unit as the machine counts them: `fu` has one per adder,
+//!   multiplier and divide/sqrt unit, `sp` one per scratchpad, `comm` one per
+//!   communication unit, `sin` `srf.cluster_words_per_cycle`;
 //! * **units** — every [`FuSlot`]'s op runs on that slot's unit class;
 //! * **registers** — LRF entries are below the size of the LRF they name (the inputs of a
 //!   slot `addN` are `addN.a`/`addN.b`, of `spN` `spN.addr`/`spN.data`, of `commN`
@@ -216,6 +216,14 @@ pub(crate) fn parse_index(s: &str) -> Option<usize> {
         return None;
     }
     s.parse().ok()
+}
+
+/// "an adder", "a multiplier".
+fn a_unit(class: UnitClass) -> String {
+    match class {
+        UnitClass::Adder => format!("an {class}"),
+        _ => format!("a {class}"),
+    }
 }
 
 fn plural(n: usize) -> &'static str {
@@ -460,7 +468,8 @@ impl Checker<'_> {
                     i,
                     field,
                     format!(
-                        "has {have} slots; machine `{}` has {want} ({what})",
+                        "has {have} slot{}; machine `{}` has {want} ({what})",
+                        plural(have),
                         self.desc.name
                     ),
                 ));
@@ -656,9 +665,10 @@ impl Checker<'_> {
                 i,
                 format!("{name}.op"),
                 format!(
-                    "`{}` runs on a {}, but `{name}` is a {class}",
+                    "`{}` runs on {}, but `{name}` is {}",
                     s.op,
-                    s.op.unit()
+                    a_unit(s.op.unit()),
+                    a_unit(class)
                 ),
             ));
         }
@@ -743,18 +753,19 @@ impl Checker<'_> {
                 ),
             ));
         }
-        if let Permutation::Xor(k) = s.perm {
-            if let Some(from) = (0..c).find(|&from| from ^ usize::from(k) >= c) {
-                return Err(self.error(
-                    i,
-                    field,
-                    format!(
-                        "`xor {k}` sends cluster {from} to cluster {}, but the machine has {c} \
-                         clusters",
-                        from ^ usize::from(k)
-                    ),
-                ));
-            }
+        let leaves = match s.perm {
+            Permutation::Xor(k) => (0..c).find(|&from| from ^ usize::from(k) >= c),
+            _ => None,
+        };
+        if let Some(from) = leaves {
+            return Err(self.error(
+                i,
+                field,
+                format!(
+                    "`xor {k}` sends cluster {from} to cluster {}, but the machine has {c} clusters",
+                    from ^ usize::from(k)
+                ),
+            ));
         }
         self.check_dests(i, name, &s.dests)
     }

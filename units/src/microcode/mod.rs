@@ -27,6 +27,7 @@
 
 pub mod asm;
 pub mod check;
+pub mod image;
 pub mod layout;
 
 pub use asm::{AsmError, assemble, disassemble};

@@ -1,0 +1,221 @@
+//! `imagine kernel`: microcode assembly, disassembly and runs.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::{Subcommand, ValueEnum};
+use imagine_units::desc::MachineDesc;
+use imagine_units::microcode::asm::{assemble, disassemble};
+use imagine_units::microcode::image::{read_image, write_image};
+use imagine_units::microcode::layout::InstructionLayout;
+use imagine_units::microcode::{Program, StreamDir};
+use imagine_units::runner::{RunOptions, run_kernel};
+
+use super::waves::WaveArgs;
+
+#[derive(Subcommand)]
+pub enum KernelCommand {
+    /// Assemble microcode text (.uc) into a binary microcode image
+    Asm {
+        /// Microcode assembly file
+        file: PathBuf,
+        /// Output image (default: FILE with extension .imuc)
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Machine name or description file
+        #[arg(long, default_value = "gold8")]
+        machine: String,
+        /// Also print the instruction word layout
+        #[arg(long)]
+        layout: bool,
+    },
+    /// Disassemble a microcode image (or normalise a .uc file) into text
+    Disasm {
+        file: PathBuf,
+        #[arg(long, default_value = "gold8")]
+        machine: String,
+    },
+    /// Run a microcode program (.uc or image) on given input streams
+    Run {
+        file: PathBuf,
+        #[arg(long, default_value = "gold8")]
+        machine: String,
+        /// An input stream: NAME=V,V,... or NAME=@FILE (values separated by commas or
+        /// whitespace; decimal, 0x hex, or floats with '.' or an exponent as fp32)
+        #[arg(long = "input", value_name = "NAME=VALUES")]
+        inputs: Vec<String>,
+        /// How to print output words
+        #[arg(long, value_enum, default_value_t = Format::Hex)]
+        format: Format,
+        /// Give up after this many core cycles
+        #[arg(long, default_value_t = 10_000_000)]
+        max_cycles: u64,
+        #[command(flatten)]
+        waves: WaveArgs,
+    },
+    /// List the kernel library
+    List,
+    /// Show a kernel's schedule and resource use
+    Show { name: String },
+    /// Run a kernel on random inputs on the machine and in the interpreter and compare
+    Check { name: String },
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Format {
+    Hex,
+    F32,
+    I32,
+    U32,
+}
+
+fn load_program(file: &Path, desc: &MachineDesc) -> Result<Program> {
+    let bytes = std::fs::read(file).with_context(|| format!("cannot read `{}`", file.display()))?;
+    if bytes.starts_with(b"IMUC") {
+        return Ok(read_image(&bytes, desc).with_context(|| format!("`{}`", file.display()))?);
+    }
+    let text = String::from_utf8(bytes)
+        .with_context(|| format!("`{}` is neither a microcode image nor text", file.display()))?;
+    assemble(&text, desc).with_context(|| format!("{}", file.display()))
+}
+
+pub fn run(c: KernelCommand) -> Result<ExitCode> {
+    match c {
+        KernelCommand::Asm {
+            file,
+            output,
+            machine,
+            layout,
+        } => {
+            let desc = MachineDesc::resolve(&machine)?;
+            let program = load_program(&file, &desc)?;
+            let out = output.unwrap_or_else(|| file.with_extension("imuc"));
+            let image = write_image(&program, &desc);
+            std::fs::write(&out, &image)
+                .with_context(|| format!("cannot write `{}`", out.display()))?;
+            let lay = InstructionLayout::new(&desc);
+            println!(
+                "kernel `{}`: {} instructions of {} bits for {}, {} bytes -> {}",
+                program.name,
+                program.code.len(),
+                lay.width(),
+                desc.name,
+                image.len(),
+                out.display()
+            );
+            if layout {
+                print!("{}", lay.describe());
+            }
+        }
+        KernelCommand::Disasm { file, machine } => {
+            let desc = MachineDesc::resolve(&machine)?;
+            print!("{}", disassemble(&load_program(&file, &desc)?, &desc));
+        }
+        KernelCommand::Run {
+            file,
+            machine,
+            inputs,
+            format,
+            max_cycles,
+            waves,
+        } => {
+            let desc = MachineDesc::resolve(&machine)?;
+            let program = load_program(&file, &desc)?;
+            let streams = parse_inputs(&program, &inputs)?;
+            let options = RunOptions {
+                max_cycles,
+                on_start: Some(Box::new(move |sim| {
+                    waves.attach(sim).map(|_| ()).map_err(|e| format!("{e:#}"))
+                })),
+            };
+            let start = Instant::now();
+            let run = run_kernel(&desc, &program, &streams, options)?;
+            let host = start.elapsed().as_secs_f64();
+            let outs = program.streams.iter().filter(|s| s.dir == StreamDir::Out);
+            for (s, words) in outs.zip(&run.outputs) {
+                println!("{} ({} words):", s.name, words.len());
+                for chunk in words.chunks(8) {
+                    let line: Vec<String> = chunk.iter().map(|&w| format_word(w, format)).collect();
+                    println!("  {}", line.join(" "));
+                }
+            }
+            let s = &run.stats;
+            println!(
+                "cycles {} (stalled {}), instructions {}, ops/cycle {:.2}, host {:.3} s",
+                s.cycles,
+                s.stall_cycles,
+                s.instructions,
+                s.ops_per_cycle(desc.cluster.count),
+                host
+            );
+        }
+        KernelCommand::List | KernelCommand::Show { .. } | KernelCommand::Check { .. } => {
+            bail!("the kernel library and compiler are not available yet in this build")
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn format_word(w: u32, format: Format) -> String {
+    match format {
+        Format::Hex => format!("{w:08x}"),
+        Format::F32 => format!("{:?}", f32::from_bits(w)),
+        Format::I32 => format!("{}", w as i32),
+        Format::U32 => format!("{w}"),
+    }
+}
+
+/// Parses one value: decimal (negative in two's complement), 0x hex, or an fp32 literal.
+fn parse_value(s: &str) -> Result<u32, String> {
+    let bad = || format!("`{s}` is not a number (decimal, 0x hex, or a float with '.')");
+    if let Some(hex) = s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
+        return u32::from_str_radix(hex, 16).map_err(|_| bad());
+    }
+    if s.contains(['.', 'e', 'E']) || s.contains("inf") || s.contains("nan") {
+        // Parsing text is not the datapath: Rust's parser is correctly rounded.
+        return s.parse::<f32>().map(f32::to_bits).map_err(|_| bad());
+    }
+    match s.parse::<i64>() {
+        Ok(v) if (i32::MIN as i64..=u32::MAX as i64).contains(&v) => Ok(v as u32),
+        _ => Err(bad()),
+    }
+}
+
+fn parse_inputs(program: &Program, args: &[String]) -> Result<Vec<Vec<u32>>> {
+    let mut given: Vec<(String, Vec<u32>)> = Vec::new();
+    for arg in args {
+        let Some((name, values)) = arg.split_once('=') else {
+            bail!("--input `{arg}`: expected NAME=VALUES or NAME=@FILE");
+        };
+        let text = match values.strip_prefix('@') {
+            Some(path) => std::fs::read_to_string(path)
+                .with_context(|| format!("--input {name}: cannot read `{path}`"))?,
+            None => values.to_string(),
+        };
+        let words = text
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|t| !t.is_empty())
+            .map(parse_value)
+            .collect::<Result<Vec<u32>, String>>()
+            .map_err(|e| anyhow::anyhow!("--input {name}: {e}"))?;
+        given.push((name.to_string(), words));
+    }
+    let mut streams = Vec::new();
+    for s in program.streams.iter().filter(|s| s.dir == StreamDir::In) {
+        let Some(pos) = given.iter().position(|(n, _)| *n == s.name) else {
+            bail!(
+                "kernel `{}` needs input stream `{}` (--input {}=...)",
+                program.name,
+                s.name,
+                s.name
+            );
+        };
+        streams.push(given.remove(pos).1);
+    }
+    if let Some((extra, _)) = given.first() {
+        bail!("kernel `{}` has no input stream `{extra}`", program.name);
+    }
+    Ok(streams)
+}

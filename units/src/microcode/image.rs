@@ -1,0 +1,224 @@
+//! The binary microcode image that `imagine kernel asm` writes and `imagine kernel disasm`
+//! and `imagine kernel run` read: the kernel's name and streams, then its instructions
+//! packed by the machine's [`InstructionLayout`]. All integers little-endian:
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 4 | magic `IMUC` |
+//! | 1 | format version (1) |
+//! | 2 + n | machine name (length, UTF-8) |
+//! | 2 + n | kernel name |
+//! | 1 | stream count, then per stream: 1 direction (0 in, 1 out), 2 + n name |
+//! | 4 | instruction width in bits |
+//! | 4 | instruction count, then per instruction `ceil(width / 64)` 64-bit words |
+
+use std::fmt;
+
+use imagine_hdl::WideWord;
+
+use super::layout::InstructionLayout;
+use super::{Program, StreamDecl, StreamDir};
+use crate::desc::MachineDesc;
+
+const MAGIC: &[u8; 4] = b"IMUC";
+const VERSION: u8 = 1;
+
+/// An image that cannot be read for this machine.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ImageError(pub String);
+
+impl fmt::Display for ImageError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "microcode image: {}", self.0)
+    }
+}
+
+impl std::error::Error for ImageError {}
+
+fn put_str(out: &mut Vec<u8>, s: &str) {
+    let len = u16::try_from(s.len()).expect("names are short");
+    out.extend_from_slice(&len.to_le_bytes());
+    out.extend_from_slice(s.as_bytes());
+}
+
+/// Packs a (checked) program for `desc`.
+pub fn write_image(program: &Program, desc: &MachineDesc) -> Vec<u8> {
+    let layout = InstructionLayout::new(desc);
+    let mut out = Vec::new();
+    out.extend_from_slice(MAGIC);
+    out.push(VERSION);
+    put_str(&mut out, &desc.name);
+    put_str(&mut out, &program.name);
+    out.push(program.streams.len() as u8);
+    for s in &program.streams {
+        out.push(matches!(s.dir, StreamDir::Out) as u8);
+        put_str(&mut out, &s.name);
+    }
+    out.extend_from_slice(&(layout.width() as u32).to_le_bytes());
+    out.extend_from_slice(&(program.code.len() as u32).to_le_bytes());
+    for word in layout.encode_program(program) {
+        for w in word.as_raw_slice() {
+            out.extend_from_slice(&w.to_le_bytes());
+        }
+    }
+    out
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn take(&mut self, n: usize, what: &str) -> Result<&[u8], ImageError> {
+        let end = self
+            .at
+            .checked_add(n)
+            .filter(|&e| e <= self.bytes.len())
+            .ok_or_else(|| {
+                ImageError(format!(
+                    "truncated: {what} at byte {} needs {n} bytes",
+                    self.at
+                ))
+            })?;
+        let s = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+    fn u8(&mut self, what: &str) -> Result<u8, ImageError> {
+        Ok(self.take(1, what)?[0])
+    }
+    fn u16(&mut self, what: &str) -> Result<u16, ImageError> {
+        Ok(u16::from_le_bytes(
+            self.take(2, what)?.try_into().expect("2 bytes"),
+        ))
+    }
+    fn u32(&mut self, what: &str) -> Result<u32, ImageError> {
+        Ok(u32::from_le_bytes(
+            self.take(4, what)?.try_into().expect("4 bytes"),
+        ))
+    }
+    fn u64(&mut self, what: &str) -> Result<u64, ImageError> {
+        Ok(u64::from_le_bytes(
+            self.take(8, what)?.try_into().expect("8 bytes"),
+        ))
+    }
+    fn string(&mut self, what: &str) -> Result<String, ImageError> {
+        let n = self.u16(what)? as usize;
+        let b = self.take(n, what)?;
+        String::from_utf8(b.to_vec()).map_err(|_| ImageError(format!("{what} is not UTF-8")))
+    }
+}
+
+/// Reads an image for `desc`; the program is checked against the machine.
+pub fn read_image(bytes: &[u8], desc: &MachineDesc) -> Result<Program, ImageError> {
+    let mut r = Reader { bytes, at: 0 };
+    if r.take(4, "magic")? != MAGIC {
+        return Err(ImageError("not a microcode image (no IMUC magic)".into()));
+    }
+    let version = r.u8("version")?;
+    if version != VERSION {
+        return Err(ImageError(format!(
+            "format version {version}; this build reads {VERSION}"
+        )));
+    }
+    let machine = r.string("machine name")?;
+    let name = r.string("kernel name")?;
+    let streams = (0..r.u8("stream count")?)
+        .map(|i| {
+            let dir = match r.u8("stream direction")? {
+                0 => StreamDir::In,
+                1 => StreamDir::Out,
+                d => return Err(ImageError(format!("stream {i} has direction {d}"))),
+            };
+            Ok(StreamDecl {
+                dir,
+                name: r.string("stream name")?,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let layout = InstructionLayout::new(desc);
+    let width = r.u32("instruction width")? as usize;
+    if width != layout.width() {
+        return Err(ImageError(format!(
+            "kernel `{name}` was assembled for machine `{machine}` ({width}-bit instructions); `{}` uses {} bits",
+            desc.name,
+            layout.width()
+        )));
+    }
+    let count = r.u32("instruction count")? as usize;
+    if count > desc.microcontroller.store_words {
+        return Err(ImageError(format!(
+            "kernel `{name}` has {count} instructions; the microcode store holds {}",
+            desc.microcontroller.store_words
+        )));
+    }
+    let words = width.div_ceil(64);
+    let mut code = Vec::with_capacity(count);
+    for i in 0..count {
+        let mut word = WideWord::with_capacity(words * 64);
+        for _ in 0..words {
+            word.extend_from_raw_slice(&[r.u64("instruction")?]);
+        }
+        word.truncate(width);
+        code.push(
+            layout
+                .decode(&word)
+                .map_err(|e| ImageError(format!("instruction {i}: {e}")))?,
+        );
+    }
+    if r.at != bytes.len() {
+        return Err(ImageError(format!(
+            "{} bytes after the last instruction",
+            bytes.len() - r.at
+        )));
+    }
+    let program = Program {
+        name,
+        streams,
+        code,
+    };
+    program.check(desc).map_err(|e| ImageError(e.to_string()))?;
+    Ok(program)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::workloads::compute_dense;
+
+    #[test]
+    fn images_round_trip_and_reject_damage() {
+        let gold8 = MachineDesc::gold8();
+        let p = compute_dense(&gold8, 7).unwrap();
+        let image = write_image(&p, &gold8);
+        assert_eq!(read_image(&image, &gold8).unwrap(), p);
+        // Another machine's layout is refused by name.
+        let f = MachineDesc::resolve("gold8+F").unwrap();
+        let e = read_image(&image, &f).unwrap_err();
+        assert!(
+            e.to_string().contains("gold8+F") && e.to_string().contains("`gold8`"),
+            "{e}"
+        );
+        // Truncation, trailing bytes and a wrong magic are errors, never panics.
+        for cut in [0, 3, 10, image.len() / 2, image.len() - 1] {
+            assert!(read_image(&image[..cut], &gold8).is_err(), "cut at {cut}");
+        }
+        let mut longer = image.clone();
+        longer.push(0);
+        assert!(
+            read_image(&longer, &gold8)
+                .unwrap_err()
+                .to_string()
+                .contains("after the last")
+        );
+        let mut bad = image.clone();
+        bad[0] = b'X';
+        assert!(
+            read_image(&bad, &gold8)
+                .unwrap_err()
+                .to_string()
+                .contains("magic")
+        );
+    }
+}

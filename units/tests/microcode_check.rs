@@ -1,0 +1,913 @@
+//! `Program::check`: every way a program can fail to fit the machine, each triggered by a
+//! minimal program, with the message naming the kernel, the instruction and the field.
+
+use imagine_units::desc::MachineDesc;
+use imagine_units::microcode::{
+    CommSlot, Control, Dest, FuSlot, ImmValue, Immediate, Instruction, LoopKind, MicrocodeError,
+    Permutation, Program, SpSlot, StreamDecl, StreamDir, StreamIn, StreamOut,
+};
+use imagine_units::ops::Op;
+
+fn gold8() -> MachineDesc {
+    MachineDesc::gold8()
+}
+
+fn empty(desc: &MachineDesc) -> Instruction {
+    let c = &desc.cluster;
+    Instruction {
+        control: Control::Next,
+        fu: vec![None; c.adders + c.multipliers + c.divsqrt],
+        sp: vec![None; c.scratchpads],
+        comm: vec![None; c.comm_units],
+        sin: vec![None; desc.srf.cluster_words_per_cycle],
+        sout: None,
+        imm: None,
+    }
+}
+
+fn done(desc: &MachineDesc) -> Instruction {
+    Instruction {
+        control: Control::Done,
+        ..empty(desc)
+    }
+}
+
+/// Kernel `k` with streams `x` (in) and `y` (out): `ins`, then a Done.
+fn program(desc: &MachineDesc, ins: Instruction) -> Program {
+    Program {
+        name: "k".into(),
+        streams: vec![
+            StreamDecl {
+                name: "x".into(),
+                dir: StreamDir::In,
+            },
+            StreamDecl {
+                name: "y".into(),
+                dir: StreamDir::Out,
+            },
+        ],
+        code: vec![ins, done(desc)],
+    }
+}
+
+fn fu(op: Op) -> FuSlot {
+    FuSlot {
+        op,
+        a: 0,
+        b: 0,
+        cc: 0,
+        dests: [None; 2],
+        stage: 0,
+    }
+}
+
+fn lrf(desc: &MachineDesc, name: &str, entry: u16) -> Dest {
+    let lrf = desc.lrf_names().iter().position(|n| n == name).unwrap() as u16;
+    Dest::Lrf { lrf, entry }
+}
+
+/// The check fails at `instruction` on `field`, and the message says all of it and `text`.
+fn fails(desc: &MachineDesc, p: &Program, instruction: usize, field: &str, text: &str) {
+    let e: MicrocodeError = p.check(desc).expect_err("the program must be rejected");
+    let msg = e.to_string();
+    assert_eq!(e.kernel.as_deref(), Some(p.name.as_str()), "{msg}");
+    assert_eq!(e.instruction, Some(instruction), "{msg}");
+    assert_eq!(e.field.as_deref(), Some(field), "{msg}");
+    let head = format!(
+        "kernel `{}`, instruction {instruction}, `{field}`: ",
+        p.name
+    );
+    assert!(msg.starts_with(&head), "`{msg}` should start with `{head}`");
+    assert!(msg.contains(text), "`{msg}` should contain `{text}`");
+}
+
+fn fails_kernel(desc: &MachineDesc, p: &Program, text: &str) {
+    let e = p.check(desc).expect_err("the program must be rejected");
+    let msg = e.to_string();
+    assert_eq!((e.instruction, e.field.as_deref()), (None, None), "{msg}");
+    assert!(msg.starts_with(&format!("kernel `{}` ", p.name)), "{msg}");
+    assert!(msg.contains(text), "`{msg}` should contain `{text}`");
+}
+
+fn with_fu(desc: &MachineDesc, k: usize, s: FuSlot) -> Program {
+    let mut ins = empty(desc);
+    ins.fu[k] = Some(s);
+    program(desc, ins)
+}
+
+#[test]
+fn a_minimal_program_passes() {
+    let d = gold8();
+    program(&d, empty(&d)).check(&d).unwrap();
+    let mut only = program(&d, empty(&d));
+    only.code.remove(0);
+    only.check(&d).unwrap();
+}
+
+#[test]
+fn slot_vectors_have_the_machines_lengths() {
+    let d = gold8();
+    let mut ins = empty(&d);
+    ins.fu.pop();
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "fu",
+        "has 5 slots; machine `gold8` has 6 (3 adders, 2 multipliers, 1 divide/sqrt unit)",
+    );
+    let mut ins = empty(&d);
+    ins.sp.push(None);
+    fails(&d, &program(&d, ins), 0, "sp", "has 2 slots");
+    let mut ins = empty(&d);
+    ins.comm.clear();
+    fails(&d, &program(&d, ins), 0, "comm", "has 0 slots");
+    let mut ins = empty(&d);
+    ins.sin.push(None);
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sin",
+        "`srf.cluster_words_per_cycle`",
+    );
+    // gold8+C has 3 scratchpads: a gold8 instruction does not fit it.
+    let c = MachineDesc::resolve("gold8+C").unwrap();
+    fails(
+        &c,
+        &program(&c, empty(&d)),
+        0,
+        "sp",
+        "has 1 slot; machine `gold8+C` has 3",
+    );
+}
+
+#[test]
+fn ops_run_on_their_unit_class() {
+    let d = gold8();
+    fails(
+        &d,
+        &with_fu(&d, 3, fu(Op::FAdd)),
+        0,
+        "mul0.op",
+        "`fadd` runs on an adder, but `mul0` is a multiplier",
+    );
+    fails(
+        &d,
+        &with_fu(&d, 0, fu(Op::FMul)),
+        0,
+        "add0.op",
+        "`fmul` runs on a multiplier",
+    );
+    fails(
+        &d,
+        &with_fu(&d, 2, fu(Op::FDiv)),
+        0,
+        "add2.op",
+        "divide/sqrt",
+    );
+    with_fu(&d, 5, fu(Op::FSqrt)).check(&d).unwrap();
+}
+
+#[test]
+fn operand_entries_are_inside_their_lrfs() {
+    let d = gold8();
+    // add0.a has 32 entries, add0.b 16.
+    with_fu(
+        &d,
+        0,
+        FuSlot {
+            a: 31,
+            b: 15,
+            ..fu(Op::IAdd)
+        },
+    )
+    .check(&d)
+    .unwrap();
+    fails(
+        &d,
+        &with_fu(
+            &d,
+            0,
+            FuSlot {
+                a: 32,
+                ..fu(Op::IAdd)
+            },
+        ),
+        0,
+        "add0.a",
+        "entry 32 is out of range: LRF `add0.a` has 32 entries",
+    );
+    fails(
+        &d,
+        &with_fu(
+            &d,
+            0,
+            FuSlot {
+                b: 16,
+                ..fu(Op::IAdd)
+            },
+        ),
+        0,
+        "add0.b",
+        "has 16 entries",
+    );
+    fails(
+        &d,
+        &with_fu(
+            &d,
+            2,
+            FuSlot {
+                a: 16,
+                ..fu(Op::IAdd)
+            },
+        ),
+        0,
+        "add2.a",
+        "LRF `add2.a` has 16 entries",
+    );
+    fails(
+        &d,
+        &with_fu(
+            &d,
+            4,
+            FuSlot {
+                b: 20,
+                ..fu(Op::FMul)
+            },
+        ),
+        0,
+        "mul1.b",
+        "entry 20",
+    );
+}
+
+#[test]
+fn unused_fields_are_zero() {
+    let d = gold8();
+    fails(
+        &d,
+        &with_fu(
+            &d,
+            0,
+            FuSlot {
+                b: 3,
+                ..fu(Op::FAbs)
+            },
+        ),
+        0,
+        "add0.b",
+        "`fabs` takes one operand; an unused field must be 0",
+    );
+    fails(
+        &d,
+        &with_fu(
+            &d,
+            1,
+            FuSlot {
+                cc: 2,
+                ..fu(Op::FAdd)
+            },
+        ),
+        0,
+        "add1.cc",
+        "only `select` reads a condition code",
+    );
+    fails(
+        &d,
+        &with_fu(
+            &d,
+            0,
+            FuSlot {
+                cc: 16,
+                ..fu(Op::Select)
+            },
+        ),
+        0,
+        "add0.cc",
+        "condition code 16 is out of range: a cluster has 16",
+    );
+    with_fu(
+        &d,
+        0,
+        FuSlot {
+            cc: 15,
+            a: 1,
+            b: 2,
+            ..fu(Op::Select)
+        },
+    )
+    .check(&d)
+    .unwrap();
+
+    let sp = SpSlot {
+        write: false,
+        base: 0,
+        offset: None,
+        data: 0,
+        dests: [None; 2],
+        stage: 0,
+    };
+    let mut ins = empty(&d);
+    ins.sp[0] = Some(SpSlot { data: 1, ..sp });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sp0.data",
+        "a scratchpad read writes no data",
+    );
+    let mut ins = empty(&d);
+    ins.sp[0] = Some(SpSlot {
+        write: true,
+        dests: [Some(Dest::Cc { index: 0 }), None],
+        ..sp
+    });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sp0.dest0",
+        "a scratchpad write has no result",
+    );
+}
+
+#[test]
+fn destinations_exist_and_are_canonical() {
+    let d = gold8();
+    let with_dests = |dests| {
+        with_fu(
+            &d,
+            0,
+            FuSlot {
+                dests,
+                ..fu(Op::IAdd)
+            },
+        )
+    };
+    fails(
+        &d,
+        &with_dests([Some(Dest::Lrf { lrf: 17, entry: 0 }), None]),
+        0,
+        "add0.dest0",
+        "LRF 17 does not exist: a cluster has 17 LRFs",
+    );
+    fails(
+        &d,
+        &with_dests([Some(lrf(&d, "mul0.b", 16)), None]),
+        0,
+        "add0.dest0",
+        "entry 16 is out of range: LRF `mul0.b` has 16 entries",
+    );
+    fails(
+        &d,
+        &with_dests([None, Some(Dest::Cc { index: 16 })]),
+        0,
+        "add0.dest1",
+        "a second destination without a first",
+    );
+    fails(
+        &d,
+        &with_dests([Some(Dest::Cc { index: 1 }), Some(Dest::Cc { index: 16 })]),
+        0,
+        "add0.dest1",
+        "condition code 16 is out of range",
+    );
+    fails(
+        &d,
+        &with_dests([Some(Dest::Cc { index: 1 }), Some(Dest::Cc { index: 1 })]),
+        0,
+        "add0.dest1",
+        "both destinations are the same",
+    );
+    fails(
+        &d,
+        &with_dests([Some(lrf(&d, "add1.a", 1)), Some(lrf(&d, "add1.a", 2))]),
+        0,
+        "add0.dest1",
+        "both destinations write LRF `add1.a` in the same cycle",
+    );
+    fails(
+        &d,
+        &with_dests([Some(Dest::Stream { stream: 2 }), None]),
+        0,
+        "add0.dest0",
+        "stream 2 is not declared (the kernel declares 2)",
+    );
+    fails(
+        &d,
+        &with_dests([Some(Dest::Stream { stream: 0 }), None]),
+        0,
+        "add0.dest0",
+        "writes an output stream, but stream 0 `x` is an input stream",
+    );
+    with_dests([
+        Some(Dest::Stream { stream: 1 }),
+        Some(lrf(&d, "sout.data", 15)),
+    ])
+    .check(&d)
+    .unwrap();
+    // Destinations of every kind of slot are checked.
+    let mut ins = empty(&d);
+    ins.imm = Some(Immediate {
+        value: ImmValue::ClusterId,
+        dests: [Some(lrf(&d, "add0.a", 32)), None],
+        stage: 0,
+    });
+    fails(&d, &program(&d, ins), 0, "imm.dest0", "entry 32");
+}
+
+#[test]
+fn streams_are_read_and_written_in_their_direction() {
+    let d = gold8();
+    let sin = StreamIn {
+        stream: 0,
+        cond: None,
+        dests: [None; 2],
+        stage: 0,
+    };
+    let mut ins = empty(&d);
+    ins.sin[2] = Some(StreamIn { stream: 1, ..sin });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sin2.stream",
+        "reads an input stream, but stream 1 `y` is an output stream",
+    );
+    let mut ins = empty(&d);
+    ins.sin[0] = Some(StreamIn { stream: 5, ..sin });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sin0.stream",
+        "stream 5 is not declared",
+    );
+    let mut ins = empty(&d);
+    ins.sin[0] = Some(StreamIn {
+        cond: Some(16),
+        ..sin
+    });
+    fails(&d, &program(&d, ins), 0, "sin0.cond", "condition code 16");
+    let sout = StreamOut {
+        stream: 1,
+        data: 0,
+        cond: None,
+        stage: 0,
+    };
+    let mut ins = empty(&d);
+    ins.sout = Some(StreamOut { stream: 0, ..sout });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sout.stream",
+        "writes an output stream, but stream 0 `x` is an input stream",
+    );
+    let mut ins = empty(&d);
+    ins.sout = Some(StreamOut { data: 16, ..sout });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sout.data",
+        "LRF `sout.data` has 16 entries",
+    );
+    let mut ins = empty(&d);
+    ins.sout = Some(StreamOut {
+        cond: Some(20),
+        ..sout
+    });
+    fails(&d, &program(&d, ins), 0, "sout.cond", "condition code 20");
+}
+
+#[test]
+fn stream_bandwidth_per_instruction() {
+    let d = gold8();
+    let sin = StreamIn {
+        stream: 0,
+        cond: None,
+        dests: [None; 2],
+        stage: 0,
+    };
+    let sout = StreamOut {
+        stream: 1,
+        data: 0,
+        cond: None,
+        stage: 0,
+    };
+    let mut ins = empty(&d);
+    ins.sin = vec![Some(sin); 4];
+    program(&d, ins.clone()).check(&d).unwrap();
+    ins.sout = Some(sout);
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sout",
+        "moves 5 stream words per cluster (stream inputs and the stream output); the SRF gives a cluster 4 per cycle",
+    );
+    let mut ins = empty(&d);
+    ins.sin[0] = Some(StreamIn {
+        cond: Some(1),
+        ..sin
+    });
+    ins.sin[1] = Some(StreamIn {
+        cond: Some(2),
+        ..sin
+    });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sin1",
+        "moves 2 conditional stream words per cluster; conditional streams carry 1 per cycle",
+    );
+    let mut ins = empty(&d);
+    ins.sin[0] = Some(StreamIn {
+        cond: Some(1),
+        ..sin
+    });
+    ins.sout = Some(StreamOut {
+        cond: Some(1),
+        ..sout
+    });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sout",
+        "2 conditional stream words",
+    );
+}
+
+#[test]
+fn kernel_stream_declarations() {
+    let d = gold8();
+    let mut p = program(&d, empty(&d));
+    p.streams = (0..9)
+        .map(|i| StreamDecl {
+            name: format!("s{i}"),
+            dir: StreamDir::In,
+        })
+        .collect();
+    fails_kernel(
+        &d,
+        &p,
+        "declares 9 streams; a kernel may address at most 8 (`srf.kernel_streams`)",
+    );
+    let mut p = program(&d, empty(&d));
+    p.streams[1].name = "x".into();
+    fails_kernel(&d, &p, "declares stream `x` more than once");
+    let mut p = program(&d, empty(&d));
+    p.streams[1].name = "two words".into();
+    fails_kernel(&d, &p, "`two words`, which is not an identifier");
+    let mut p = program(&d, empty(&d));
+    p.name = "9lives".into();
+    fails_kernel(&d, &p, "not an identifier");
+}
+
+#[test]
+fn scratchpad_bases_and_offsets() {
+    let d = gold8();
+    let sp = SpSlot {
+        write: true,
+        base: 255,
+        offset: Some(15),
+        data: 15,
+        dests: [None; 2],
+        stage: 0,
+    };
+    let mut ins = empty(&d);
+    ins.sp[0] = Some(sp);
+    program(&d, ins).check(&d).unwrap();
+    let mut ins = empty(&d);
+    ins.sp[0] = Some(SpSlot { base: 256, ..sp });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sp0.base",
+        "base 256 is out of range: the scratchpad has 256 words",
+    );
+    let mut ins = empty(&d);
+    ins.sp[0] = Some(SpSlot {
+        offset: Some(16),
+        ..sp
+    });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sp0.addr",
+        "LRF `sp0.addr` has 16 entries",
+    );
+    let mut ins = empty(&d);
+    ins.sp[0] = Some(SpSlot { data: 16, ..sp });
+    fails(
+        &d,
+        &program(&d, ins),
+        0,
+        "sp0.data",
+        "LRF `sp0.data` has 16 entries",
+    );
+    // Reyes machines may have bigger scratchpads.
+    let big = MachineDesc::parse(
+        "name = \"b\"\nbase = \"gold8\"\n[scratchpad]\nwords = 512",
+        "b",
+    )
+    .unwrap();
+    let mut ins = empty(&big);
+    ins.sp[0] = Some(SpSlot { base: 511, ..sp });
+    program(&big, ins).check(&big).unwrap();
+}
+
+#[test]
+fn permutation_constants_name_clusters() {
+    let d = gold8();
+    let one = MachineDesc::resolve("gold1").unwrap();
+    let comm = |perm| CommSlot {
+        data: 0,
+        perm,
+        dests: [None; 2],
+        stage: 0,
+    };
+    let with = |desc: &MachineDesc, perm| {
+        let mut ins = empty(desc);
+        ins.comm[0] = Some(comm(perm));
+        program(desc, ins)
+    };
+    for perm in [
+        Permutation::Rotate(7),
+        Permutation::Xor(7),
+        Permutation::Broadcast(7),
+        Permutation::PerCluster(15),
+    ] {
+        with(&d, perm).check(&d).unwrap();
+    }
+    fails(
+        &d,
+        &with(&d, Permutation::Rotate(8)),
+        0,
+        "comm0.perm",
+        "`rotate 8` names cluster 8, but the machine has 8 clusters (0..=7)",
+    );
+    fails(
+        &d,
+        &with(&d, Permutation::Xor(8)),
+        0,
+        "comm0.perm",
+        "`xor 8`",
+    );
+    fails(
+        &d,
+        &with(&d, Permutation::Broadcast(9)),
+        0,
+        "comm0.perm",
+        "`bcast 9`",
+    );
+    fails(
+        &d,
+        &with(&d, Permutation::PerCluster(16)),
+        0,
+        "comm0.perm",
+        "LRF `comm0.perm` has 16 entries",
+    );
+    fails(
+        &one,
+        &with(&one, Permutation::Rotate(1)),
+        0,
+        "comm0.perm",
+        "the machine has 1 cluster (0..=0)",
+    );
+    with(&one, Permutation::Rotate(0)).check(&one).unwrap();
+    // xor on a cluster count that is not a power of two can leave the machine.
+    let six = MachineDesc::parse(
+        "name = \"six\"\nbase = \"gold8\"\n[cluster]\ncount = 6",
+        "six",
+    )
+    .unwrap();
+    fails(
+        &six,
+        &with(&six, Permutation::Xor(2)),
+        0,
+        "comm0.perm",
+        "`xor 2` sends cluster 4 to cluster 6",
+    );
+    with(&six, Permutation::Xor(1)).check(&six).unwrap();
+}
+
+fn looped(desc: &MachineDesc, kind: LoopKind, stages: u8, body: Vec<Instruction>) -> Program {
+    let mut p = program(desc, empty(desc));
+    let mut code = body;
+    code[0].control = Control::LoopBegin { kind, stages };
+    let last = code.len() - 1;
+    code[last].control = Control::LoopEnd;
+    code.push(done(desc));
+    p.code = code;
+    p
+}
+
+#[test]
+fn stages_are_inside_the_innermost_loop() {
+    let d = gold8();
+    let staged = |stage| {
+        let mut ins = empty(&d);
+        ins.fu[0] = Some(FuSlot {
+            stage,
+            ..fu(Op::IAdd)
+        });
+        ins
+    };
+    fails(
+        &d,
+        &program(&d, staged(1)),
+        0,
+        "add0.stage",
+        "stage 1 is out of range: outside a software-pipelined loop every slot is stage 0",
+    );
+    looped(&d, LoopKind::Counted(4), 2, vec![staged(1), staged(0)])
+        .check(&d)
+        .unwrap();
+    fails(
+        &d,
+        &looped(&d, LoopKind::Counted(4), 2, vec![staged(0), staged(2)]),
+        1,
+        "add0.stage",
+        "stage 2 is out of range: the loop has 2 stages (0..=1)",
+    );
+    // The LoopBegin instruction's own slots are inside the loop; the LoopEnd's too.
+    looped(&d, LoopKind::Counted(4), 3, vec![staged(2), staged(2)])
+        .check(&d)
+        .unwrap();
+    // Every kind of slot has its stage checked.
+    let mut ins = empty(&d);
+    ins.imm = Some(Immediate {
+        value: ImmValue::Const(1),
+        dests: [None; 2],
+        stage: 3,
+    });
+    fails(
+        &d,
+        &looped(&d, LoopKind::Counted(4), 3, vec![empty(&d), ins]),
+        1,
+        "imm.stage",
+        "stage 3",
+    );
+}
+
+#[test]
+fn loop_headers() {
+    let d = gold8();
+    let body = || vec![empty(&d), empty(&d)];
+    fails(
+        &d,
+        &looped(&d, LoopKind::Counted(4), 0, body()),
+        0,
+        "ctl.stages",
+        "a loop has 1..=8 software-pipeline stages, not 0",
+    );
+    fails(
+        &d,
+        &looped(&d, LoopKind::Counted(4), 9, body()),
+        0,
+        "ctl.stages",
+        "not 9",
+    );
+    looped(&d, LoopKind::Counted(4), 8, body())
+        .check(&d)
+        .unwrap();
+    fails(
+        &d,
+        &looped(&d, LoopKind::UntilCc(3), 2, body()),
+        0,
+        "ctl.stages",
+        "an `until cc` loop cannot be software-pipelined (stages must be 1, not 2)",
+    );
+    fails(
+        &d,
+        &looped(&d, LoopKind::UntilCc(16), 1, body()),
+        0,
+        "ctl.value",
+        "condition code 16",
+    );
+    fails(
+        &d,
+        &looped(&d, LoopKind::UntilStreamEmpty(1), 1, body()),
+        0,
+        "ctl.value",
+        "reads an input stream, but stream 1 `y` is an output stream",
+    );
+    fails(
+        &d,
+        &looped(&d, LoopKind::UntilStreamEmpty(2), 1, body()),
+        0,
+        "ctl.value",
+        "stream 2 is not declared",
+    );
+    looped(&d, LoopKind::UntilStreamEmpty(0), 4, body())
+        .check(&d)
+        .unwrap();
+    looped(&d, LoopKind::Counted(0), 1, body())
+        .check(&d)
+        .unwrap();
+}
+
+#[test]
+fn loops_nest_properly_and_not_too_deep() {
+    let d = gold8();
+    let at = |control| Instruction {
+        control,
+        ..empty(&d)
+    };
+    let begin = || {
+        at(Control::LoopBegin {
+            kind: LoopKind::Counted(2),
+            stages: 1,
+        })
+    };
+    let mut p = program(&d, empty(&d));
+    // Depth 4 fits (`microcontroller.loop_depth`), depth 5 does not.
+    let mut code = Vec::new();
+    for _ in 0..4 {
+        code.push(begin());
+    }
+    code.push(empty(&d));
+    for _ in 0..4 {
+        code.push(at(Control::LoopEnd));
+    }
+    code.push(done(&d));
+    p.code = code.clone();
+    p.check(&d).unwrap();
+    code.insert(4, begin());
+    code.insert(6, at(Control::LoopEnd));
+    p.code = code;
+    fails(
+        &d,
+        &p,
+        4,
+        "ctl",
+        "opens a loop nested 5 deep; the loop stack holds 4 (`microcontroller.loop_depth`)",
+    );
+
+    p.code = vec![empty(&d), at(Control::LoopEnd), done(&d)];
+    fails(&d, &p, 1, "ctl", "LoopEnd closes no open loop");
+    p.code = vec![begin(), empty(&d), done(&d)];
+    fails(
+        &d,
+        &p,
+        2,
+        "ctl",
+        "Done inside the loop that begins at instruction 0",
+    );
+    p.code = vec![empty(&d), begin(), empty(&d)];
+    fails(
+        &d,
+        &p,
+        1,
+        "ctl",
+        "opens a loop that is never closed by a LoopEnd",
+    );
+}
+
+#[test]
+fn exactly_one_done_at_the_end() {
+    let d = gold8();
+    let mut p = program(&d, empty(&d));
+    p.code = vec![empty(&d), empty(&d)];
+    fails(&d, &p, 1, "ctl", "the last instruction is not Done");
+    p.code = vec![done(&d), done(&d)];
+    fails(&d, &p, 0, "ctl", "Done before the last instruction (1)");
+    p.code = vec![done(&d), empty(&d)];
+    fails(&d, &p, 0, "ctl", "Done must be the last instruction");
+    p.code.clear();
+    fails_kernel(&d, &p, "has no instructions");
+}
+
+#[test]
+fn code_fits_the_microcode_store() {
+    let d = gold8();
+    let mut p = program(&d, empty(&d));
+    p.name = "x".into();
+    p.code = vec![empty(&d); 2099];
+    p.code.push(done(&d));
+    let e = p.check(&d).unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "kernel `x` needs 2100 instructions; the microcode store holds 2048"
+    );
+    p.code.drain(..2100 - 2048);
+    p.check(&d).unwrap();
+}
+
+#[test]
+fn errors_are_std_errors() {
+    let d = gold8();
+    let e: Box<dyn std::error::Error> =
+        Box::new(program(&d, Instruction::default()).check(&d).unwrap_err());
+    assert!(
+        e.to_string().starts_with("kernel `k`, instruction 0, `fu`"),
+        "{e}"
+    );
+}
