@@ -201,6 +201,14 @@ impl Clocks {
         edge
     }
 
+    /// Skips every pending falling edge, so the next [`next_edge`](Self::next_edge) is a
+    /// rising one. Without a waveform to draw, falling edges change nothing.
+    pub fn skip_falling_edges(&mut self) {
+        for h in &mut self.next_half {
+            *h += *h & 1;
+        }
+    }
+
     fn cross(&self, i: usize, j: usize) -> (u128, u128) {
         (
             self.next_half[i] as u128 * self.domains[j].freq_hz as u128,
@@ -278,6 +286,25 @@ mod tests {
         assert!(!r.rising.is_empty() && r.falling.is_empty());
         assert!(!f.falling.is_empty() && f.rising.is_empty());
         assert_eq!((r.time_ps, f.time_ps, r2.time_ps), (0, 1000, 2000));
+    }
+
+    #[test]
+    fn skipping_falling_edges_keeps_rising_edges_exact() {
+        let mut all = Clocks::new(default_domains()).unwrap();
+        let mut rising_only = Clocks::new(default_domains()).unwrap();
+        let mut expected = Vec::new();
+        while expected.len() < 5000 {
+            let e = all.next_edge();
+            if !e.rising.is_empty() {
+                expected.push((e.time_ps, e.rising));
+            }
+        }
+        for &(t, rising) in &expected {
+            rising_only.skip_falling_edges();
+            let e = rising_only.next_edge();
+            assert_eq!((e.time_ps, e.rising), (t, rising));
+            assert!(e.falling.is_empty());
+        }
     }
 
     #[test]

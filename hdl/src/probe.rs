@@ -140,6 +140,11 @@ impl Trace {
         }
     }
 
+    /// Whether the tracer still takes changes (see [`Tracer::wants_changes`]).
+    pub fn wants_changes(&self) -> bool {
+        self.tracer.wants_changes()
+    }
+
     pub fn tracer(&mut self) -> &mut dyn Tracer {
         &mut *self.tracer
     }

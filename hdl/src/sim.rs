@@ -304,15 +304,29 @@ impl Sim {
             .filter_map(|m| (&**m as &dyn Any).downcast_ref::<M>())
     }
 
-    /// Advances to the next clock edge of any domain.
+    /// Whether a tracer wants this instant's changes (falling edges matter only then).
+    #[inline]
+    fn tracing(&self) -> bool {
+        #[cfg(feature = "probes")]
+        if let Some(t) = &self.trace {
+            return t.wants_changes();
+        }
+        false
+    }
+
+    /// Advances to the next clock edge of any domain (without a tracer, the next rising
+    /// edge: falling edges change nothing then).
     pub fn step(&mut self) -> Result<Edge, ContractError> {
+        if !self.tracing() {
+            self.design.clocks.skip_falling_edges();
+        }
         let edge = self.design.clocks.next_edge();
         if !edge.rising.is_empty() {
             self.clock_edge(edge.rising)?;
         }
         #[cfg(feature = "probes")]
         if let Some(t) = &mut self.trace
-            && t.tracer().wants_changes()
+            && t.wants_changes()
         {
             let clocks = &self.design.clocks;
             t.tracer()

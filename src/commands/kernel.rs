@@ -74,7 +74,7 @@ pub enum Format {
 fn load_program(file: &Path, desc: &MachineDesc) -> Result<Program> {
     let bytes = std::fs::read(file).with_context(|| format!("cannot read `{}`", file.display()))?;
     if bytes.starts_with(b"IMUC") {
-        return Ok(read_image(&bytes, desc).with_context(|| format!("`{}`", file.display()))?);
+        return read_image(&bytes, desc).with_context(|| format!("`{}`", file.display()));
     }
     let text = String::from_utf8(bytes)
         .with_context(|| format!("`{}` is neither a microcode image nor text", file.display()))?;

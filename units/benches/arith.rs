@@ -7,22 +7,36 @@
 //! from the special/boundary list (zeros, subnormals, infinities, NaNs, extremes). Results
 //! are folded into an XOR so iterations are independent (throughput, not latency), and the
 //! mode is opaque to the optimiser, as it is a machine parameter at run time.
+//!
+//! The `eval_lanes_8` group measures the machine simulator's inner loop: one
+//! [`Op::eval_lanes`] call on 8 lanes (one unit slot across the 8 clusters) of mixed normal
+//! operands. Its throughput is in calls, so `1 / thrpt` is the time of one 8-lane call.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use imagine_units::arith::fp32::testgen::{SPECIALS, SplitMix64};
 use imagine_units::arith::fp32::{self as fp, Flags, FpMode};
+use imagine_units::ops::Op;
 use std::hint::black_box;
 use std::time::Duration;
 
 const N: usize = 4096;
+/// Lanes of one `eval_lanes` call (the 8 clusters).
+const LANES: usize = 8;
+/// Distinct 8-lane operand sets per `eval_lanes_8` iteration (`N` operand pairs in all).
+const SETS: usize = N / LANES;
+
+/// A normal number with a random sign and fraction and an exponent in `[2^-27, 2^28)`.
+fn normal(rng: &mut SplitMix64) -> u32 {
+    let sign = rng.next_u32() & 0x8000_0000;
+    let exp = 100 + rng.below(55);
+    sign | (exp << 23) | (rng.next_u32() & 0x007F_FFFF)
+}
 
 fn operand(rng: &mut SplitMix64) -> u32 {
     if rng.below(16) == 0 {
         SPECIALS[rng.below(SPECIALS.len() as u32) as usize]
     } else {
-        let sign = rng.next_u32() & 0x8000_0000;
-        let exp = 100 + rng.below(55);
-        sign | (exp << 23) | (rng.next_u32() & 0x007F_FFFF)
+        normal(rng)
     }
 }
 
@@ -88,6 +102,35 @@ fn bench(c: &mut Criterion) {
     op!("to_i32", floats, |a, _b, m| fp::to_i32(a, m));
     op!("to_i32_rtz", floats, |a, _b, m| fp::to_i32_rtz(a, m));
     op!("from_i32", ints, |a, _b, _m| fp::from_i32(a));
+    g.finish();
+
+    // `Op::eval_lanes` on 8 lanes of mixed normal operands: one element = one call.
+    let mut rng = SplitMix64::new(0x0F0F_1234);
+    let mut lanes = || -> Vec<[u32; LANES]> {
+        (0..SETS)
+            .map(|_| std::array::from_fn(|_| normal(&mut rng)))
+            .collect()
+    };
+    let (a, b) = (lanes(), lanes());
+    let mut g = c.benchmark_group("eval_lanes_8");
+    g.throughput(Throughput::Elements(SETS as u64));
+    g.warm_up_time(Duration::from_millis(500));
+    g.measurement_time(Duration::from_secs(2));
+    for op in [Op::FAdd, Op::FSub, Op::FMul] {
+        let mut out = [0u32; LANES];
+        let mut flags = [Flags::NONE; LANES];
+        g.bench_function(op.name(), |bch| {
+            let (a, b) = (black_box(&a[..]), black_box(&b[..]));
+            bch.iter(|| {
+                // The op and mode are run-time values, as in the machine.
+                let (op, mode) = black_box((op, FpMode::IEEE));
+                for (a, b) in a.iter().zip(b) {
+                    // Opaque outputs: every lane must be computed and stored.
+                    op.eval_lanes(a, b, a, mode, black_box(&mut out), black_box(&mut flags));
+                }
+            })
+        });
+    }
     g.finish();
 }
 

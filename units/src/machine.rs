@@ -31,7 +31,7 @@ use crate::delay::DelayLine;
 use crate::desc::MachineDesc;
 use crate::fu::{Adder, Completion, DivSqrt, Issue, Multiplier};
 use crate::lrf::Lrf;
-use crate::microcode::{Dests, ImmValue, Instruction, Permutation, Program, StreamDir};
+use crate::microcode::{Dest, Dests, ImmValue, Instruction, Permutation, Program, StreamDir};
 use crate::microcontroller::{LoopEnv, Microcontroller, Phase};
 use crate::ops::Op;
 use crate::scratchpad::Scratchpad;
@@ -83,6 +83,8 @@ impl KernelStats {
 
 struct Kernel {
     program: Program,
+    /// Some result goes from the switch straight to an output stream.
+    switch_writes_streams: bool,
     bindings: Vec<StreamBinding>,
     stats: KernelStats,
     flushing: bool,
@@ -333,10 +335,12 @@ impl Machine {
         program: &Program,
         bindings: &[StreamBinding],
     ) -> Result<(), StartError> {
-        if self.kernel.is_some() && self.uc.phase() != Phase::Idle {
+        if let Some(k) = &self.kernel
+            && self.uc.phase() != Phase::Idle
+        {
             return Err(StartError(format!(
                 "kernel `{}` is still running",
-                self.kernel.as_ref().unwrap().program.name
+                k.program.name
             )));
         }
         program
@@ -379,7 +383,16 @@ impl Machine {
             .start(&program.code)
             .map_err(|e| StartError(e.to_string()))?;
         let fu_slots = self.fu_inputs.len();
+        let to_stream = |d: &Dests| d.iter().flatten().any(|d| matches!(d, Dest::Stream { .. }));
+        let switch_writes_streams = program.code.iter().any(|i| {
+            i.fu.iter().flatten().any(|s| to_stream(&s.dests))
+                || i.sp.iter().flatten().any(|s| to_stream(&s.dests))
+                || i.comm.iter().flatten().any(|s| to_stream(&s.dests))
+                || i.sin.iter().flatten().any(|s| to_stream(&s.dests))
+                || i.imm.is_some_and(|s| to_stream(&s.dests))
+        });
         self.kernel = Some(Kernel {
+            switch_writes_streams,
             program: program.clone(),
             bindings: bindings.to_vec(),
             stats: KernelStats {
@@ -437,6 +450,12 @@ impl Machine {
         inst: &Instruction,
         live: crate::microcontroller::Liveness,
     ) -> Result<bool, ContractError> {
+        if !kernel.switch_writes_streams
+            && inst.sin.iter().all(Option::is_none)
+            && inst.sout.is_none()
+        {
+            return Ok(false);
+        }
         let mut need_in = [0usize; 64];
         let mut need_out = [0usize; 64];
         for s in inst.sin.iter().flatten().filter(|s| live.live(s.stage)) {
@@ -454,7 +473,7 @@ impl Machine {
         // Results due this cycle that go to output streams.
         let mut due = |dests: &Dests, mask: Option<&[bool]>| {
             for d in dests.iter().flatten() {
-                if let crate::microcode::Dest::Stream { stream } = d {
+                if let Dest::Stream { stream } = d {
                     need_out[*stream as usize] +=
                         mask.map_or(self.lanes, |m| m.iter().filter(|&&b| b).count());
                 }

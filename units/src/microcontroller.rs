@@ -4,8 +4,11 @@
 //! and squashes the ops of software-pipeline stages that are not yet (prologue) or no
 //! longer (epilogue) live.
 //!
-//! A loop body spans from the instruction carrying `LoopBegin { kind, stages: S }` to the
-//! matching `LoopEnd`. For a loop of `N` iterations the body runs `N + S − 1` passes and an
+//! A loop body spans from the instruction whose [`Control`] `begin`s the loop (`kind`,
+//! `stages: S`) to the matching `end`, which may be the same instruction (a one-instruction
+//! body: an iteration, or a software-pipeline stage, every cycle). A loop is entered when its
+//! first instruction is reached in sequence; reached by the loop's own back edge, it is not
+//! entered again. For a loop of `N` iterations the body runs `N + S − 1` passes and an
 //! op of stage `s` is live in pass `p` iff `s ≤ p < N + s` (Rau, "Iterative modulo
 //! scheduling", 1994, kernel-only code with stage predicates). `N` is known on entry for
 //! counted loops and for stream loops with `S > 1` (rows left in the stream); a stream loop
@@ -17,7 +20,7 @@
 
 use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
 
-use crate::microcode::{Control, Instruction, LoopKind};
+use crate::microcode::{Control, Instruction, LoopBegin, LoopKind};
 
 /// What the microcontroller needs to know about the rest of the machine to sequence a loop.
 pub trait LoopEnv {
@@ -44,7 +47,7 @@ struct Frame {
 pub enum Phase {
     Idle,
     Running,
-    /// The `Done` instruction has issued; results still in flight land.
+    /// The `done` instruction has issued; results still in flight land.
     Finishing,
 }
 
@@ -62,7 +65,8 @@ pub struct Microcontroller {
     path: String,
     store_words: usize,
     loop_depth: usize,
-    /// For each instruction carrying `LoopBegin`, the index of its `LoopEnd`.
+    /// For each instruction that begins a loop, the index of the instruction that ends it
+    /// (itself for a one-instruction body).
     loop_end: Vec<u16>,
     q: State,
     d: State,
@@ -115,7 +119,7 @@ impl Microcontroller {
     }
 
     /// Loads a kernel's microcode and starts it at instruction 0. The code must have passed
-    /// the microcode check (loops nested, one `Done` at the end).
+    /// the microcode check (loops nested, one `done` at the end).
     pub fn start(&mut self, code: &[Instruction]) -> Result<(), ContractError> {
         if code.len() > self.store_words || code.is_empty() {
             return Err(ContractError::at(
@@ -130,13 +134,14 @@ impl Microcontroller {
         self.loop_end = vec![0; code.len()];
         let mut open = Vec::new();
         for (i, inst) in code.iter().enumerate() {
-            if matches!(inst.control, Control::LoopBegin { .. }) {
+            // Begin first: an instruction that begins and ends a loop ends the loop it begins.
+            if inst.control.begin.is_some() {
                 open.push(i);
             }
-            if matches!(inst.control, Control::LoopEnd) {
+            if inst.control.end {
                 let b = open
                     .pop()
-                    .ok_or_else(|| self.malformed(i, "LoopEnd without a loop"))?;
+                    .ok_or_else(|| self.malformed(i, "`end` without a loop"))?;
                 self.loop_end[b] = i as u16;
             }
         }
@@ -182,10 +187,9 @@ impl Microcontroller {
         }
         let mut pc = self.q.pc;
         // Enter loops that start here (a skipped loop may be followed by another).
-        loop {
-            let Control::LoopBegin { kind, stages } = code[pc as usize].control else {
-                break;
-            };
+        while let Some(LoopBegin { kind, stages }) = code[pc as usize].control.begin {
+            // Reached by the back edge: the loop's frame exists (for a one-instruction body,
+            // the instruction loops to itself).
             if self.d.looped_back {
                 break;
             }
@@ -239,30 +243,29 @@ impl Microcontroller {
     ) -> Result<(), ContractError> {
         let pc = self.d.pc;
         self.d.looped_back = false;
-        match code[pc as usize].control {
-            Control::Done => {
-                self.d.phase = Phase::Finishing;
+        let Control { end, done, .. } = code[pc as usize].control;
+        if done {
+            self.d.phase = Phase::Finishing;
+            return Ok(());
+        }
+        if end {
+            let f = self.d.frames.last_mut().expect("an `end` closes a frame");
+            f.pass += 1;
+            let again = match (f.kind, f.iterations) {
+                (_, Some(n)) => f.pass < n + f.stages as u64 - 1,
+                (LoopKind::UntilCc(cc), None) => !env.cc_all(cc)?,
+                (LoopKind::UntilStreamEmpty(s), None) => !env.exhausted(s),
+                (LoopKind::Counted(_), None) => {
+                    unreachable!("counted loops know their iterations")
+                }
+            };
+            if again {
+                // Back to the first instruction (this one, for a one-instruction body).
+                self.d.pc = f.begin;
+                self.d.looped_back = true;
                 return Ok(());
             }
-            Control::LoopEnd => {
-                let f = self.d.frames.last_mut().expect("a LoopEnd closes a frame");
-                f.pass += 1;
-                let again = match (f.kind, f.iterations) {
-                    (_, Some(n)) => f.pass < n + f.stages as u64 - 1,
-                    (LoopKind::UntilCc(cc), None) => !env.cc_all(cc)?,
-                    (LoopKind::UntilStreamEmpty(s), None) => !env.exhausted(s),
-                    (LoopKind::Counted(_), None) => {
-                        unreachable!("counted loops know their iterations")
-                    }
-                };
-                if again {
-                    self.d.pc = f.begin;
-                    self.d.looped_back = true;
-                    return Ok(());
-                }
-                self.d.frames.pop();
-            }
-            _ => {}
+            self.d.frames.pop();
         }
         self.d.pc = pc + 1;
         Ok(())

@@ -152,11 +152,7 @@ fn place_streams(
         )));
     }
     let n_out = program.streams.len() - n_in;
-    let out_words = if n_out == 0 {
-        0
-    } else {
-        (desc.srf.words - used) / n_out / block * block
-    };
+    let out_words = (desc.srf.words - used).checked_div(n_out).unwrap_or(0) / block * block;
     let mut next = 0;
     let mut input = inputs.iter();
     let mut bindings = Vec::new();

@@ -102,7 +102,10 @@ impl Scratchpad {
             let addr = (base as u32).wrapping_add(offsets.map_or(0, |o| o[c]));
             if mask[c] && addr as usize >= self.words {
                 return Err(ContractError::at(
-                    &self.path.replace("cluster*", &format!("cluster{c}")),
+                    &format!(
+                        "{}.addr",
+                        self.path.replace("cluster*", &format!("cluster{c}"))
+                    ),
                     Violation::Other(format!(
                         "address {addr} is outside the {} words",
                         self.words

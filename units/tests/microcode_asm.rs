@@ -3,8 +3,8 @@
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::{
-    AsmError, CommSlot, Control, Dest, FuSlot, ImmValue, LoopKind, Permutation, Program, SpSlot,
-    StreamIn, StreamOut, assemble, disassemble,
+    AsmError, CommSlot, Control, Dest, FuSlot, ImmValue, InstructionLayout, LoopBegin, LoopKind,
+    Permutation, Program, SpSlot, StreamIn, StreamOut, assemble, disassemble,
 };
 use imagine_units::ops::Op;
 
@@ -138,7 +138,7 @@ fn every_slot_kind_assembles_to_its_fields() {
     assert_eq!(i3.imm.unwrap().value, ImmValue::Const(0xFFFF_FFFF));
     assert_eq!(p.code[4].comm[0].unwrap().perm, Permutation::Broadcast(7));
     assert_eq!(p.code[4].imm.unwrap().value, ImmValue::ClusterId);
-    assert_eq!(p.code[4].control, Control::Done);
+    assert_eq!(p.code[4].control, Control::DONE);
     round_trips(&p);
 }
 
@@ -245,24 +245,15 @@ done",
     assert_eq!(
         kinds,
         vec![
-            Control::Next,
-            Control::LoopBegin {
-                kind: LoopKind::Counted(3),
-                stages: 1
-            },
-            Control::LoopBegin {
-                kind: LoopKind::UntilCc(0),
-                stages: 1
-            },
-            Control::LoopEnd,
-            Control::Next,
-            Control::LoopBegin {
-                kind: LoopKind::Counted(2),
-                stages: 2
-            },
-            Control::LoopEnd,
-            Control::LoopEnd,
-            Control::Done,
+            Control::NEXT,
+            Control::begin(LoopKind::Counted(3), 1),
+            Control::begin(LoopKind::UntilCc(0), 1),
+            Control::END,
+            Control::NEXT,
+            Control::begin(LoopKind::Counted(2), 2),
+            Control::END,
+            Control::END,
+            Control::DONE,
         ]
     );
     let text = disassemble(&p, &gold8());
@@ -271,16 +262,95 @@ done",
 }
 
 #[test]
+fn one_instruction_loop_bodies_begin_and_end_on_one_instruction() {
+    let p = asm(&body(
+        "
+        imm 2.5 -> mul0.b[0]
+loop stream x, stages 5:
+        sin0 x -> mul0.a[0] | mul0 fmul a[0], b[0] -> stream y @4
+end
+loop count 3:
+        nop
+    loop count 7:
+            add0 iadd a[0], b[0] -> add0.a[0]
+    end
+        nop
+end
+done",
+    ));
+    let kinds: Vec<Control> = p.code.iter().map(|i| i.control).collect();
+    assert_eq!(
+        kinds,
+        vec![
+            Control::NEXT,
+            Control::begin_end(LoopKind::UntilStreamEmpty(0), 5),
+            Control::begin(LoopKind::Counted(3), 1),
+            Control::begin_end(LoopKind::Counted(7), 1),
+            Control::END,
+            Control::DONE,
+        ]
+    );
+    assert_eq!(
+        p.code[1].control,
+        Control {
+            begin: Some(LoopBegin {
+                kind: LoopKind::UntilStreamEmpty(0),
+                stages: 5
+            }),
+            end: true,
+            done: false,
+        }
+    );
+    let text = disassemble(&p, &gold8());
+    assert!(
+        text.contains(
+            "\nloop stream x, stages 5:\n        mul0 fmul a[0], b[0] -> stream y @4 | \
+             sin0 x -> mul0.a[0]\nend\n"
+        ),
+        "{text}"
+    );
+    assert!(
+        text.contains(
+            "\n    loop count 7:\n            add0 iadd a[0], b[0] -> add0.a[0]\n    end\n"
+        ),
+        "{text}"
+    );
+    // The `done` after the last `end` is the short form: an empty instruction carries it.
+    assert!(text.ends_with("        nop\nend\ndone\n"), "{text}");
+    round_trips(&p);
+    // And in binary: every word decodes to the instruction it encodes.
+    let layout = InstructionLayout::new(&gold8());
+    for ins in &p.code {
+        assert_eq!(&layout.decode(&layout.encode(ins)).unwrap(), ins);
+    }
+    // A one-instruction loop right before `done`: the `done` needs an instruction of its own.
+    let q = asm(&body("loop count 2:\nimm 1 -> cc[0]\nend\ndone"));
+    assert_eq!(q.code.len(), 2);
+    assert_eq!(
+        q.code[0].control,
+        Control::begin_end(LoopKind::Counted(2), 1)
+    );
+    assert_eq!(q.code[1].control, Control::DONE);
+    assert!(q.code[1].is_empty());
+    round_trips(&q);
+    // …and the explicit `nop` gives the same program.
+    assert_eq!(
+        asm(&body("loop count 2:\nimm 1 -> cc[0]\nend\nnop\ndone")),
+        q
+    );
+}
+
+#[test]
 fn done_after_end_adds_an_empty_instruction_and_nop_done_round_trips() {
-    // `done` right after `end`: an extra empty instruction carries Done.
+    // `done` right after `end`: an extra empty instruction carries `done`.
     let a = asm(&body("loop count 2:\nnop\nnop\nend\ndone"));
     assert_eq!(a.code.len(), 3);
-    assert_eq!(a.code[2].control, Control::Done);
+    assert_eq!(a.code[2].control, Control::DONE);
     assert!(disassemble(&a, &gold8()).ends_with("        nop\nend\ndone\n"));
     round_trips(&a);
     // Writing the `nop` explicitly gives the same program.
     assert_eq!(asm(&body("loop count 2:\nnop\nnop\nend\nnop\ndone")), a);
-    // `nop` then `done` after a plain instruction: the nop is the Done instruction.
+    // `nop` then `done` after a plain instruction: the nop is the `done` instruction.
     let b = asm(&body("imm 1 -> cc[0]\nnop\ndone"));
     assert_eq!(b.code.len(), 2);
     assert!(disassemble(&b, &gold8()).ends_with("    nop\ndone\n"));
@@ -498,12 +568,6 @@ fn loop_structure_errors() {
         "the loop at line 5 has an empty body",
     );
     fails(
-        &body("loop count 2:\nnop\nend\ndone"),
-        7,
-        1,
-        "the loop at line 5 has a one-instruction body",
-    );
-    fails(
         &body("loop count 2:\nloop count 3:\nnop\nnop\nend\nend\ndone"),
         6,
         1,
@@ -512,6 +576,20 @@ fn loop_structure_errors() {
     fails(
         &body("loop count 2:\nnop\nloop count 3:\nnop\nnop\nend\nend\ndone"),
         11,
+        1,
+        "two loops cannot end on the same instruction",
+    );
+    // Nested one-instruction bodies still cannot share an instruction with their outer
+    // loop's first or last.
+    fails(
+        &body("loop count 2:\nloop count 3:\nnop\nend\nend\ndone"),
+        6,
+        1,
+        "two loops cannot begin on the same instruction",
+    );
+    fails(
+        &body("loop count 2:\nnop\nloop count 3:\nnop\nend\nend\ndone"),
+        10,
         1,
         "two loops cannot end on the same instruction",
     );

@@ -15,7 +15,7 @@ fn gold8() -> MachineDesc {
 fn empty(desc: &MachineDesc) -> Instruction {
     let c = &desc.cluster;
     Instruction {
-        control: Control::Next,
+        control: Control::NEXT,
         fu: vec![None; c.adders + c.multipliers + c.divsqrt],
         sp: vec![None; c.scratchpads],
         comm: vec![None; c.comm_units],
@@ -27,12 +27,12 @@ fn empty(desc: &MachineDesc) -> Instruction {
 
 fn done(desc: &MachineDesc) -> Instruction {
     Instruction {
-        control: Control::Done,
+        control: Control::DONE,
         ..empty(desc)
     }
 }
 
-/// Kernel `k` with streams `x` (in) and `y` (out): `ins`, then a Done.
+/// Kernel `k` with streams `x` (in) and `y` (out): `ins`, then a `done`.
 fn program(desc: &MachineDesc, ins: Instruction) -> Program {
     Program {
         name: "k".into(),
@@ -701,9 +701,9 @@ fn permutation_constants_name_clusters() {
 fn looped(desc: &MachineDesc, kind: LoopKind, stages: u8, body: Vec<Instruction>) -> Program {
     let mut p = program(desc, empty(desc));
     let mut code = body;
-    code[0].control = Control::LoopBegin { kind, stages };
+    code[0].control = Control::begin(kind, stages);
     let last = code.len() - 1;
-    code[last].control = Control::LoopEnd;
+    code[last].control.end = true;
     code.push(done(desc));
     p.code = code;
     p
@@ -737,10 +737,21 @@ fn stages_are_inside_the_innermost_loop() {
         "add0.stage",
         "stage 2 is out of range: the loop has 2 stages (0..=1)",
     );
-    // The LoopBegin instruction's own slots are inside the loop; the LoopEnd's too.
+    // The loop's first instruction's own slots are inside the loop; its last's too.
     looped(&d, LoopKind::Counted(4), 3, vec![staged(2), staged(2)])
         .check(&d)
         .unwrap();
+    // And a one-instruction body's, which is both.
+    looped(&d, LoopKind::Counted(4), 3, vec![staged(2)])
+        .check(&d)
+        .unwrap();
+    fails(
+        &d,
+        &looped(&d, LoopKind::Counted(4), 3, vec![staged(3)]),
+        0,
+        "add0.stage",
+        "stage 3 is out of range: the loop has 3 stages (0..=2)",
+    );
     // Every kind of slot has its stage checked.
     let mut ins = empty(&d);
     ins.imm = Some(Immediate {
@@ -821,12 +832,7 @@ fn loops_nest_properly_and_not_too_deep() {
         control,
         ..empty(&d)
     };
-    let begin = || {
-        at(Control::LoopBegin {
-            kind: LoopKind::Counted(2),
-            stages: 1,
-        })
-    };
+    let begin = || at(Control::begin(LoopKind::Counted(2), 1));
     let mut p = program(&d, empty(&d));
     // Depth 4 fits (`microcontroller.loop_depth`), depth 5 does not.
     let mut code = Vec::new();
@@ -835,40 +841,132 @@ fn loops_nest_properly_and_not_too_deep() {
     }
     code.push(empty(&d));
     for _ in 0..4 {
-        code.push(at(Control::LoopEnd));
+        code.push(at(Control::END));
     }
     code.push(done(&d));
     p.code = code.clone();
     p.check(&d).unwrap();
     code.insert(4, begin());
-    code.insert(6, at(Control::LoopEnd));
+    code.insert(6, at(Control::END));
     p.code = code;
     fails(
         &d,
         &p,
         4,
-        "ctl",
+        "ctl.begin",
         "opens a loop nested 5 deep; the loop stack holds 4 (`microcontroller.loop_depth`)",
     );
 
-    p.code = vec![empty(&d), at(Control::LoopEnd), done(&d)];
-    fails(&d, &p, 1, "ctl", "LoopEnd closes no open loop");
+    p.code = vec![empty(&d), at(Control::END), done(&d)];
+    fails(&d, &p, 1, "ctl.end", "`end` closes no open loop");
     p.code = vec![begin(), empty(&d), done(&d)];
     fails(
         &d,
         &p,
         2,
-        "ctl",
-        "Done inside the loop that begins at instruction 0",
+        "ctl.done",
+        "`done` inside the loop that begins at instruction 0",
     );
     p.code = vec![empty(&d), begin(), empty(&d)];
     fails(
         &d,
         &p,
         1,
-        "ctl",
-        "opens a loop that is never closed by a LoopEnd",
+        "ctl.begin",
+        "opens a loop that is never closed by an `end`",
     );
+}
+
+#[test]
+fn one_instruction_loops_begin_and_end_on_one_instruction() {
+    let d = gold8();
+    let at = |control| Instruction {
+        control,
+        ..empty(&d)
+    };
+    let one = |n| at(Control::begin_end(LoopKind::Counted(n), 1));
+    let mut p = program(&d, empty(&d));
+    // Alone, in sequence, and nested in a longer loop (the loop stack still counts it).
+    p.code = vec![one(3), one(0), done(&d)];
+    p.check(&d).unwrap();
+    let begin = || at(Control::begin(LoopKind::Counted(2), 1));
+    let mut code = vec![begin(), begin(), begin(), one(5)];
+    code.extend([
+        at(Control::END),
+        at(Control::END),
+        at(Control::END),
+        done(&d),
+    ]);
+    p.code = code.clone();
+    p.check(&d).unwrap();
+    code.insert(3, begin());
+    code.insert(5, at(Control::END));
+    p.code = code;
+    fails(&d, &p, 4, "ctl.begin", "opens a loop nested 5 deep");
+    // The begin+end closes the loop it opens, not the enclosing one.
+    p.code = vec![begin(), one(2), done(&d)];
+    fails(
+        &d,
+        &p,
+        2,
+        "ctl.done",
+        "`done` inside the loop that begins at instruction 0",
+    );
+    // Its header is checked like any loop's.
+    p.code = vec![at(Control::begin_end(LoopKind::UntilCc(0), 2)), done(&d)];
+    fails(
+        &d,
+        &p,
+        0,
+        "ctl.stages",
+        "an `until cc` loop cannot be software-pipelined",
+    );
+}
+
+#[test]
+fn done_neither_begins_nor_ends_a_loop() {
+    let d = gold8();
+    let mut p = program(&d, empty(&d));
+    let last = |control| Instruction {
+        control,
+        ..empty(&d)
+    };
+    let with_done = |mut c: Control| {
+        c.done = true;
+        last(c)
+    };
+    p.code = vec![
+        last(Control::begin(LoopKind::Counted(2), 1)),
+        with_done(Control::END),
+    ];
+    fails(
+        &d,
+        &p,
+        1,
+        "ctl.done",
+        "`done` on an instruction that also ends a loop",
+    );
+    p.code = vec![with_done(Control::begin_end(LoopKind::Counted(2), 1))];
+    fails(
+        &d,
+        &p,
+        0,
+        "ctl.done",
+        "`done` on an instruction that also begins a loop; the kernel's last instruction is \
+         outside every loop",
+    );
+    // The same loops with `done` on an instruction of its own are fine.
+    p.code = vec![
+        last(Control::begin(LoopKind::Counted(2), 1)),
+        last(Control::END),
+        last(Control::DONE),
+    ];
+    p.check(&d).unwrap();
+    p.code = vec![
+        last(Control::begin_end(LoopKind::Counted(2), 1)),
+        last(Control::DONE),
+    ];
+    p.check(&d).unwrap();
 }
 
 #[test]
@@ -876,11 +974,17 @@ fn exactly_one_done_at_the_end() {
     let d = gold8();
     let mut p = program(&d, empty(&d));
     p.code = vec![empty(&d), empty(&d)];
-    fails(&d, &p, 1, "ctl", "the last instruction is not Done");
+    fails(&d, &p, 1, "ctl.done", "the last instruction is not `done`");
     p.code = vec![done(&d), done(&d)];
-    fails(&d, &p, 0, "ctl", "Done before the last instruction (1)");
+    fails(
+        &d,
+        &p,
+        0,
+        "ctl.done",
+        "`done` before the last instruction (1)",
+    );
     p.code = vec![done(&d), empty(&d)];
-    fails(&d, &p, 0, "ctl", "Done must be the last instruction");
+    fails(&d, &p, 0, "ctl.done", "`done` must be the last instruction");
     p.code.clear();
     fails_kernel(&d, &p, "has no instructions");
 }

@@ -15,8 +15,8 @@ use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::check::Shape;
 use imagine_units::microcode::{
-    Control, Dest, Dests, ImmValue, InstructionLayout, LoopKind, Permutation, Program, StreamDir,
-    assemble, disassemble,
+    Control, Dest, Dests, ImmValue, InstructionLayout, LoopBegin, LoopKind, Permutation, Program,
+    StreamDir, assemble, disassemble,
 };
 use imagine_units::ops::Op;
 
@@ -275,7 +275,7 @@ impl<'a> Exec<'a> {
             assert!(self.t < 1_000_000, "runaway");
             self.apply(false);
             let ins = &p.code[pc];
-            if let (Control::LoopBegin { kind, stages }, false) = (ins.control, back) {
+            if let (Some(LoopBegin { kind, stages }), false) = (ins.control.begin, back) {
                 let end = matching_end(p, pc);
                 let (n, until) = match kind {
                     LoopKind::Counted(n) => (u64::from(n), None),
@@ -306,31 +306,31 @@ impl<'a> Exec<'a> {
                 s <= pass && pass < n.saturating_add(s)
             });
             self.t += 1;
-            match ins.control {
-                Control::Done => {
-                    self.apply(true);
-                    return self.outputs;
-                }
-                Control::LoopEnd => {
-                    let f = frames.last_mut().unwrap();
-                    assert_eq!(f.end, pc);
-                    f.pass += 1;
-                    let finished = match f.until {
-                        Some(k) => {
-                            self.apply(false);
-                            self.cc.iter().all(|cc| cc[usize::from(k)])
-                        }
-                        None => f.pass >= f.n + f.stages - 1,
-                    };
-                    if finished {
-                        frames.pop();
-                        pc += 1;
-                    } else {
-                        pc = f.begin;
-                        back = true;
+            let Control { end, done, .. } = ins.control;
+            if done {
+                self.apply(true);
+                return self.outputs;
+            }
+            if end {
+                let f = frames.last_mut().unwrap();
+                assert_eq!(f.end, pc);
+                f.pass += 1;
+                let finished = match f.until {
+                    Some(k) => {
+                        self.apply(false);
+                        self.cc.iter().all(|cc| cc[usize::from(k)])
                     }
+                    None => f.pass >= f.n + f.stages - 1,
+                };
+                if finished {
+                    frames.pop();
+                    pc += 1;
+                } else {
+                    pc = f.begin;
+                    back = true;
                 }
-                _ => pc += 1,
+            } else {
+                pc += 1;
             }
         }
     }
@@ -339,15 +339,14 @@ impl<'a> Exec<'a> {
 fn matching_end(p: &Program, begin: usize) -> usize {
     let mut depth = 0;
     for (i, ins) in p.code.iter().enumerate().skip(begin) {
-        match ins.control {
-            Control::LoopBegin { .. } => depth += 1,
-            Control::LoopEnd => {
-                depth -= 1;
-                if depth == 0 {
-                    return i;
-                }
+        if ins.control.begin.is_some() {
+            depth += 1;
+        }
+        if ins.control.end {
+            depth -= 1;
+            if depth == 0 {
+                return i;
             }
-            _ => {}
         }
     }
     panic!("unclosed loop at {begin}");

@@ -5,7 +5,7 @@
 use imagine_hdl::{WideWord, wide_word};
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::{
-    Control, Dest, FuSlot, ImmValue, Immediate, Instruction, InstructionLayout, LoopKind,
+    Control, Dest, FuSlot, ImmValue, Immediate, Instruction, InstructionLayout, LoopBegin, LoopKind,
 };
 use imagine_units::ops::Op;
 
@@ -14,7 +14,7 @@ const SNAPSHOT: &str = "tests/microcode/gold8.layout";
 fn empty(desc: &MachineDesc) -> Instruction {
     let c = &desc.cluster;
     Instruction {
-        control: Control::Next,
+        control: Control::NEXT,
         fu: vec![None; c.adders + c.multipliers + c.divsqrt],
         sp: vec![None; c.scratchpads],
         comm: vec![None; c.comm_units],
@@ -36,7 +36,7 @@ fn set(layout: &InstructionLayout, w: &mut WideWord, name: &str, value: u64) {
 #[test]
 fn gold8_field_table_matches_the_snapshot() {
     let layout = InstructionLayout::new(&MachineDesc::gold8());
-    assert_eq!(layout.width(), 631, "gold8 instruction width");
+    assert_eq!(layout.width(), 632, "gold8 instruction width");
     let table = layout.describe();
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(SNAPSHOT);
     if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
@@ -47,7 +47,7 @@ fn gold8_field_table_matches_the_snapshot() {
         table, want,
         "field table changed; review and regenerate the snapshot"
     );
-    assert!(table.starts_with("microcode word of machine `gold8`: 631 bits"));
+    assert!(table.starts_with("microcode word of machine `gold8`: 632 bits"));
 }
 
 #[test]
@@ -87,6 +87,9 @@ fn widths_follow_the_machine_description() {
     assert_eq!(w(&gold8, "comm0.perm"), 5);
     assert_eq!(w(&gold8, "imm.value"), 32);
     assert_eq!(w(&gold8, "ctl.value"), 32);
+    for one_bit in ["ctl.begin", "ctl.end", "ctl.done"] {
+        assert_eq!(w(&gold8, one_bit), 1, "{one_bit}");
+    }
     assert!(gold8.field("sin3.valid").is_some() && gold8.field("sin4.valid").is_none());
 
     // More units, more slots; more LRFs, a wider LRF index.
@@ -137,14 +140,17 @@ fn decode_rejects_bad_opcodes_loop_kinds_and_widths() {
     assert_eq!(layout.decode(&w).unwrap(), empty(&desc));
 
     let mut w = wide_word(layout.width());
-    set(&layout, &mut w, "ctl.kind", 1);
+    set(&layout, &mut w, "ctl.begin", 1);
     set(&layout, &mut w, "ctl.loop", 3);
     let e = layout.decode(&w).unwrap_err();
     assert_eq!(e.field.as_deref(), Some("ctl.loop"));
     assert!(e.to_string().contains("`ctl.loop`"), "{e}");
+    // Without `ctl.begin` the loop fields are ignored, like an empty slot's.
+    set(&layout, &mut w, "ctl.begin", 0);
+    assert_eq!(layout.decode(&w).unwrap(), empty(&desc));
 
     let e = layout.decode(&wide_word(layout.width() - 1)).unwrap_err();
-    assert!(e.to_string().contains("630 bits wide"), "{e}");
+    assert!(e.to_string().contains("631 bits wide"), "{e}");
 }
 
 #[test]
@@ -152,10 +158,11 @@ fn decode_reads_fields_where_describe_says() {
     let desc = MachineDesc::gold8();
     let layout = InstructionLayout::new(&desc);
     let mut w = wide_word(layout.width());
-    set(&layout, &mut w, "ctl.kind", 1);
+    set(&layout, &mut w, "ctl.begin", 1);
     set(&layout, &mut w, "ctl.loop", 0);
     set(&layout, &mut w, "ctl.stages", 2);
     set(&layout, &mut w, "ctl.value", 1000);
+    set(&layout, &mut w, "ctl.end", 1);
     set(&layout, &mut w, "add2.valid", 1);
     set(&layout, &mut w, "add2.op", u64::from(Op::Select.opcode()));
     set(&layout, &mut w, "add2.a", 31);
@@ -171,9 +178,13 @@ fn decode_reads_fields_where_describe_says() {
     set(&layout, &mut w, "imm.kind", 1);
     let ins = layout.decode(&w).unwrap();
     let mut want = empty(&desc);
-    want.control = Control::LoopBegin {
-        kind: LoopKind::Counted(1000),
-        stages: 3,
+    want.control = Control {
+        begin: Some(LoopBegin {
+            kind: LoopKind::Counted(1000),
+            stages: 3,
+        }),
+        end: true,
+        done: false,
     };
     want.fu[2] = Some(FuSlot {
         op: Op::Select,
@@ -233,10 +244,7 @@ fn encode_reports_values_that_do_not_fit() {
     assert!(e.to_string().contains("`sin`: has 3 slots"), "{e}");
 
     let mut ins = empty(&desc);
-    ins.control = Control::LoopBegin {
-        kind: LoopKind::Counted(1),
-        stages: 9,
-    };
+    ins.control = Control::begin(LoopKind::Counted(1), 9);
     let e = layout.try_encode(&ins).unwrap_err();
     assert_eq!(e.field.as_deref(), Some("ctl.stages"));
 }
@@ -248,4 +256,33 @@ fn encode_panics_on_what_check_rejects() {
     let mut ins = empty(&desc);
     ins.fu.clear();
     InstructionLayout::new(&desc).encode(&ins);
+}
+
+#[test]
+fn control_bits_are_independent() {
+    let desc = MachineDesc::gold8();
+    let layout = InstructionLayout::new(&desc);
+    let controls = [
+        Control::NEXT,
+        Control::END,
+        Control::DONE,
+        Control::begin(LoopKind::UntilStreamEmpty(3), 8),
+        Control::begin_end(LoopKind::UntilCc(15), 1),
+        Control::begin_end(LoopKind::Counted(u32::MAX), 5),
+    ];
+    for control in controls {
+        let ins = Instruction {
+            control,
+            ..empty(&desc)
+        };
+        let w = layout.encode(&ins);
+        assert_eq!(layout.decode(&w).unwrap(), ins, "{control:?}");
+        let bit = |name: &str| {
+            let f = layout.field(name).unwrap();
+            w[f.offset]
+        };
+        assert_eq!(bit("ctl.begin"), control.begin.is_some(), "{control:?}");
+        assert_eq!(bit("ctl.end"), control.end, "{control:?}");
+        assert_eq!(bit("ctl.done"), control.done, "{control:?}");
+    }
 }

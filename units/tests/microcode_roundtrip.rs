@@ -114,7 +114,7 @@ impl Gen<'_> {
         let sh = self.sh.clone();
         let stage = |g: &mut Self| g.below(usize::from(stages)) as u8;
         let mut ins = Instruction {
-            control: Control::Next,
+            control: Control::NEXT,
             fu: vec![None; sh.fu_count()],
             sp: vec![None; sh.scratchpads],
             comm: vec![None; sh.comm_units],
@@ -268,19 +268,26 @@ impl Gen<'_> {
         }
     }
 
-    /// A loop: its first and last instructions are plain (they carry LoopBegin/LoopEnd).
+    /// A loop: its first and last instructions are plain (they carry `begin` and `end`), or
+    /// its body is one instruction that carries both.
     fn a_loop(&mut self, code: &mut Vec<Instruction>, depth: usize, budget: &mut usize) {
         let mut stages = 1 + self.below(usize::from(MAX_STAGES)) as u8;
         let kind = self.loop_kind(&mut stages);
         let fullness = self.pick(&[0, 30, 70]);
         let mut first = self.instruction(stages, fullness);
-        first.control = Control::LoopBegin { kind, stages };
+        if self.chance(25) {
+            first.control = Control::begin_end(kind, stages);
+            code.push(first);
+            *budget = budget.saturating_sub(1);
+            return;
+        }
+        first.control = Control::begin(kind, stages);
         code.push(first);
         if self.chance(60) {
             self.block(code, depth, stages, budget);
         }
         let mut last = self.instruction(stages, fullness);
-        last.control = Control::LoopEnd;
+        last.control = Control::END;
         code.push(last);
         *budget = budget.saturating_sub(2);
     }
@@ -307,15 +314,15 @@ impl Gen<'_> {
         let mut code = Vec::new();
         let mut budget = 30;
         self.block(&mut code, 0, 1, &mut budget);
-        // Done: on the last instruction if it is plain, else on an extra one.
+        // `done`: on the last instruction if it is plain, else on an extra one.
         match code.last_mut() {
-            Some(last) if last.control == Control::Next && self.chance(50) => {
-                last.control = Control::Done;
+            Some(last) if last.control.is_next() && self.chance(50) => {
+                last.control = Control::DONE;
             }
             _ => {
                 let fullness = self.pick(&[0, 0, 50]);
                 let mut done = self.instruction(1, fullness);
-                done.control = Control::Done;
+                done.control = Control::DONE;
                 code.push(done);
             }
         }
@@ -378,7 +385,9 @@ proptest! {
             let mut ins = g.instruction(MAX_STAGES, 60);
             let mut stages = 1 + g.below(usize::from(MAX_STAGES)) as u8;
             let kind = g.loop_kind(&mut stages);
-            ins.control = Control::LoopBegin { kind, stages };
+            ins.control = Control::begin(kind, stages);
+            prop_assert_eq!(&layout.decode(&layout.encode(&ins)).unwrap(), &ins);
+            ins.control.end = true;
             prop_assert_eq!(&layout.decode(&layout.encode(&ins)).unwrap(), &ins);
         }
     }
@@ -412,6 +421,7 @@ fn every_machine_generates_every_slot_kind() {
         let sh = Shape::new(&desc);
         let mut seen_fu = vec![false; sh.fu_count()];
         let (mut sp, mut comm, mut sin, mut sout, mut imm) = (false, false, false, false, false);
+        let (mut long_loop, mut one_instruction_loop) = (false, false);
         for seed in 0..200 {
             let p = generator(&desc, seed).program();
             for ins in &p.code {
@@ -423,9 +433,12 @@ fn every_machine_generates_every_slot_kind() {
                 sin |= ins.sin.iter().any(Option::is_some);
                 sout |= ins.sout.is_some();
                 imm |= ins.imm.is_some();
+                long_loop |= ins.control.begin.is_some() && !ins.control.end;
+                one_instruction_loop |= ins.control.begin.is_some() && ins.control.end;
             }
         }
         assert!(seen_fu.iter().all(|&s| s) && sp && comm && sin && sout && imm);
+        assert!(long_loop && one_instruction_loop, "{}", desc.name);
         assert!(matches!(sh.fu_class(sh.fu_count() - 1), UnitClass::DivSqrt));
     }
 }

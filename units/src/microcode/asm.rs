@@ -34,20 +34,23 @@
 //! | `loop count N[, stages S]:` | the next instruction begins a loop of `N` iterations |
 //! | `loop stream NAME[, stages S]:` | … a loop that runs until input stream `NAME` is exhausted |
 //! | `loop until cc[K]:` | … a loop that runs until condition code `K` is set in every cluster |
-//! | `end` | the previous instruction ends the innermost loop |
-//! | `done` | the previous instruction is the kernel's last (`Done`); nothing follows |
+//! | `end` | the previous instruction ends the innermost loop (it may be the loop's only one) |
+//! | `done` | the kernel ends: the previous instruction, or an empty one after an `end`, is its last; nothing follows |
 //!
 //! An instruction line that ends in `|` continues on the next line. `stages S` is the
 //! software-pipeline depth (default 1). Names (kernel, streams) are identifiers: a letter or
 //! `_`, then letters, digits, `_` or `.`; the grammar is positional, so a stream may be
 //! called `in`, `cc` or `stream`.
 //!
-//! An instruction word has one control field, so one instruction cannot both begin and end a
-//! loop, begin two loops, or end two: a loop body has at least two instructions, and where
-//! two `loop` lines (or two `end` lines) would meet, a `nop` separates them. `done` after an
-//! `end` (or with no instruction before it) adds an empty instruction to carry `Done`;
-//! writing `nop` before that `done` gives the same program, and [`disassemble`] prints the
-//! short form.
+//! A loop body may be a single instruction: `loop …:`, one instruction line, `end` gives one
+//! instruction that both begins and ends the loop (a software-pipelined loop with an
+//! initiation interval of 1). An instruction begins at most one loop and ends at most one, so
+//! where two `loop` lines (or two `end` lines) would meet, a `nop` separates them. The
+//! kernel's last instruction carries only `done`: it is outside every loop and neither begins
+//! nor ends one. So `done` after a plain instruction (one that neither begins nor ends a
+//! loop) marks that instruction; `done` after an `end` (or with no instruction before it)
+//! adds an empty instruction to carry it. Writing `nop` before that `done` gives the same
+//! program, and [`disassemble`] prints the short form.
 //!
 //! # Slots
 //!
@@ -106,7 +109,7 @@ use crate::ops::Op;
 
 use super::check::{MicrocodeError, Shape, parse_index};
 use super::{
-    CommSlot, Control, Dest, Dests, FuSlot, ImmValue, Immediate, Instruction, LoopKind,
+    CommSlot, Control, Dest, Dests, FuSlot, ImmValue, Immediate, Instruction, LoopBegin, LoopKind,
     Permutation, Program, SpSlot, StreamDecl, StreamDir, StreamIn, StreamOut,
 };
 
@@ -537,7 +540,7 @@ impl Assembler<'_> {
 
         let mut code: Vec<Instruction> = Vec::new();
         let mut wheres: Vec<Where> = Vec::new();
-        let mut pending: Option<(Control, Pos)> = None;
+        let mut pending: Option<(LoopBegin, Pos)> = None;
         let mut open: Vec<(usize, Pos)> = Vec::new();
         let mut done: Option<Pos> = None;
         for line in lines {
@@ -587,9 +590,9 @@ impl Assembler<'_> {
                             ),
                         ));
                     }
-                    let control = self.loop_header(&mut c)?;
+                    let begin = self.loop_header(&mut c)?;
                     open.push((code.len(), start));
-                    pending = Some((control, start));
+                    pending = Some((begin, start));
                 }
                 "end" => {
                     c.i += 1;
@@ -602,32 +605,24 @@ impl Assembler<'_> {
                             start,
                             format!(
                                 "the loop at line {} has an empty body; a loop body has at \
-                                 least two instructions",
+                                 least one instruction",
                                 loop_pos.line
                             ),
                         ));
                     }
+                    // The loop's first instruction exists (`pending` was taken), so `last`
+                    // is `begin` (a one-instruction body) or after it.
                     let last = code.len() - 1;
-                    if last == begin {
-                        return Err(error(
-                            start,
-                            format!(
-                                "the loop at line {} has a one-instruction body; a loop body \
-                                 has at least two instructions (one instruction cannot both \
-                                 begin and end a loop)",
-                                loop_pos.line
-                            ),
-                        ));
-                    }
-                    if code[last].control == Control::LoopEnd {
+                    debug_assert!(last >= begin);
+                    if code[last].control.end {
                         return Err(error(
                             start,
                             "two loops cannot end on the same instruction; put an \
                              instruction, a `nop` if need be, before this `end`",
                         ));
                     }
-                    code[last].control = Control::LoopEnd;
-                    wheres[last].parts.push(("ctl".into(), start));
+                    code[last].control.end = true;
+                    wheres[last].parts.push(("ctl.end".into(), start));
                 }
                 "done" => {
                     c.i += 1;
@@ -642,21 +637,21 @@ impl Assembler<'_> {
                         ));
                     }
                     match code.last_mut() {
-                        Some(ins) if ins.control == Control::Next => {
-                            ins.control = Control::Done;
+                        Some(ins) if ins.control.is_next() => {
+                            ins.control.done = true;
                             wheres
                                 .last_mut()
                                 .expect("one per instruction")
                                 .parts
-                                .push(("ctl".into(), start));
+                                .push(("ctl.done".into(), start));
                         }
                         _ => {
                             let mut ins = self.empty();
-                            ins.control = Control::Done;
+                            ins.control = Control::DONE;
                             code.push(ins);
                             wheres.push(Where {
                                 line: start,
-                                parts: vec![("ctl".into(), start)],
+                                parts: vec![("ctl.done".into(), start)],
                             });
                         }
                     }
@@ -676,8 +671,8 @@ impl Assembler<'_> {
                     } else {
                         self.instruction(&mut c)?
                     };
-                    if let Some((control, p)) = pending.take() {
-                        ins.control = control;
+                    if let Some((begin, p)) = pending.take() {
+                        ins.control.begin = Some(begin);
                         w.parts.push(("ctl".into(), p));
                     }
                     code.push(ins);
@@ -715,16 +710,7 @@ impl Assembler<'_> {
     }
 
     fn empty(&self) -> Instruction {
-        let sh = &self.shape;
-        Instruction {
-            control: Control::Next,
-            fu: vec![None; sh.fu_count()],
-            sp: vec![None; sh.scratchpads],
-            comm: vec![None; sh.comm_units],
-            sin: vec![None; sh.stream_ins],
-            sout: None,
-            imm: None,
-        }
+        Instruction::empty(self.desc)
     }
 
     fn declare(&mut self, c: &mut Cursor<'_>, input: bool) -> Result<(), AsmError> {
@@ -773,7 +759,7 @@ impl Assembler<'_> {
     }
 
     /// After `loop`: `count N | stream NAME | until cc[K]` `[, stages S]` `:`.
-    fn loop_header(&self, c: &mut Cursor<'_>) -> Result<Control, AsmError> {
+    fn loop_header(&self, c: &mut Cursor<'_>) -> Result<LoopBegin, AsmError> {
         let kind = if c.eat_word("count") {
             LoopKind::Counted(c.uint("an iteration count", u64::from(u32::MAX))?.0 as u32)
         } else if c.eat_word("stream") {
@@ -791,7 +777,7 @@ impl Assembler<'_> {
         }
         c.expect(Tok::Colon)?;
         end_of_line(c)?;
-        Ok(Control::LoopBegin { kind, stages })
+        Ok(LoopBegin { kind, stages })
     }
 
     fn instruction(&self, c: &mut Cursor<'_>) -> Result<(Instruction, Where), AsmError> {
@@ -1126,7 +1112,7 @@ pub fn disassemble(program: &Program, desc: &MachineDesc) -> String {
     };
     let mut depth = 0usize;
     for (i, ins) in program.code.iter().enumerate() {
-        if let Control::LoopBegin { kind, stages } = ins.control {
+        if let Some(LoopBegin { kind, stages }) = ins.control.begin {
             let head = match kind {
                 LoopKind::Counted(n) => format!("count {n}"),
                 LoopKind::UntilStreamEmpty(s) => format!("stream {}", stream(s)),
@@ -1145,9 +1131,10 @@ pub fn disassemble(program: &Program, desc: &MachineDesc) -> String {
             );
             depth += 1;
         }
-        let bare_done = ins.control == Control::Done
-            && is_empty(ins)
-            && (i == 0 || program.code[i - 1].control != Control::Next);
+        // The short form of `done` after an `end` (see the module documentation).
+        let bare_done = ins.control == Control::DONE
+            && ins.is_empty()
+            && (i == 0 || !program.code[i - 1].control.is_next());
         if !bare_done {
             let _ = writeln!(
                 out,
@@ -1157,25 +1144,15 @@ pub fn disassemble(program: &Program, desc: &MachineDesc) -> String {
                 indent = 4 * (depth + 1)
             );
         }
-        match ins.control {
-            Control::LoopEnd => {
-                depth = depth.saturating_sub(1);
-                let _ = writeln!(out, "{:indent$}end", "", indent = 4 * depth);
-            }
-            Control::Done => out.push_str("done\n"),
-            _ => {}
+        if ins.control.end {
+            depth = depth.saturating_sub(1);
+            let _ = writeln!(out, "{:indent$}end", "", indent = 4 * depth);
+        }
+        if ins.control.done {
+            out.push_str("done\n");
         }
     }
     out
-}
-
-fn is_empty(ins: &Instruction) -> bool {
-    ins.fu.iter().all(Option::is_none)
-        && ins.sp.iter().all(Option::is_none)
-        && ins.comm.iter().all(Option::is_none)
-        && ins.sin.iter().all(Option::is_none)
-        && ins.sout.is_none()
-        && ins.imm.is_none()
 }
 
 /// One instruction's slots, `|`-separated, or `nop`.

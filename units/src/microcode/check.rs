@@ -22,10 +22,12 @@
 //!   `sin` and stream loops read `In` streams, `sout` and [`Dest::Stream`] write `Out`
 //!   streams; per instruction at most `srf.cluster_words_per_cycle` stream words (`sin`
 //!   slots used + `sout`) and at most `srf.conditional_words_per_cycle` conditional ones;
-//! * **control** — loops properly nested and at most `microcontroller.loop_depth` deep,
-//!   `stages` in `1..=`[`MAX_STAGES`], `until cc` loops have one stage, every slot's stage is
-//!   below its innermost loop's `stages` (0 outside loops); the program ends with exactly
-//!   one `Done`, as its last instruction, outside any loop; the code fits
+//! * **control** — loops properly nested (each [`Control`] `end` closes the innermost open
+//!   loop; an instruction with both `begin` and `end` is a one-instruction loop body) and at
+//!   most `microcontroller.loop_depth` deep, `stages` in `1..=`[`MAX_STAGES`], `until cc`
+//!   loops have one stage, every slot's stage is below its innermost loop's `stages` (0
+//!   outside loops); the program ends with exactly one `done`, as its last instruction,
+//!   outside any loop, and that instruction neither begins nor ends a loop; the code fits
 //!   `microcontroller.store_words`.
 //!
 //! Not checked here, because it depends on timing: two results landing in one LRF (or on one
@@ -39,8 +41,8 @@ use crate::desc::MachineDesc;
 use crate::ops::{Op, UnitClass};
 
 use super::{
-    CommSlot, Control, Dest, Dests, FuSlot, ImmValue, Instruction, LoopKind, Permutation, Program,
-    SpSlot, StreamDir, StreamIn, StreamOut,
+    CommSlot, Control, Dest, Dests, FuSlot, ImmValue, Instruction, LoopBegin, LoopKind,
+    Permutation, Program, SpSlot, StreamDir, StreamIn, StreamOut,
 };
 
 /// Software-pipeline stages a loop may have: the `stage` field of a slot is 3 bits wide.
@@ -237,6 +239,32 @@ pub fn is_identifier(s: &str) -> bool {
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '.')
 }
 
+impl Instruction {
+    /// An instruction shaped for `desc` with every slot empty (a `nop`).
+    pub fn empty(desc: &MachineDesc) -> Instruction {
+        let sh = Shape::new(desc);
+        Instruction {
+            control: Control::NEXT,
+            fu: vec![None; sh.fu_count()],
+            sp: vec![None; sh.scratchpads],
+            comm: vec![None; sh.comm_units],
+            sin: vec![None; sh.stream_ins],
+            sout: None,
+            imm: None,
+        }
+    }
+
+    /// True if no slot issues (the control field aside).
+    pub fn is_empty(&self) -> bool {
+        self.fu.iter().all(Option::is_none)
+            && self.sp.iter().all(Option::is_none)
+            && self.comm.iter().all(Option::is_none)
+            && self.sin.iter().all(Option::is_none)
+            && self.sout.is_none()
+            && self.imm.is_none()
+    }
+}
+
 impl Program {
     /// Checks that the program fits `desc` (see the [module documentation](self)); the
     /// first problem found is returned.
@@ -323,18 +351,35 @@ impl Checker<'_> {
             )));
         }
         if p.code.is_empty() {
-            return Err(self.kernel_error("has no instructions (it must end with Done)".into()));
+            return Err(self.kernel_error("has no instructions (it must end with `done`)".into()));
         }
 
         let mut open: Vec<Open> = Vec::new();
         for (i, ins) in p.code.iter().enumerate() {
-            // Control first: a LoopBegin's own slots are inside the loop it opens.
-            if let Control::LoopBegin { kind, stages } = ins.control {
+            let ctl = ins.control;
+            if ctl.done && (ctl.begin.is_some() || ctl.end) {
+                return Err(self.error(
+                    i,
+                    "ctl.done",
+                    format!(
+                        "`done` on an instruction that also {} a loop; the kernel's last \
+                         instruction is outside every loop and carries only `done`",
+                        if ctl.begin.is_some() {
+                            "begins"
+                        } else {
+                            "ends"
+                        }
+                    ),
+                ));
+            }
+            // Control first: a loop's first instruction's own slots are inside the loop it
+            // opens (and a one-instruction body's are inside the loop it both opens and ends).
+            if let Some(LoopBegin { kind, stages }) = ctl.begin {
                 self.check_loop(i, kind, stages)?;
                 if open.len() >= self.desc.microcontroller.loop_depth {
                     return Err(self.error(
                         i,
-                        "ctl",
+                        "ctl.begin",
                         format!(
                             "opens a loop nested {} deep; the loop stack holds {} \
                              (`microcontroller.loop_depth`)",
@@ -347,36 +392,31 @@ impl Checker<'_> {
             }
             let stages = open.last().map_or(1, |l| l.stages);
             self.check_instruction(i, ins, stages)?;
-            match ins.control {
-                Control::Next | Control::LoopBegin { .. } => {}
-                Control::LoopEnd => {
-                    if open.pop().is_none() {
-                        return Err(self.error(i, "ctl", "LoopEnd closes no open loop".into()));
-                    }
+            if ctl.end && open.pop().is_none() {
+                return Err(self.error(i, "ctl.end", "`end` closes no open loop".into()));
+            }
+            if ctl.done {
+                if let Some(l) = open.last() {
+                    return Err(self.error(
+                        i,
+                        "ctl.done",
+                        format!(
+                            "`done` inside the loop that begins at instruction {}; a kernel \
+                             ends outside every loop",
+                            l.begin
+                        ),
+                    ));
                 }
-                Control::Done => {
-                    if let Some(l) = open.last() {
-                        return Err(self.error(
-                            i,
-                            "ctl",
-                            format!(
-                                "Done inside the loop that begins at instruction {}; a kernel \
-                                 ends outside every loop",
-                                l.begin
-                            ),
-                        ));
-                    }
-                    if i + 1 != p.code.len() {
-                        return Err(self.error(
-                            i,
-                            "ctl",
-                            format!(
-                                "Done before the last instruction ({}); Done must be the last \
-                                 instruction and appear once",
-                                p.code.len() - 1
-                            ),
-                        ));
-                    }
+                if i + 1 != p.code.len() {
+                    return Err(self.error(
+                        i,
+                        "ctl.done",
+                        format!(
+                            "`done` before the last instruction ({}); `done` must be the last \
+                             instruction and appear once",
+                            p.code.len() - 1
+                        ),
+                    ));
                 }
             }
         }
@@ -384,15 +424,15 @@ impl Checker<'_> {
         if let Some(l) = open.last() {
             return Err(self.error(
                 l.begin,
-                "ctl",
-                "opens a loop that is never closed by a LoopEnd".into(),
+                "ctl.begin",
+                "opens a loop that is never closed by an `end`".into(),
             ));
         }
-        if p.code[last].control != Control::Done {
+        if !p.code[last].control.done {
             return Err(self.error(
                 last,
-                "ctl",
-                "the last instruction is not Done; a kernel ends with exactly one Done".into(),
+                "ctl.done",
+                "the last instruction is not `done`; a kernel ends with exactly one `done`".into(),
             ));
         }
         Ok(())

@@ -5,14 +5,17 @@
 //! the microcontroller's `ctl` field, the arithmetic slots (`add0…`, `mul0…`, `dsq0…`), the
 //! scratchpads (`sp0…`), the communication units (`comm0…`), the stream inputs (`sin0…`),
 //! `sout` and `imm`. Every slot starts with a `valid` bit; a slot whose valid bit is clear
-//! is empty and the rest of its bits are ignored (encoded as 0).
+//! is empty and the rest of its bits are ignored (encoded as 0); likewise the loop fields of
+//! `ctl` when `ctl.begin` is clear.
 //!
 //! | field | width | meaning |
 //! |---|---|---|
-//! | `ctl.kind` | 2 | 0 next, 1 loop begin, 2 loop end, 3 done |
+//! | `ctl.begin` | 1 | the instruction begins a loop (the next three fields describe it) |
 //! | `ctl.loop` | 2 | loop begin: 0 counted, 1 until stream empty, 2 until cc |
 //! | `ctl.stages` | 3 | loop begin: software-pipeline stages − 1 |
 //! | `ctl.value` | 32 | loop begin: iteration count, stream or condition code |
+//! | `ctl.end` | 1 | the instruction ends the innermost loop (with `ctl.begin`: the loop it begins) |
+//! | `ctl.done` | 1 | the kernel's last instruction |
 //! | `U.valid` | 1 | slot `U` issues (every slot) |
 //! | `U.op` | [`Op::OPCODE_BITS`] | arithmetic slots: opcode ([`Op::opcode`]) |
 //! | `U.a`, `U.b` | *e* | arithmetic slots: entries of the `U.a`, `U.b` LRFs |
@@ -35,7 +38,7 @@
 //! *s* = bits of the largest stream index (`srf.kernel_streams − 1`), *l* = bits of the
 //! largest LRF index, *w* = bits of the largest scratchpad address, *k* = bits of the largest
 //! cluster index. [`InstructionLayout::describe`] prints the table with offsets for a
-//! machine; the `gold8` word is 631 bits wide (snapshot in `tests/microcode_layout.rs`).
+//! machine; the `gold8` word is 632 bits wide (snapshot in `tests/microcode_layout.rs`).
 //!
 //! [`InstructionLayout::encode`] requires every value to fit its field (a program that
 //! passes [`Program::check`](super::Program::check) always does);
@@ -51,7 +54,7 @@ use crate::ops::{Op, UnitClass};
 
 use super::check::{MAX_STAGES, MicrocodeError, Shape};
 use super::{
-    CommSlot, Control, Dest, Dests, FuSlot, ImmValue, Immediate, Instruction, LoopKind,
+    CommSlot, Control, Dest, Dests, FuSlot, ImmValue, Immediate, Instruction, LoopBegin, LoopKind,
     Permutation, Program, SpSlot, StreamIn, StreamOut,
 };
 
@@ -141,10 +144,12 @@ struct ImmFields {
 
 #[derive(Clone, Debug)]
 struct CtlFields {
-    kind: F,
+    begin: F,
     lp: F,
     stages: F,
     value: F,
+    end: F,
+    done: F,
 }
 
 /// The microcode word format of one machine (see the [module documentation](self)).
@@ -164,10 +169,6 @@ pub struct InstructionLayout {
 
 /// Width of a `stage` field.
 const STAGE_BITS: usize = bits_for(MAX_STAGES as u64 - 1) as usize;
-const CTL_NEXT: u64 = 0;
-const CTL_LOOP: u64 = 1;
-const CTL_END: u64 = 2;
-const CTL_DONE: u64 = 3;
 const DEST_NONE: u64 = 0;
 const DEST_LRF: u64 = 1;
 const DEST_CC: u64 = 2;
@@ -211,10 +212,10 @@ impl InstructionLayout {
             offset: 0,
         };
         let ctl = CtlFields {
-            kind: b.add(
-                "ctl.kind".into(),
-                2,
-                "0 next, 1 loop begin, 2 loop end, 3 done",
+            begin: b.add(
+                "ctl.begin".into(),
+                1,
+                "begins a loop (the next three fields describe it)",
             ),
             lp: b.add(
                 "ctl.loop".into(),
@@ -231,6 +232,12 @@ impl InstructionLayout {
                 32,
                 "loop begin: iteration count, stream or condition code",
             ),
+            end: b.add(
+                "ctl.end".into(),
+                1,
+                "ends the innermost loop (with ctl.begin: the loop it begins)",
+            ),
+            done: b.add("ctl.done".into(), 1, "the kernel's last instruction"),
         };
         let dests = |b: &mut Builder, slot: &str| -> [DestFields; 2] {
             [0, 1].map(|d| DestFields {
@@ -476,28 +483,25 @@ impl InstructionLayout {
         }
         let mut w = wide_word(self.width);
         let c = &self.ctl;
-        match ins.control {
-            Control::Next => self.put(&mut w, c.kind, CTL_NEXT)?,
-            Control::LoopEnd => self.put(&mut w, c.kind, CTL_END)?,
-            Control::Done => self.put(&mut w, c.kind, CTL_DONE)?,
-            Control::LoopBegin { kind, stages } => {
-                self.put(&mut w, c.kind, CTL_LOOP)?;
-                let (lp, value) = match kind {
-                    LoopKind::Counted(n) => (0, u64::from(n)),
-                    LoopKind::UntilStreamEmpty(s) => (1, u64::from(s)),
-                    LoopKind::UntilCc(cc) => (2, u64::from(cc)),
-                };
-                self.put(&mut w, c.lp, lp)?;
-                if stages == 0 {
-                    return Err(MicrocodeError::field(
-                        "ctl.stages",
-                        "a loop has at least one stage",
-                    ));
-                }
-                self.put(&mut w, c.stages, u64::from(stages - 1))?;
-                self.put(&mut w, c.value, value)?;
+        if let Some(LoopBegin { kind, stages }) = ins.control.begin {
+            self.put(&mut w, c.begin, 1)?;
+            let (lp, value) = match kind {
+                LoopKind::Counted(n) => (0, u64::from(n)),
+                LoopKind::UntilStreamEmpty(s) => (1, u64::from(s)),
+                LoopKind::UntilCc(cc) => (2, u64::from(cc)),
+            };
+            self.put(&mut w, c.lp, lp)?;
+            if stages == 0 {
+                return Err(MicrocodeError::field(
+                    "ctl.stages",
+                    "a loop has at least one stage",
+                ));
             }
+            self.put(&mut w, c.stages, u64::from(stages - 1))?;
+            self.put(&mut w, c.value, value)?;
         }
+        self.put(&mut w, c.end, u64::from(ins.control.end))?;
+        self.put(&mut w, c.done, u64::from(ins.control.done))?;
         for (f, slot) in self.fu.iter().zip(&ins.fu) {
             if let Some(s) = slot {
                 self.put(&mut w, f.valid, 1)?;
@@ -622,10 +626,8 @@ impl InstructionLayout {
             });
         }
         let c = &self.ctl;
-        let control = match self.get(w, c.kind) {
-            CTL_NEXT => Control::Next,
-            CTL_END => Control::LoopEnd,
-            CTL_DONE => Control::Done,
+        let begin = match self.get(w, c.begin) {
+            0 => None,
             _ => {
                 let value = self.get(w, c.value);
                 let kind = match self.get(w, c.lp) {
@@ -650,11 +652,16 @@ impl InstructionLayout {
                         ));
                     }
                 };
-                Control::LoopBegin {
+                Some(LoopBegin {
                     kind,
                     stages: self.get(w, c.stages) as u8 + 1,
-                }
+                })
             }
+        };
+        let control = Control {
+            begin,
+            end: self.get(w, c.end) == 1,
+            done: self.get(w, c.done) == 1,
         };
         let mut ins = Instruction {
             control,

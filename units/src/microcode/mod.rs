@@ -21,6 +21,9 @@
 //! and squashes (suppresses the writes and stream accesses of) every op of stage `s` in pass
 //! `p` unless `s ≤ p < N + s`: the prologue and epilogue of a modulo-scheduled loop come
 //! for free from one copy of the kernel (Rau 1994; Imagine's microcontroller did the same).
+//! A loop body may be a single instruction whose [`Control`] field both begins and ends the
+//! loop, so a modulo-scheduled loop can start an iteration every cycle (initiation interval
+//! 1).
 //!
 //! [`layout`] packs instructions into bit words whose fields and widths follow from the
 //! machine description; [`asm`] is the text form.
@@ -149,18 +152,80 @@ pub enum LoopKind {
     UntilCc(u16),
 }
 
-/// The microcontroller's field.
+/// The microcontroller's field: which loop, if any, this instruction begins and whether it
+/// ends one or the kernel.
+///
+/// Rules ([`Program::check`] enforces them):
+///
+/// * at most one loop begins and at most one ends per instruction; loops nest properly, so
+///   loops that would begin (or end) on the same instruction need a `nop` between them;
+/// * `begin` and `end` together make a one-instruction loop body: the instruction ends the
+///   loop it begins (a software-pipelined loop with an initiation interval of 1);
+/// * `done` is exclusive: the kernel's last instruction is outside every loop, so it neither
+///   begins nor ends one (a loop that would close on the last instruction is followed by an
+///   empty instruction carrying `done`, which is what the assembler's `done` after `end`
+///   gives).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Control {
-    #[default]
-    Next,
-    /// This instruction starts a loop body that runs to the matching `LoopEnd`; `stages`
-    /// is its software-pipeline depth (1 for an ordinary loop).
-    LoopBegin { kind: LoopKind, stages: u8 },
-    /// Last instruction of the innermost loop body.
-    LoopEnd,
-    /// Last instruction of the kernel: output streams are flushed when its results land.
-    Done,
+pub struct Control {
+    /// This instruction starts a loop body (its first instruction).
+    pub begin: Option<LoopBegin>,
+    /// This instruction is the last of the innermost loop body.
+    pub end: bool,
+    /// This instruction is the kernel's last: output streams are flushed when its results
+    /// land.
+    pub done: bool,
+}
+
+/// The loop an instruction begins: it runs to the matching `end`; `stages` is its
+/// software-pipeline depth (1 for an ordinary loop).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LoopBegin {
+    pub kind: LoopKind,
+    pub stages: u8,
+}
+
+impl Control {
+    /// No loop begins or ends here; the next instruction follows.
+    pub const NEXT: Control = Control {
+        begin: None,
+        end: false,
+        done: false,
+    };
+    /// The last instruction of the innermost loop body.
+    pub const END: Control = Control {
+        begin: None,
+        end: true,
+        done: false,
+    };
+    /// The kernel's last instruction.
+    pub const DONE: Control = Control {
+        begin: None,
+        end: false,
+        done: true,
+    };
+
+    /// The first instruction of a loop body.
+    pub const fn begin(kind: LoopKind, stages: u8) -> Control {
+        Control {
+            begin: Some(LoopBegin { kind, stages }),
+            end: false,
+            done: false,
+        }
+    }
+
+    /// The only instruction of a loop body: it begins and ends the loop.
+    pub const fn begin_end(kind: LoopKind, stages: u8) -> Control {
+        Control {
+            begin: Some(LoopBegin { kind, stages }),
+            end: true,
+            done: false,
+        }
+    }
+
+    /// No loop begins or ends here and the kernel goes on.
+    pub const fn is_next(self) -> bool {
+        self.begin.is_none() && !self.end && !self.done
+    }
 }
 
 /// One VLIW instruction.
