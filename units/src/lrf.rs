@@ -22,6 +22,8 @@ pub struct Lrf {
     write_entry: Option<u16>,
     write_values: Vec<u32>,
     write_mask: Vec<bool>,
+    /// The pending write goes only to the clusters `write_mask` selects.
+    write_masked: bool,
     probes: LrfProbes,
 }
 
@@ -37,6 +39,7 @@ struct LrfProbes {
     last_write: Option<u16>,
     last_values: Vec<u32>,
     last_mask: Vec<bool>,
+    last_masked: bool,
 }
 
 impl Lrf {
@@ -58,6 +61,7 @@ impl Lrf {
             last_write: None,
             last_values: vec![0; lanes],
             last_mask: vec![false; lanes],
+            last_masked: false,
         };
         let path = s.path().to_string();
         drop(s);
@@ -80,6 +84,7 @@ impl Lrf {
             write_entry: None,
             write_values: vec![0; lanes],
             write_mask: vec![true; lanes],
+            write_masked: false,
             probes,
         }
     }
@@ -92,32 +97,29 @@ impl Lrf {
         &self.path
     }
 
-    #[inline]
-    fn check_entry(&self, entry: u16, port: &str) -> Result<usize, ContractError> {
-        let e = entry as usize;
-        if e >= self.entries {
-            return Err(ContractError::at(
-                &format!("{}.{port}", self.path),
-                Violation::Other(format!("entry {e} is outside the {} entries", self.entries)),
-            ));
-        }
-        Ok(e)
+    /// The error for a bad use of `port`; kept out of line so the ports stay small.
+    #[cold]
+    #[inline(never)]
+    fn port_error(&self, port: &str, entry: u16, previous: Option<u16>) -> ContractError {
+        let problem = match previous {
+            Some(prev) => {
+                format!("{port} port conflict: entries {prev} and {entry} in the same cycle")
+            }
+            None => format!("entry {entry} is outside the {} entries", self.entries),
+        };
+        ContractError::at(&format!("{}.{port}", self.path), Violation::Other(problem))
     }
 
     /// Reads `entry` in every cluster (the read port, once per cycle).
     #[inline]
     pub fn read(&self, entry: u16) -> Result<&[u32], ContractError> {
-        if let Some(prev) = self.read_entry.get() {
-            return Err(ContractError::at(
-                &format!("{}.read", self.path),
-                Violation::Other(format!(
-                    "read port conflict: entries {prev} and {entry} read in the same cycle"
-                )),
-            ));
+        let previous = self.read_entry.get();
+        if previous.is_some() || entry as usize >= self.entries {
+            return Err(self.port_error("read", entry, previous));
         }
-        let e = self.check_entry(entry, "read")?;
         self.read_entry.set(Some(entry));
-        Ok(&self.data[e * self.lanes..(e + 1) * self.lanes])
+        let start = entry as usize * self.lanes;
+        Ok(&self.data[start..start + self.lanes])
     }
 
     /// Writes `values` (one per cluster) to `entry` at the edge, in the clusters whose
@@ -129,20 +131,14 @@ impl Lrf {
         values: &[u32],
         mask: Option<&[bool]>,
     ) -> Result<(), ContractError> {
-        if let Some(prev) = self.write_entry {
-            return Err(ContractError::at(
-                &format!("{}.write", self.path),
-                Violation::Other(format!(
-                    "write port conflict: entries {prev} and {entry} written in the same cycle"
-                )),
-            ));
+        if self.write_entry.is_some() || entry as usize >= self.entries {
+            return Err(self.port_error("write", entry, self.write_entry));
         }
-        self.check_entry(entry, "write")?;
         self.write_entry = Some(entry);
         self.write_values.copy_from_slice(values);
-        match mask {
-            Some(m) => self.write_mask.copy_from_slice(m),
-            None => self.write_mask.fill(true),
+        self.write_masked = mask.is_some();
+        if let Some(m) = mask {
+            self.write_mask.copy_from_slice(m);
         }
         Ok(())
     }
@@ -164,15 +160,21 @@ impl Lrf {
         p.last_read = self.read_entry.take();
         p.last_write = self.write_entry.take();
         if let Some(e) = p.last_write {
-            let row = &mut self.data[e as usize * self.lanes..(e as usize + 1) * self.lanes];
-            for ((d, &v), &m) in row.iter_mut().zip(&self.write_values).zip(&self.write_mask) {
-                if m {
-                    *d = v;
+            let start = e as usize * self.lanes;
+            let row = &mut self.data[start..start + self.lanes];
+            if self.write_masked {
+                for ((d, &v), &m) in row.iter_mut().zip(&self.write_values).zip(&self.write_mask) {
+                    if m {
+                        *d = v;
+                    }
                 }
+            } else {
+                row.copy_from_slice(&self.write_values);
             }
             // The write buffers become the probe's copy; the next write refills the others.
             std::mem::swap(&mut p.last_values, &mut self.write_values);
             std::mem::swap(&mut p.last_mask, &mut self.write_mask);
+            p.last_masked = self.write_masked;
         }
     }
 
@@ -185,9 +187,72 @@ impl Lrf {
         for c in 0..self.lanes {
             t.value(
                 p.lane_we[c],
-                (p.last_write.is_some() && p.last_mask[c]) as u64,
+                (p.last_write.is_some() && (!p.last_masked || p.last_mask[c])) as u64,
             );
             t.value(p.lane_wdata[c], p.last_values[c] as u64);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use imagine_hdl::{Design, default_domains};
+
+    fn lrf(entries: usize) -> Lrf {
+        let mut d = Design::new("top", default_domains()).unwrap();
+        Lrf::new(&mut d.scope(), "add0.a", entries, 4)
+    }
+
+    #[test]
+    fn writes_land_at_the_edge_with_their_mask() {
+        let mut f = lrf(16);
+        f.write(3, &[1, 2, 3, 4], None).unwrap();
+        assert_eq!(
+            f.read(3).unwrap(),
+            &[0, 0, 0, 0],
+            "a write is visible only after the edge"
+        );
+        f.commit();
+        assert_eq!(f.read(3).unwrap(), &[1, 2, 3, 4]);
+        f.write(3, &[9, 9, 9, 9], Some(&[true, false, false, true]))
+            .unwrap();
+        f.commit();
+        assert_eq!(f.peek(3), &[9, 2, 3, 9]);
+    }
+
+    #[test]
+    fn each_port_serves_one_access_per_cycle() {
+        let mut f = lrf(16);
+        f.read(1).unwrap();
+        let e = f.read(2).unwrap_err().to_string();
+        assert!(
+            e.contains("top.lrf.add0_a") && e.contains("read port conflict"),
+            "{e}"
+        );
+        f.write(1, &[0; 4], None).unwrap();
+        let e = f.write(2, &[0; 4], None).unwrap_err().to_string();
+        assert!(e.contains("write port conflict"), "{e}");
+        f.commit();
+        // The next cycle starts with free ports.
+        f.read(2).unwrap();
+        f.write(2, &[0; 4], None).unwrap();
+    }
+
+    #[test]
+    fn entries_outside_the_file_are_errors() {
+        let mut f = lrf(16);
+        assert!(
+            f.read(16)
+                .unwrap_err()
+                .to_string()
+                .contains("outside the 16 entries")
+        );
+        assert!(
+            f.write(99, &[0; 4], None)
+                .unwrap_err()
+                .to_string()
+                .contains("entry 99")
+        );
     }
 }

@@ -52,13 +52,31 @@ pub enum Phase {
 }
 
 /// Sequencer state (committed) and its next value.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Debug, PartialEq, Eq)]
 struct State {
     phase: Phase,
     pc: u16,
     /// The instruction at `pc` was reached by a loop's back edge (its frame exists).
     looped_back: bool,
     frames: Vec<Frame>,
+}
+
+/// `clone_from` reuses the loop stack's allocation: the sequencer copies its state every
+/// cycle.
+impl Clone for State {
+    fn clone(&self) -> Self {
+        State {
+            frames: self.frames.clone(),
+            ..*self
+        }
+    }
+
+    fn clone_from(&mut self, source: &Self) {
+        self.phase = source.phase;
+        self.pc = source.pc;
+        self.looped_back = source.looped_back;
+        self.frames.clone_from(&source.frames);
+    }
 }
 
 pub struct Microcontroller {
