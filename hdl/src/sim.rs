@@ -241,6 +241,8 @@ fn positive(path: &str, what: &str, v: usize) -> Result<(), DesignError> {
 /// Runs a design.
 pub struct Sim {
     design: Design,
+    /// Domains other than the core's that hold no module.
+    quiet: u64,
     #[cfg(feature = "probes")]
     trace: Option<Trace>,
     core: DomainId,
@@ -248,11 +250,17 @@ pub struct Sim {
 
 impl Sim {
     pub fn new(design: Design) -> Self {
+        let core = DomainId(0);
+        let mut busy = 1u64 << core.0;
+        for m in &design.modules {
+            busy |= 1 << m.domain().0;
+        }
         Sim {
             design,
+            quiet: !busy,
             #[cfg(feature = "probes")]
             trace: None,
-            core: DomainId(0),
+            core,
         }
     }
 
@@ -317,10 +325,19 @@ impl Sim {
     /// Advances to the next clock edge of any domain (without a tracer, the next rising
     /// edge: falling edges change nothing then).
     pub fn step(&mut self) -> Result<Edge, ContractError> {
-        if !self.tracing() {
-            self.design.clocks.skip_falling_edges();
-        }
-        let edge = self.design.clocks.next_edge();
+        let tracing = self.tracing();
+        // Without a tracer, falling edges and the edges of domains that hold no module
+        // change nothing: skip them.
+        let quiet = if tracing { 0 } else { self.quiet };
+        let edge = loop {
+            if !tracing {
+                self.design.clocks.skip_falling_edges();
+            }
+            let edge = self.design.clocks.next_edge();
+            if (edge.rising.0 | edge.falling.0) & !quiet != 0 {
+                break edge;
+            }
+        };
         if !edge.rising.is_empty() {
             self.clock_edge(edge.rising)?;
         }
