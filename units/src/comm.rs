@@ -92,6 +92,20 @@ impl CommUnit {
         Ok(())
     }
 
+    /// Claims the network for a conditional stream access this cycle (its words are routed
+    /// between clusters in cluster order); nothing else may be sent in the same cycle.
+    pub fn reserve(&mut self) -> Result<(), ContractError> {
+        if std::mem::replace(&mut self.sent, true) {
+            return Err(ContractError::at(
+                &self.path,
+                Violation::Busy {
+                    detail: "a conditional stream access needs the network this cycle".into(),
+                },
+            ));
+        }
+        Ok(())
+    }
+
     /// The words arriving this cycle.
     #[inline]
     pub fn completed(&self) -> Option<&InFlight> {

@@ -733,7 +733,8 @@ impl Machine {
                 }
                 Some(cc) => {
                     // Conditional input: clusters whose code is set take the next elements
-                    // in cluster order (routed over the intercluster network).
+                    // in cluster order, routed over the intercluster network.
+                    self.comms[0].reserve()?;
                     self.mask.copy_from_slice(self.cc.read(cc)?);
                     let n = self.mask.iter().filter(|&&b| b).count();
                     let words = self.srf.read_conditional(stream, n)?;
@@ -751,7 +752,11 @@ impl Machine {
             if live.live(s.stage) {
                 let data = self.lrfs[self.sout_input].read(s.data)?;
                 let mask = match s.cond {
-                    Some(cc) => Some(self.cc.read(cc)?),
+                    Some(cc) => {
+                        // Conditional output is compacted over the intercluster network.
+                        self.comms[0].reserve()?;
+                        Some(self.cc.read(cc)?)
+                    }
                     None => None,
                 };
                 Streams {

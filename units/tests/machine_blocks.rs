@@ -259,3 +259,21 @@ done
         );
     }
 }
+
+#[test]
+fn conditional_streams_occupy_the_intercluster_network() {
+    let desc = MachineDesc::gold8();
+    let text = "
+kernel busy
+in x
+out y
+    sin0 x if cc[0] -> add0.a[0] | comm0 data[0], rotate 1 -> add0.b[0]
+    nop
+done
+";
+    let e = assemble(text, &desc).unwrap_err().to_string();
+    assert!(
+        e.contains("comm0") && e.contains("conditional stream"),
+        "{e}"
+    );
+}

@@ -21,7 +21,8 @@
 //! * **streams** — at most `srf.kernel_streams` declared, names are identifiers and unique;
 //!   `sin` and stream loops read `In` streams, `sout` and [`Dest::Stream`] write `Out`
 //!   streams; per instruction at most `srf.cluster_words_per_cycle` stream words (`sin`
-//!   slots used + `sout`) and at most `srf.conditional_words_per_cycle` conditional ones;
+//!   slots used + `sout`) and at most `srf.conditional_words_per_cycle` conditional ones,
+//!   which occupy the intercluster network (`comm0`) in their instruction;
 //! * **control** — loops properly nested (each [`Control`] `end` closes the innermost open
 //!   loop; an instruction with both `begin` and `end` is a one-instruction loop body) and at
 //!   most `microcontroller.loop_depth` deep, `stages` in `1..=`[`MAX_STAGES`], `until cc`
@@ -609,6 +610,17 @@ impl Checker<'_> {
                     "moves {conditional} conditional stream words per cluster; conditional \
                      streams carry {max} per cycle (`srf.conditional_words_per_cycle`)"
                 ),
+            ));
+        }
+        // Conditional streams route their words over the intercluster network (Kapasi et
+        // al., MICRO 2000), which then carries nothing else that cycle.
+        if conditional > 0 && ins.comm.first().is_some_and(Option::is_some) {
+            return Err(self.error(
+                i,
+                "comm0",
+                "is busy: a conditional stream access in the same instruction routes its \
+                 words over the intercluster network"
+                    .to_string(),
             ));
         }
         Ok(())
