@@ -51,14 +51,16 @@ fn every_slot_kind_assembles_to_its_fields() {
         "add0 fadd a[1], b[2] -> mul0.a[3], cc[4] @0 | add1 fabs a[5] -> stream y | \
          add2 select cc[6], a[7], b[8] -> sout.data[9] | mul1 imul_lo a[1], b[1] |
          dsq0 fsqrt a[2] -> dsq0.b[0]
-         sp0 ld 17, addr[3] -> add0.b[1], add1.b[1] | comm0 data[4], rotate 3 -> comm0.perm[1] | sin0 x if cc[1] -> add2.a[1]
-         sp0 st 255, data[5] | comm0 data[0], perm[2] | sin3 w | sin1 x -> cc[15] | sout y, data[15] if cc[2]
+         sp0 ld 17, addr[3] -> add0.b[1], add1.b[1] | comm0 data[4], rotate 3 -> comm0.perm[1] | sin0 x -> add2.a[1]
+         sp0 st 255, data[5] | comm0 data[0], perm[2] | sin3 w | sin1 x -> cc[15] | sout y, data[15]
          sp0 ld 3 | comm0 data[0], xor 5 | imm -1 -> add0.a[31]
          comm0 data[0], bcast 7 -> stream y | imm cid -> add1.a[0]
+         sin0 x if cc[1] -> add2.a[1]
+         sout y, data[15] if cc[2]
          done",
     ));
     assert_eq!(p.name, "k");
-    assert_eq!(p.code.len(), 5);
+    assert_eq!(p.code.len(), 7);
     let i0 = &p.code[0];
     assert_eq!(
         i0.fu[0],
@@ -101,8 +103,9 @@ fn every_slot_kind_assembles_to_its_fields() {
             stage: 0
         })
     );
+    assert_eq!(i1.sin[0].unwrap().cond, None);
     assert_eq!(
-        i1.sin[0],
+        p.code[5].sin[0],
         Some(StreamIn {
             stream: 0,
             cond: Some(1),
@@ -124,8 +127,9 @@ fn every_slot_kind_assembles_to_its_fields() {
     );
     assert_eq!(i2.comm[0].unwrap().perm, Permutation::PerCluster(2));
     assert_eq!(i2.sin[3].unwrap().stream, 1);
+    assert_eq!(i2.sout.unwrap().cond, None);
     assert_eq!(
-        i2.sout,
+        p.code[6].sout,
         Some(StreamOut {
             stream: 2,
             data: 15,
@@ -138,7 +142,7 @@ fn every_slot_kind_assembles_to_its_fields() {
     assert_eq!(i3.imm.unwrap().value, ImmValue::Const(0xFFFF_FFFF));
     assert_eq!(p.code[4].comm[0].unwrap().perm, Permutation::Broadcast(7));
     assert_eq!(p.code[4].imm.unwrap().value, ImmValue::ClusterId);
-    assert_eq!(p.code[4].control, Control::DONE);
+    assert_eq!(p.code[6].control, Control::DONE);
     round_trips(&p);
 }
 
