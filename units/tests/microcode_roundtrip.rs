@@ -196,7 +196,12 @@ impl Gen<'_> {
         let ins_streams = self.streams_of(StreamDir::In);
         let outs = self.streams_of(StreamDir::Out);
         let mut conditional = 0;
-        let cond_max = self.desc.srf.conditional_words_per_cycle;
+        // Conditional stream words use the intercluster network: only without a comm0 op.
+        let cond_max = if ins.comm.first().is_some_and(Option::is_some) {
+            0
+        } else {
+            self.desc.srf.conditional_words_per_cycle
+        };
         for k in 0..sh.stream_ins {
             if ins_streams.is_empty() || !self.chance(fullness / 2) {
                 continue;
