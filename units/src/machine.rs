@@ -27,7 +27,7 @@ use imagine_hdl::{ContractError, DomainId, Module, Scope, Trace, Violation};
 
 use crate::ccfile::CcFile;
 use crate::comm::CommUnit;
-use crate::delay::DelayLine;
+use crate::delay::{DelayLine, InFlight};
 use crate::desc::MachineDesc;
 use crate::fu::{Adder, Completion, DivSqrt, Issue, Multiplier};
 use crate::lrf::Lrf;
@@ -147,6 +147,10 @@ struct Fus {
 }
 
 impl Fus {
+    fn len(&self) -> usize {
+        self.adders.len() + self.multipliers.len() + self.divsqrts.len()
+    }
+
     fn completed(&self, slot: usize) -> Option<Completion<'_>> {
         let (a, m) = (self.adders.len(), self.multipliers.len());
         if slot < a {
@@ -190,6 +194,74 @@ impl Fus {
         self.multipliers.iter().for_each(|u| u.trace(t));
         self.divsqrts.iter().for_each(|u| u.trace(t));
     }
+}
+
+/// Every unit whose result port feeds the intracluster switch.
+struct Sources<'a> {
+    fus: &'a Fus,
+    scratchpads: &'a [Scratchpad],
+    comms: &'a [CommUnit],
+    stream_reads: &'a [DelayLine],
+    immediates: &'a DelayLine,
+}
+
+impl<'a> Sources<'a> {
+    /// Calls `f` with the destinations, words and cluster mask of every result leaving a
+    /// unit this cycle. A result's destinations are those of the instruction that issued
+    /// it (its tag).
+    fn for_each_due(
+        &self,
+        code: &'a [Instruction],
+        mut f: impl FnMut(Dests, &'a [u32], Option<&'a [bool]>) -> Result<(), ContractError>,
+    ) -> Result<(), ContractError> {
+        let mask = |r: &'a InFlight| r.masked.then_some(&r.mask[..]);
+        for slot in 0..self.fus.len() {
+            if let Some(c) = self.fus.completed(slot) {
+                f(slot_of(code, c.tag, |i| i.fu[slot]).dests, c.values, None)?;
+            }
+        }
+        for (i, sp) in self.scratchpads.iter().enumerate() {
+            if let Some(r) = sp.completed() {
+                f(
+                    slot_of(code, r.tag, |ins| ins.sp[i]).dests,
+                    &r.values,
+                    mask(r),
+                )?;
+            }
+        }
+        for (i, cu) in self.comms.iter().enumerate() {
+            if let Some(r) = cu.completed() {
+                f(
+                    slot_of(code, r.tag, |ins| ins.comm[i]).dests,
+                    &r.values,
+                    None,
+                )?;
+            }
+        }
+        for (i, line) in self.stream_reads.iter().enumerate() {
+            if let Some(r) = line.current() {
+                f(
+                    slot_of(code, r.tag, |ins| ins.sin[i]).dests,
+                    &r.values,
+                    mask(r),
+                )?;
+            }
+        }
+        if let Some(r) = self.immediates.current() {
+            f(slot_of(code, r.tag, |ins| ins.imm).dests, &r.values, None)?;
+        }
+        Ok(())
+    }
+}
+
+/// The slot of instruction `tag` that issued a result now leaving its unit.
+#[inline]
+fn slot_of<'a, S: 'a>(
+    code: &'a [Instruction],
+    tag: u16,
+    slot: impl FnOnce(&'a Instruction) -> Option<S>,
+) -> S {
+    slot(&code[tag as usize]).expect("a result in flight comes from an issued slot")
 }
 
 /// The machine.
@@ -471,48 +543,17 @@ impl Machine {
             };
         }
         // Results due this cycle that go to output streams.
-        let mut due = |dests: &Dests, mask: Option<&[bool]>| {
-            for d in dests.iter().flatten() {
-                if let Dest::Stream { stream } = d {
-                    need_out[*stream as usize] +=
-                        mask.map_or(self.lanes, |m| m.iter().filter(|&&b| b).count());
-                }
-            }
-        };
-        let code = &kernel.program.code;
-        for slot in 0..self.fu_inputs.len() {
-            if let Some(c) = self.fus.completed(slot) {
-                due(
-                    &code[c.tag as usize].fu[slot]
-                        .expect("a completing op has a slot")
-                        .dests,
-                    None,
-                );
-            }
-        }
-        for (i, sp) in self.scratchpads.iter().enumerate() {
-            if let Some(r) = sp.completed() {
-                due(
-                    &code[r.tag as usize].sp[i].expect("slot").dests,
-                    r.masked.then_some(&r.mask[..]),
-                );
-            }
-        }
-        for (i, cu) in self.comms.iter().enumerate() {
-            if let Some(r) = cu.completed() {
-                due(&code[r.tag as usize].comm[i].expect("slot").dests, None);
-            }
-        }
-        for (i, line) in self.stream_reads.iter().enumerate() {
-            if let Some(r) = line.current() {
-                due(
-                    &code[r.tag as usize].sin[i].expect("slot").dests,
-                    r.masked.then_some(&r.mask[..]),
-                );
-            }
-        }
-        if let Some(r) = self.immediates.current() {
-            due(&code[r.tag as usize].imm.expect("slot").dests, None);
+        if kernel.switch_writes_streams {
+            self.sources()
+                .for_each_due(&kernel.program.code, |dests, _, mask| {
+                    for d in dests.iter().flatten() {
+                        if let Dest::Stream { stream } = d {
+                            need_out[*stream as usize] +=
+                                mask.map_or(self.lanes, |m| m.iter().filter(|&&b| b).count());
+                        }
+                    }
+                    Ok(())
+                })?;
         }
         for (stream, &need) in need_in
             .iter()
@@ -550,81 +591,32 @@ impl Machine {
 
     /// Routes every result due this cycle through the switch.
     fn writeback(&mut self, code: &[Instruction]) -> Result<(), ContractError> {
+        // Borrow the sources and the destinations field by field: they are disjoint.
+        let sources = Sources {
+            fus: &self.fus,
+            scratchpads: &self.scratchpads,
+            comms: &self.comms,
+            stream_reads: &self.stream_reads,
+            immediates: &self.immediates,
+        };
         let mut streams = Streams {
             srf: &mut self.srf,
             lanes: self.lanes,
         };
-        for slot in 0..self.fu_inputs.len() {
-            if let Some(c) = self.fus.completed(slot) {
-                let dests = &code[c.tag as usize].fu[slot].expect("slot").dests;
-                route(
-                    dests,
-                    c.values,
-                    None,
-                    &self.all_lanes,
-                    &mut self.lrfs,
-                    &mut self.cc,
-                    &mut streams,
-                )?;
-            }
+        let (lrfs, cc, all_lanes) = (&mut self.lrfs, &mut self.cc, &self.all_lanes);
+        sources.for_each_due(code, |dests, values, mask| {
+            route(&dests, values, mask, all_lanes, lrfs, cc, &mut streams)
+        })
+    }
+
+    fn sources(&self) -> Sources<'_> {
+        Sources {
+            fus: &self.fus,
+            scratchpads: &self.scratchpads,
+            comms: &self.comms,
+            stream_reads: &self.stream_reads,
+            immediates: &self.immediates,
         }
-        for (i, sp) in self.scratchpads.iter().enumerate() {
-            if let Some(r) = sp.completed() {
-                let dests = &code[r.tag as usize].sp[i].expect("slot").dests;
-                let mask = r.masked.then_some(&r.mask[..]);
-                route(
-                    dests,
-                    &r.values,
-                    mask,
-                    &self.all_lanes,
-                    &mut self.lrfs,
-                    &mut self.cc,
-                    &mut streams,
-                )?;
-            }
-        }
-        for (i, cu) in self.comms.iter().enumerate() {
-            if let Some(r) = cu.completed() {
-                let dests = &code[r.tag as usize].comm[i].expect("slot").dests;
-                route(
-                    dests,
-                    &r.values,
-                    None,
-                    &self.all_lanes,
-                    &mut self.lrfs,
-                    &mut self.cc,
-                    &mut streams,
-                )?;
-            }
-        }
-        for (i, line) in self.stream_reads.iter().enumerate() {
-            if let Some(r) = line.current() {
-                let dests = &code[r.tag as usize].sin[i].expect("slot").dests;
-                let mask = r.masked.then_some(&r.mask[..]);
-                route(
-                    dests,
-                    &r.values,
-                    mask,
-                    &self.all_lanes,
-                    &mut self.lrfs,
-                    &mut self.cc,
-                    &mut streams,
-                )?;
-            }
-        }
-        if let Some(r) = self.immediates.current() {
-            let dests = &code[r.tag as usize].imm.expect("slot").dests;
-            route(
-                dests,
-                &r.values,
-                None,
-                &self.all_lanes,
-                &mut self.lrfs,
-                &mut self.cc,
-                &mut streams,
-            )?;
-        }
-        Ok(())
     }
 
     /// Issues the live slots of instruction `pc`.

@@ -186,6 +186,15 @@ macro_rules! op_table {
             ) {
                 let n = out.len();
                 let (a, b, c, flags) = (&a[..n], &b[..n], &c[..n], &mut flags[..n]);
+                // The fp32 adder and multiplier ops have lane datapaths of their own: a
+                // branch-free fast path over all lanes (evaluated several lanes at a time),
+                // then the complete datapath for the lanes it could not finish.
+                match self {
+                    Op::FAdd => return fp32::add::add_lanes(a, b, mode, out, flags),
+                    Op::FSub => return fp32::add::sub_lanes(a, b, mode, out, flags),
+                    Op::FMul => return fp32::mul::mul_lanes(a, b, mode, out, flags),
+                    _ => {}
+                }
                 match self {
                     $(Op::$v => {
                         for i in 0..n {

@@ -154,6 +154,14 @@ pub const fn is_subnormal(a: u32) -> bool {
     a & EXP_MASK == 0 && a & FRAC_MASK != 0
 }
 
+/// True for a normal number: biased exponent field in `1..=254`. One test on the exponent
+/// field (`e + 1` is at least 2 modulo 256, so its bits 7..1 are not all zero), the operand
+/// check of the arithmetic fast paths.
+#[inline(always)]
+pub(crate) const fn is_normal(a: u32) -> bool {
+    (a >> 23).wrapping_add(1) & 0xFE != 0
+}
+
 /// Biased exponent field.
 #[inline]
 pub(crate) const fn exp_field(a: u32) -> i32 {
@@ -195,6 +203,73 @@ pub(crate) fn unpack_normalised(a: u32) -> (i32, u32) {
     }
 }
 
+/// Lanes per group of [`lane_loop`] (two 4-lane vector registers).
+const LANE_GROUP: usize = 8;
+
+/// The lane loop of the `*_lanes` datapaths (one op issued to a unit in every cluster):
+/// `out[i], flags[i] = fast(a[i], b[i])` on every lane, where `fast` is a branch-free fast
+/// path returning `(bits, flags, ok)`, then `complete(a[i], b[i])` on the lanes whose `ok` is
+/// clear.
+///
+/// Lanes go in groups of [`LANE_GROUP`], a fixed trip count that the compiler unrolls and,
+/// `fast` having no branches, evaluates several lanes at a time in vector registers; the
+/// lanes left over go one by one. Callers keep their lane functions out of line
+/// (`#[inline(never)]`) so that this is compiled once, in that context, whatever their own
+/// callers.
+///
+/// # Panics
+/// If `a` or `b` is shorter than `out`, or `flags` is not as long as `out`.
+#[inline(always)]
+pub(crate) fn lane_loop(
+    a: &[u32],
+    b: &[u32],
+    out: &mut [u32],
+    flags: &mut [Flags],
+    fast: impl Fn(u32, u32) -> (u32, Flags, bool),
+    complete: impl Fn(u32, u32) -> (u32, Flags),
+) {
+    let n = out.len();
+    let (a, b) = (&a[..n], &b[..n]);
+    assert_eq!(flags.len(), n, "one flag set per lane");
+    let (ag, ar) = a.as_chunks::<LANE_GROUP>();
+    let (bg, br) = b.as_chunks::<LANE_GROUP>();
+    let (og, or) = out.as_chunks_mut::<LANE_GROUP>();
+    let (fg, fr) = flags.as_chunks_mut::<LANE_GROUP>();
+    for (((a, b), out), flags) in ag.iter().zip(bg).zip(og.iter_mut()).zip(fg.iter_mut()) {
+        let mut ok = [false; LANE_GROUP];
+        for i in 0..LANE_GROUP {
+            (out[i], flags[i], ok[i]) = fast(a[i], b[i]);
+        }
+        if ok != [true; LANE_GROUP] {
+            redo_group(a, b, &ok, out, flags, &complete);
+        }
+    }
+    for (((&a, &b), out), flags) in ar.iter().zip(br).zip(or.iter_mut()).zip(fr.iter_mut()) {
+        (*out, *flags) = match fast(a, b) {
+            (bits, f, true) => (bits, f),
+            _ => complete(a, b),
+        };
+    }
+}
+
+/// The lanes of a group whose `ok` is clear, through `complete`.
+#[cold]
+#[inline(never)]
+fn redo_group(
+    a: &[u32; LANE_GROUP],
+    b: &[u32; LANE_GROUP],
+    ok: &[bool; LANE_GROUP],
+    out: &mut [u32; LANE_GROUP],
+    flags: &mut [Flags; LANE_GROUP],
+    complete: &impl Fn(u32, u32) -> (u32, Flags),
+) {
+    for i in 0..LANE_GROUP {
+        if !ok[i] {
+            (out[i], flags[i]) = complete(a[i], b[i]);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -207,6 +282,9 @@ mod tests {
         assert!(!is_nan(POS_INF) && is_inf(POS_INF) && is_inf(0xFF80_0000));
         assert!(is_zero(0) && is_zero(SIGN) && !is_zero(1));
         assert!(is_subnormal(1) && is_subnormal(0x807F_FFFF) && !is_subnormal(HIDDEN));
+        assert!(is_normal(HIDDEN) && is_normal(0xFF7F_FFFF) && is_normal(0x3F80_0000));
+        assert!(!is_normal(0) && !is_normal(SIGN | FRAC_MASK) && !is_normal(POS_INF | SIGN));
+        assert!(!is_normal(CANONICAL_NAN) && !is_normal(0xFFFF_FFFF));
         assert_eq!(unpack_normalised(1), (-22, HIDDEN));
         assert_eq!(unpack_normalised(0x0040_0000), (0, HIDDEN));
         assert_eq!(unpack_normalised(0x3F80_0001), (127, HIDDEN | 1));

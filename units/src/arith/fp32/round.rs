@@ -60,13 +60,37 @@ pub fn round_pack(sign: u32, exp: i32, sig: u32, mode: FpMode) -> (u32, Flags) {
     debug_assert!((1 << LEAD_BIT..1 << (LEAD_BIT + 1)).contains(&sig));
     debug_assert!(sign & !SIGN == 0);
     // Fast path: a normal result that cannot overflow even with a rounding carry.
-    if (exp - 1) as u32 >= 0xFD {
+    if !exp_in_normal_range(exp) {
         return round_pack_edge(sign, exp, sig, mode);
     }
+    round_pack_normal(sign, exp, sig)
+}
+
+/// True when a result with unrounded exponent `exp` (as [`round_pack`] takes it) is normal
+/// and finite whatever the rounding: `1 <= exp <= 253`, so a rounding carry (which can raise
+/// the exponent by one) still stays below the overflow threshold `exp = 255`.
+#[inline(always)]
+pub const fn exp_in_normal_range(exp: i32) -> bool {
+    ((exp - 1) as u32) < 0xFD
+}
+
+/// The round-and-pack stage for a result known to be normal and finite
+/// ([`exp_in_normal_range`]): round to nearest even on the 7 guard bits, then the pack adder.
+/// Raises only inexact. Same inputs as [`round_pack`].
+///
+/// Branch-free and total: the lane datapaths evaluate it on every lane and discard the lanes
+/// whose result is out of range, so out-of-range inputs give meaningless bits but no panic.
+#[inline(always)]
+pub const fn round_pack_normal(sign: u32, exp: i32, sig: u32) -> (u32, Flags) {
     let guard = sig & GUARD_MASK;
-    let tie = (guard == HALF) as u32;
-    let rounded = ((sig + HALF) >> GUARD_BITS) & !tie;
-    let bits = sign | ((((exp - 1) as u32) << 23) + rounded);
+    // Round to nearest, ties to even: adding half an ulp minus one, plus the result's lsb,
+    // carries into the lsb exactly when the guard bits are above half, or are exactly half
+    // and the lsb is odd.
+    let lsb = (sig >> GUARD_BITS) & 1;
+    let rounded = sig.wrapping_add(HALF - 1 + lsb) >> GUARD_BITS;
+    // Pack: the hidden bit of `rounded` (or its rounding carry) adds to the exponent field,
+    // hence `exp - 1`.
+    let bits = sign | (((exp.wrapping_sub(1)) as u32) << 23).wrapping_add(rounded);
     (bits, Flags::when(guard != 0, Flags::INEXACT))
 }
 
