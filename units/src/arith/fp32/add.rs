@@ -37,8 +37,9 @@
 //!   sum except one whose leading one lies two or more places below the larger significand's
 //!   (a cancellation, which needs an effective subtraction of operands whose exponents differ
 //!   by at most one). Without a leading-zero counter or any branch, the compiler evaluates
-//!   several lanes at a time in vector registers; the few lanes whose `ok` bit is clear are
-//!   redone by [`add`]/[`sub`].
+//!   several lanes at a time in vector registers. It runs on groups of lanes whose operands
+//!   are all normal; the few lanes whose `ok` bit is clear, and groups with a non-normal
+//!   operand, go through [`add`]/[`sub`] lane by lane.
 
 use std::hint::select_unpredictable as select;
 use std::num::NonZeroU64;
@@ -115,8 +116,7 @@ fn add_normal(a: u32, b: u32) -> Option<(u32, Flags)> {
 }
 
 /// `out[i], flags[i] = add(a[i], b[i])` for every lane `i < out.len()` (the op issued to one
-/// adder in every cluster): the lane fast path on every lane, then [`add`] on the lanes
-/// whose `ok` bit is clear.
+/// adder in every cluster), by groups of lanes: see the module doc.
 ///
 /// # Panics
 /// If `a` or `b` is shorter than `out`, or `flags` is not as long as `out`.
@@ -125,8 +125,8 @@ pub fn add_lanes(a: &[u32], b: &[u32], mode: FpMode, out: &mut [u32], flags: &mu
     lane_loop(a, b, out, flags, add_lane, |a, b| add(a, b, mode));
 }
 
-/// `out[i], flags[i] = sub(a[i], b[i])` for every lane `i < out.len()`: the lane fast path
-/// with the sign of `b` inverted, then [`sub`] on the lanes whose `ok` bit is clear.
+/// `out[i], flags[i] = sub(a[i], b[i])` for every lane `i < out.len()` (the lane fast path
+/// with the sign of `b` inverted).
 ///
 /// # Panics
 /// If `a` or `b` is shorter than `out`, or `flags` is not as long as `out`.

@@ -207,15 +207,17 @@ pub(crate) fn unpack_normalised(a: u32) -> (i32, u32) {
 const LANE_GROUP: usize = 8;
 
 /// The lane loop of the `*_lanes` datapaths (one op issued to a unit in every cluster):
-/// `out[i], flags[i] = fast(a[i], b[i])` on every lane, where `fast` is a branch-free fast
-/// path returning `(bits, flags, ok)`, then `complete(a[i], b[i])` on the lanes whose `ok` is
-/// clear.
+/// `out[i], flags[i] = one(a[i], b[i])` for every lane, where `one` is the op on one set of
+/// operands and `fast` a branch-free fast path for normal operands returning
+/// `(bits, flags, ok)` that agrees with `one` wherever `ok` is set.
 ///
-/// Lanes go in groups of [`LANE_GROUP`], a fixed trip count that the compiler unrolls and,
-/// `fast` having no branches, evaluates several lanes at a time in vector registers; the
-/// lanes left over go one by one. Callers keep their lane functions out of line
-/// (`#[inline(never)]`) so that this is compiled once, in that context, whatever their own
-/// callers.
+/// Lanes go in groups of [`LANE_GROUP`]. A group whose operands are all normal takes `fast`
+/// on every lane — a fixed trip count without branches, which the compiler unrolls and
+/// evaluates several lanes at a time in vector registers — and then `one` on the lanes whose
+/// `ok` is clear. A group with a zero, subnormal, infinite or NaN operand, where `fast` would
+/// be wasted work, and the lanes left over after the last whole group, take `one` lane by
+/// lane. Callers keep their lane functions out of line (`#[inline(never)]`) so that this is
+/// compiled once, in that context, whatever their own callers.
 ///
 /// # Panics
 /// If `a` or `b` is shorter than `out`, or `flags` is not as long as `out`.
@@ -226,7 +228,7 @@ pub(crate) fn lane_loop(
     out: &mut [u32],
     flags: &mut [Flags],
     fast: impl Fn(u32, u32) -> (u32, Flags, bool),
-    complete: impl Fn(u32, u32) -> (u32, Flags),
+    one: impl Fn(u32, u32) -> (u32, Flags),
 ) {
     let n = out.len();
     let (a, b) = (&a[..n], &b[..n]);
@@ -236,23 +238,31 @@ pub(crate) fn lane_loop(
     let (og, or) = out.as_chunks_mut::<LANE_GROUP>();
     let (fg, fr) = flags.as_chunks_mut::<LANE_GROUP>();
     for (((a, b), out), flags) in ag.iter().zip(bg).zip(og.iter_mut()).zip(fg.iter_mut()) {
-        let mut ok = [false; LANE_GROUP];
+        let mut normal = true;
         for i in 0..LANE_GROUP {
-            (out[i], flags[i], ok[i]) = fast(a[i], b[i]);
+            normal &= is_normal(a[i]) & is_normal(b[i]);
         }
-        if ok != [true; LANE_GROUP] {
-            redo_group(a, b, &ok, out, flags, &complete);
+        if normal {
+            let (mut ok, mut all_ok) = ([false; LANE_GROUP], true);
+            for i in 0..LANE_GROUP {
+                (out[i], flags[i], ok[i]) = fast(a[i], b[i]);
+                all_ok &= ok[i];
+            }
+            if !all_ok {
+                redo_group(a, b, &ok, out, flags, &one);
+            }
+        } else {
+            for i in 0..LANE_GROUP {
+                (out[i], flags[i]) = one(a[i], b[i]);
+            }
         }
     }
     for (((&a, &b), out), flags) in ar.iter().zip(br).zip(or.iter_mut()).zip(fr.iter_mut()) {
-        (*out, *flags) = match fast(a, b) {
-            (bits, f, true) => (bits, f),
-            _ => complete(a, b),
-        };
+        (*out, *flags) = one(a, b);
     }
 }
 
-/// The lanes of a group whose `ok` is clear, through `complete`.
+/// The lanes of a group whose `ok` is clear, through `one`.
 #[cold]
 #[inline(never)]
 fn redo_group(
@@ -261,11 +271,11 @@ fn redo_group(
     ok: &[bool; LANE_GROUP],
     out: &mut [u32; LANE_GROUP],
     flags: &mut [Flags; LANE_GROUP],
-    complete: &impl Fn(u32, u32) -> (u32, Flags),
+    one: &impl Fn(u32, u32) -> (u32, Flags),
 ) {
     for i in 0..LANE_GROUP {
         if !ok[i] {
-            (out[i], flags[i]) = complete(a[i], b[i]);
+            (out[i], flags[i]) = one(a[i], b[i]);
         }
     }
 }

@@ -19,8 +19,9 @@
 //! all handled by the general code.
 //!
 //! [`mul_lanes`] (one op issued to the multipliers of all clusters) runs the fast path on
-//! every lane first — branch-free, so the compiler evaluates several lanes at a time in
-//! vector registers — and then redoes the lanes whose `ok` is clear.
+//! groups of lanes whose operands are all normal — branch-free, so the compiler evaluates
+//! several lanes at a time in vector registers — and [`mul`] on the lanes whose `ok` is
+//! clear and on groups with a non-normal operand, lane by lane.
 
 use super::round::{exp_in_normal_range, round_pack};
 use super::{EXP_MASK, FRAC_MASK, FpMode, HIDDEN, SIGN, flush_input, is_nan, is_normal, lane_loop};
@@ -38,14 +39,13 @@ pub fn mul(a: u32, b: u32, mode: FpMode) -> (u32, Flags) {
 }
 
 /// `out[i], flags[i] = mul(a[i], b[i])` for every lane `i < out.len()` (the op issued to one
-/// multiplier in every cluster): the fast path on every lane, then the complete multiplier on
-/// the lanes whose `ok` bit is clear.
+/// multiplier in every cluster), by groups of lanes: see the module doc.
 ///
 /// # Panics
 /// If `a` or `b` is shorter than `out`, or `flags` is not as long as `out`.
 #[inline(never)]
 pub fn mul_lanes(a: &[u32], b: &[u32], mode: FpMode, out: &mut [u32], flags: &mut [Flags]) {
-    lane_loop(a, b, out, flags, mul_normal, |a, b| mul_general(a, b, mode));
+    lane_loop(a, b, out, flags, mul_normal, |a, b| mul(a, b, mode));
 }
 
 /// The fast path, branch-free: the product of two normal operands, its flags and `ok` (both
