@@ -9,6 +9,7 @@
 
 use std::cell::Cell;
 
+use crate::delay::copy_lanes;
 use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
 
 pub struct Lrf {
@@ -135,7 +136,7 @@ impl Lrf {
             return Err(self.port_error("write", entry, self.write_entry));
         }
         self.write_entry = Some(entry);
-        self.write_values.copy_from_slice(values);
+        copy_lanes(&mut self.write_values, values);
         self.write_masked = mask.is_some();
         if let Some(m) = mask {
             self.write_mask.copy_from_slice(m);
@@ -169,7 +170,7 @@ impl Lrf {
                     }
                 }
             } else {
-                row.copy_from_slice(&self.write_values);
+                copy_lanes(row, &self.write_values);
             }
             // The write buffers become the probe's copy; the next write refills the others.
             std::mem::swap(&mut p.last_values, &mut self.write_values);
