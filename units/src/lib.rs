@@ -23,6 +23,7 @@ pub mod comm;
 pub mod delay;
 pub mod desc;
 pub mod fu;
+pub mod lanes;
 pub mod lrf;
 pub mod machine;
 pub mod microcode;

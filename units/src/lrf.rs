@@ -9,7 +9,7 @@
 
 use std::cell::Cell;
 
-use crate::delay::copy_lanes;
+use crate::lanes::copy_lanes;
 use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
 
 pub struct Lrf {

@@ -378,7 +378,7 @@ impl IssueLatch {
         self.op = is.op;
         let arity = is.op.arity();
         for (dst, src) in self.operands.iter_mut().zip([is.a, is.b, is.c]).take(arity) {
-            crate::delay::copy_lanes(dst, src);
+            crate::lanes::copy_lanes(dst, src);
         }
     }
 
