@@ -7,18 +7,37 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn demo_vcd(name: &str, extra: &[&str]) -> PathBuf {
+/// Runs `imagine ARGS... --vcd DIR/out.vcd` in a fresh directory and returns the VCD path.
+fn run_with_vcd(name: &str, args: &[&str]) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("imagine-vcd-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let vcd = dir.join("out.vcd");
-    let mut args = vec!["demo", "--vcd", vcd.to_str().unwrap()];
-    args.extend_from_slice(extra);
     let o = Command::new(env!("CARGO_BIN_EXE_imagine"))
-        .args(&args)
+        .args(args)
+        .arg("--vcd")
+        .arg(&vcd)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     vcd
+}
+
+fn demo_vcd(name: &str, extra: &[&str]) -> PathBuf {
+    let args: Vec<&str> = ["demo"].iter().chain(extra).copied().collect();
+    run_with_vcd(name, &args)
+}
+
+/// Checks `vcd` with GTKWave's own converter.
+#[cfg(feature = "gtkwave")]
+fn assert_gtkwave_accepts(vcd: &Path) {
+    let fst = vcd.with_extension("fst");
+    let o = Command::new("vcd2fst")
+        .arg(vcd)
+        .arg(&fst)
+        .output()
+        .expect("vcd2fst is installed");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(std::fs::metadata(&fst).unwrap().len() > 0);
 }
 
 /// Every variable's full hierarchical path.
@@ -77,35 +96,19 @@ fn scope_filter_keeps_only_matching_modules_and_clocks() {
 #[cfg(feature = "gtkwave")]
 #[test]
 fn gtkwave_accepts_the_demo_vcd() {
-    let vcd = demo_vcd("fst", &["--cycles", "100000"]);
-    let fst = vcd.with_extension("fst");
-    let o = Command::new("vcd2fst")
-        .arg(&vcd)
-        .arg(&fst)
-        .output()
-        .expect("vcd2fst is installed");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(std::fs::metadata(&fst).unwrap().len() > 0);
+    assert_gtkwave_accepts(&demo_vcd("fst", &["--cycles", "100000"]));
 }
 
 fn kernel_vcd(name: &str, program: &str, inputs: &[&str]) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("imagine-vcd-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let vcd = dir.join("k.vcd");
     let file = format!(
         "{}/units/tests/microcode/{program}.uc",
         env!("CARGO_MANIFEST_DIR")
     );
-    let mut args = vec!["kernel", "run", &file, "--vcd", vcd.to_str().unwrap()];
+    let mut args = vec!["kernel", "run", &file];
     for i in inputs {
         args.extend(["--input", i]);
     }
-    let o = Command::new(env!("CARGO_BIN_EXE_imagine"))
-        .args(&args)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    vcd
+    run_with_vcd(name, &args)
 }
 
 #[test]
@@ -149,11 +152,5 @@ fn gtkwave_accepts_a_machine_vcd() {
         "prefix_sum",
         &[&format!("x={}", x.join(","))],
     );
-    let fst = vcd.with_extension("fst");
-    let o = Command::new("vcd2fst")
-        .arg(&vcd)
-        .arg(&fst)
-        .output()
-        .expect("vcd2fst is installed");
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_gtkwave_accepts(&vcd);
 }
