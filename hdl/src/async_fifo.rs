@@ -92,13 +92,7 @@ impl<T> AsyncFifoTx<T> {
     pub fn push(&mut self, v: T) -> Result<(), ContractError> {
         let mut s = self.0.borrow_mut();
         if s.pushed.is_some() {
-            return Err(ContractError::at(
-                &s.path,
-                Violation::OverBandwidth {
-                    written: 2,
-                    bandwidth: 1,
-                },
-            ));
+            return Err(ContractError::over_bandwidth(&s.path, 1));
         }
         if s.write_level() >= s.capacity {
             let capacity = s.capacity;

@@ -71,6 +71,18 @@ impl ContractError {
         }
     }
 
+    /// One access more than the `bandwidth` of the port at `path` in one cycle.
+    #[cold]
+    pub fn over_bandwidth(path: &str, bandwidth: usize) -> Self {
+        Self::at(
+            path,
+            Violation::OverBandwidth {
+                written: bandwidth + 1,
+                bandwidth,
+            },
+        )
+    }
+
     /// Stamps the error with the cycle it happened in, unless already stamped.
     pub fn in_cycle(mut self, domain: &str, cycle: u64) -> Self {
         if self.cycle.is_none() {

@@ -57,14 +57,7 @@ impl<T> FifoTx<T> {
     pub fn push(&mut self, v: T) -> Result<(), ContractError> {
         let mut s = self.0.borrow_mut();
         if s.pushed.len() == s.bandwidth {
-            let bandwidth = s.bandwidth;
-            return Err(ContractError::at(
-                &s.path,
-                Violation::OverBandwidth {
-                    written: bandwidth + 1,
-                    bandwidth,
-                },
-            ));
+            return Err(ContractError::over_bandwidth(&s.path, s.bandwidth));
         }
         if s.items.len() + s.pushed.len() == s.capacity {
             let capacity = s.capacity;

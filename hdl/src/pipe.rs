@@ -55,14 +55,7 @@ impl<T> PipeTx<T> {
     pub fn write(&mut self, v: T) -> Result<(), ContractError> {
         let mut s = self.0.borrow_mut();
         if s.incoming.len() == s.bandwidth {
-            let bandwidth = s.bandwidth;
-            return Err(ContractError::at(
-                &s.path,
-                Violation::OverBandwidth {
-                    written: bandwidth + 1,
-                    bandwidth,
-                },
-            ));
+            return Err(ContractError::over_bandwidth(&s.path, s.bandwidth));
         }
         s.incoming.push_back(v);
         Ok(())

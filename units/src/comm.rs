@@ -63,13 +63,7 @@ impl CommUnit {
         tag: u16,
     ) -> Result<(), ContractError> {
         if std::mem::replace(&mut self.sent, true) {
-            return Err(ContractError::at(
-                &self.path,
-                Violation::OverBandwidth {
-                    written: 2,
-                    bandwidth: 1,
-                },
-            ));
+            return Err(ContractError::over_bandwidth(&self.path, 1));
         }
         let n = self.lanes as u32;
         for c in 0..self.lanes {

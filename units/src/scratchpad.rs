@@ -90,12 +90,9 @@ impl Scratchpad {
         mask: &[bool],
     ) -> Result<(), ContractError> {
         if std::mem::replace(&mut self.accessed, true) {
-            return Err(ContractError::at(
+            return Err(ContractError::over_bandwidth(
                 &format!("{}.port", self.path),
-                Violation::OverBandwidth {
-                    written: 2,
-                    bandwidth: 1,
-                },
+                1,
             ));
         }
         for c in 0..self.lanes {

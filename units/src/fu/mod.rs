@@ -173,13 +173,7 @@ pub(crate) fn issue_path(scope: &Scope<'_>, name: &str) -> String {
 #[cold]
 #[inline(never)]
 pub(crate) fn second_issue(path: &str) -> ContractError {
-    ContractError::at(
-        path,
-        Violation::OverBandwidth {
-            written: 2,
-            bandwidth: 1,
-        },
-    )
+    ContractError::over_bandwidth(path, 1)
 }
 
 #[cold]
