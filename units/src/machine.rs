@@ -278,7 +278,8 @@ pub struct Machine {
     immediates: DelayLine,
     srf: Srf,
     uc: Microcontroller,
-    kernel: Option<Kernel>,
+    /// Boxed: each cycle takes it out of the machine and puts it back.
+    kernel: Option<Box<Kernel>>,
     /// LRF indices of each slot's inputs.
     fu_inputs: Vec<[usize; 2]>,
     sp_inputs: Vec<[usize; 2]>,
@@ -463,7 +464,7 @@ impl Machine {
                 || i.sin.iter().flatten().any(|s| to_stream(&s.dests))
                 || i.imm.is_some_and(|s| to_stream(&s.dests))
         });
-        self.kernel = Some(Kernel {
+        self.kernel = Some(Box::new(Kernel {
             switch_writes_streams,
             program: program.clone(),
             bindings: bindings.to_vec(),
@@ -472,7 +473,7 @@ impl Machine {
                 ..KernelStats::default()
             },
             flushing: false,
-        });
+        }));
         Ok(())
     }
 
