@@ -455,6 +455,18 @@ impl Machine {
         self.uc
             .start(&program.code)
             .map_err(|e| StartError(e.to_string()))?;
+        // Conditional streams keep two scratchpad words per conditional word per cycle
+        // for their buffers (ARCHITECTURE §4).
+        let conditional = program.code.iter().any(|i| {
+            i.sin.iter().flatten().any(|s| s.cond.is_some())
+                || i.sout.is_some_and(|s| s.cond.is_some())
+        });
+        let buffers = if conditional {
+            2 * self.desc.srf.conditional_words_per_cycle
+        } else {
+            0
+        };
+        self.scratchpads[0].reserve_for_conditional_streams(buffers);
         let fu_slots = self.fu_inputs.len();
         let to_stream = |d: &Dests| d.iter().flatten().any(|d| matches!(d, Dest::Stream { .. }));
         let switch_writes_streams = program.code.iter().any(|i| {
@@ -726,8 +738,10 @@ impl Machine {
                 }
                 Some(cc) => {
                     // Conditional input: clusters whose code is set take the next elements
-                    // in cluster order, routed over the intercluster network.
+                    // in cluster order, routed over the intercluster network and buffered
+                    // in the scratchpad.
                     self.comms[0].reserve()?;
+                    self.scratchpads[0].claim_for_conditional_stream()?;
                     self.mask.copy_from_slice(self.cc.read(cc)?);
                     let n = self.mask.iter().filter(|&&b| b).count();
                     let words = self.srf.read_conditional(stream, n)?;
@@ -746,8 +760,10 @@ impl Machine {
                 let data = self.lrfs[self.sout_input].read(s.data)?;
                 let mask = match s.cond {
                     Some(cc) => {
-                        // Conditional output is compacted over the intercluster network.
+                        // Conditional output is compacted over the intercluster network
+                        // and buffered in the scratchpad.
                         self.comms[0].reserve()?;
+                        self.scratchpads[0].claim_for_conditional_stream()?;
                         Some(self.cc.read(cc)?)
                     }
                     None => None,

@@ -21,6 +21,8 @@ pub struct Scratchpad {
     write_addrs: DelayLine,
     write_data: DelayLine,
     accessed: bool,
+    /// Words at the top of the memory that hold conditional stream buffers.
+    reserved: usize,
     addr_scratch: Vec<u32>,
     probes: SpProbes,
 }
@@ -70,6 +72,7 @@ impl Scratchpad {
             read_latency,
             write_latency,
             accessed: false,
+            reserved: 0,
             addr_scratch: vec![0; lanes],
             probes: SpProbes {
                 access,
@@ -97,19 +100,44 @@ impl Scratchpad {
         }
         for c in 0..self.lanes {
             let addr = (base as u32).wrapping_add(offsets.map_or(0, |o| o[c]));
-            if mask[c] && addr as usize >= self.words {
-                return Err(ContractError::at(
-                    &format!(
-                        "{}.addr",
-                        self.path.replace("cluster*", &format!("cluster{c}"))
-                    ),
-                    Violation::Other(format!(
-                        "address {addr} is outside the {} words",
-                        self.words
-                    )),
-                ));
+            if mask[c] && addr as usize >= self.words - self.reserved {
+                return Err(self.address_error(c, addr));
             }
             self.addr_scratch[c] = addr;
+        }
+        Ok(())
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn address_error(&self, cluster: usize, addr: u32) -> ContractError {
+        let problem = if (addr as usize) < self.words {
+            format!(
+                "address {addr} is in the top {} words, which buffer conditional streams",
+                self.reserved
+            )
+        } else {
+            format!("address {addr} is outside the {} words", self.words)
+        };
+        let path = self.path.replace("cluster*", &format!("cluster{cluster}"));
+        ContractError::at(&format!("{path}.addr"), Violation::Other(problem))
+    }
+
+    /// Sets aside the top `words` words of every cluster's scratchpad for conditional
+    /// stream buffers (2 per conditional word per cycle, as on Imagine).
+    pub fn reserve_for_conditional_streams(&mut self, words: usize) {
+        self.reserved = words.min(self.words);
+    }
+
+    /// Claims the port for a conditional stream access this cycle.
+    pub fn claim_for_conditional_stream(&mut self) -> Result<(), ContractError> {
+        if std::mem::replace(&mut self.accessed, true) {
+            return Err(ContractError::at(
+                &format!("{}.port", self.path),
+                Violation::Busy {
+                    detail: "a conditional stream access buffers its words here this cycle".into(),
+                },
+            ));
         }
         Ok(())
     }

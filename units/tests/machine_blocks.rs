@@ -277,3 +277,38 @@ done
         "{e}"
     );
 }
+
+#[test]
+fn conditional_streams_buffer_in_the_top_of_the_scratchpad() {
+    let desc = MachineDesc::gold8();
+    // The scratchpad port is theirs in their cycle...
+    let busy = "
+kernel busy
+in x
+out y
+    sin0 x if cc[0] -> add0.a[0] | sp0 ld 0 -> add0.b[0]
+    nop
+done
+";
+    let e = assemble(busy, &desc).unwrap_err().to_string();
+    assert!(e.contains("sp0") && e.contains("scratchpad"), "{e}");
+    // ...and its top two words are theirs for the whole kernel.
+    let top = "
+kernel top
+in x
+out y
+    sp0 st 254, data[0]
+    nop
+    sin0 x if cc[0] -> add0.a[0]
+    nop
+done
+";
+    let e = error("gold8", top, &[(0..8).collect()]);
+    assert!(
+        e.contains("address 254") && e.contains("conditional streams"),
+        "{e}"
+    );
+    // Without conditional streams the whole scratchpad is the kernel's.
+    let plain = top.replace("sin0 x if cc[0]", "sin0 x");
+    assert!(run("gold8", &plain, &[(0..8).collect()]).is_ok());
+}

@@ -196,8 +196,11 @@ impl Gen<'_> {
         let ins_streams = self.streams_of(StreamDir::In);
         let outs = self.streams_of(StreamDir::Out);
         let mut conditional = 0;
-        // Conditional stream words use the intercluster network: only without a comm0 op.
-        let cond_max = if ins.comm.first().is_some_and(Option::is_some) {
+        // Conditional stream words use the intercluster network and the scratchpad: only
+        // without a comm0 or sp0 op.
+        let cond_max = if ins.comm.first().is_some_and(Option::is_some)
+            || ins.sp.first().is_some_and(Option::is_some)
+        {
             0
         } else {
             self.desc.srf.conditional_words_per_cycle

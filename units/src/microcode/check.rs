@@ -22,7 +22,8 @@
 //!   `sin` and stream loops read `In` streams, `sout` and [`Dest::Stream`] write `Out`
 //!   streams; per instruction at most `srf.cluster_words_per_cycle` stream words (`sin`
 //!   slots used + `sout`) and at most `srf.conditional_words_per_cycle` conditional ones,
-//!   which occupy the intercluster network (`comm0`) in their instruction;
+//!   which occupy the intercluster network (`comm0`) and the scratchpad (`sp0`) in their
+//!   instruction;
 //! * **control** — loops properly nested (each [`Control`] `end` closes the innermost open
 //!   loop; an instruction with both `begin` and `end` is a one-instruction loop body) and at
 //!   most `microcontroller.loop_depth` deep, `stages` in `1..=`[`MAX_STAGES`], `until cc`
@@ -612,14 +613,24 @@ impl Checker<'_> {
                 ),
             ));
         }
-        // Conditional streams route their words over the intercluster network (Kapasi et
-        // al., MICRO 2000), which then carries nothing else that cycle.
+        // Conditional streams route their words over the intercluster network and buffer
+        // them in the scratchpad (Kapasi et al., MICRO 2000), which then serve nothing else
+        // that cycle.
         if conditional > 0 && ins.comm.first().is_some_and(Option::is_some) {
             return Err(self.error(
                 i,
                 "comm0",
                 "is busy: a conditional stream access in the same instruction routes its \
                  words over the intercluster network"
+                    .to_string(),
+            ));
+        }
+        if conditional > 0 && ins.sp.first().is_some_and(Option::is_some) {
+            return Err(self.error(
+                i,
+                "sp0",
+                "is busy: a conditional stream access in the same instruction buffers its \
+                 words in the scratchpad"
                     .to_string(),
             ));
         }
