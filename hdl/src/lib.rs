@@ -7,6 +7,7 @@
 //! * [`Clocks`] — clock domains with exact rational ratios, time in picoseconds, and
 //!   [`AsyncFifoTx`]/[`AsyncFifoRx`] for crossings;
 //! * [`ProbeRegistry`], [`Trace`], [`Tracer`] — named, sized signals and change reporting;
+//!   [`Recorder`] keeps every change for testbenches;
 //! * [`Module`], [`Design`], [`Sim`] — two-phase evaluation (`eval` then `commit`).
 //! * [`demo`] — a small design made only of these parts.
 
@@ -18,6 +19,7 @@ pub mod error;
 pub mod fifo;
 pub mod pipe;
 pub mod probe;
+pub mod recorder;
 pub mod reg;
 pub mod sim;
 
@@ -28,5 +30,6 @@ pub use error::{ContractError, Violation};
 pub use fifo::{FifoRx, FifoTx};
 pub use pipe::{PipeRx, PipeTx};
 pub use probe::{ProbeRegistry, SignalDecl, SignalId, SignalKind, Trace, Tracer};
+pub use recorder::{Recorder, Recording};
 pub use reg::Reg;
 pub use sim::{Channel, Design, DesignError, Module, Scope, Sim};

@@ -205,41 +205,27 @@ impl Trace {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::cell::RefCell;
-    use std::rc::Rc;
-
-    type Changes = Rc<RefCell<Vec<(u32, Vec<u64>)>>>;
-
-    #[derive(Default)]
-    struct Log(Changes);
-    impl Tracer for Log {
-        fn start(&mut self, _: &ProbeRegistry, _: &[crate::ClockDomain]) -> io::Result<()> {
-            Ok(())
-        }
-        fn time(&mut self, _: u64, _: u64) {}
-        fn change(&mut self, id: SignalId, value: &[u64]) {
-            self.0.borrow_mut().push((id.0, value.to_vec()));
-        }
-        fn finish(&mut self) -> io::Result<()> {
-            Ok(())
-        }
-    }
+    use crate::Recorder;
 
     #[test]
     fn only_changes_are_forwarded() {
         let mut reg = ProbeRegistry::new();
         let a = reg.register("top.a".into(), 8, SignalKind::Reg);
         let w = reg.register("top.w".into(), 130, SignalKind::Wire);
-        let log = Log::default();
-        let seen = log.0.clone();
-        let mut t = Trace::new(&reg, Box::new(log));
+        let recorder = Recorder::default();
+        let mut t = Trace::new(&reg, Box::new(recorder.clone()));
         t.value(a, 0); // first report always goes out
         t.value(a, 0);
         t.value(a, 5);
         t.wide(w, &[1, 2, 3]);
         t.wide(w, &[1, 2, 3]);
         t.wide(w, &[1, 2, 1]);
-        let got = seen.borrow().clone();
+        let got: Vec<(u32, Vec<u64>)> = recorder
+            .recording()
+            .changes
+            .iter()
+            .map(|(_, id, v)| (id.0, v.clone()))
+            .collect();
         assert_eq!(
             got,
             vec![
@@ -260,7 +246,7 @@ mod tests {
     fn a_value_wider_than_its_signal_is_caught() {
         let mut reg = ProbeRegistry::new();
         let a = reg.register("top.a".into(), 4, SignalKind::Reg);
-        let mut t = Trace::new(&reg, Box::new(Log::default()));
+        let mut t = Trace::new(&reg, Box::new(Recorder::default()));
         t.value(a, 16);
     }
 }

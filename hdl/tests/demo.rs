@@ -38,27 +38,7 @@ fn a_wrong_result_would_be_noticed() {
     assert!(!r.matches_golden());
 }
 
-type Changes = Vec<(u64, u32, Vec<u64>)>;
-
-/// Records every (time, signal, value) the design reports.
-#[derive(Clone, Default)]
-struct Recorder(Rc<RefCell<Changes>>, Rc<RefCell<u64>>);
-
-impl Tracer for Recorder {
-    fn start(&mut self, _: &ProbeRegistry, _: &[ClockDomain]) -> io::Result<()> {
-        Ok(())
-    }
-    fn time(&mut self, t: u64, _: u64) {
-        *self.1.borrow_mut() = t;
-    }
-    fn change(&mut self, id: SignalId, v: &[u64]) {
-        let t = *self.1.borrow();
-        self.0.borrow_mut().push((t, id.0, v.to_vec()));
-    }
-    fn finish(&mut self) -> io::Result<()> {
-        Ok(())
-    }
-}
+type Changes = Vec<(u64, SignalId, Vec<u64>)>;
 
 fn traced_run(reverse: bool, cycles: u64) -> (DemoReport, Changes) {
     let mut sim = demo::build(default_domains(), DemoConfig::default()).unwrap();
@@ -69,7 +49,7 @@ fn traced_run(reverse: bool, cycles: u64) -> (DemoReport, Changes) {
     sim.attach(Box::new(rec.clone())).unwrap();
     sim.run_core_cycles(cycles, |_| {}).unwrap();
     sim.finish().unwrap();
-    let mut changes = rec.0.borrow().clone();
+    let mut changes = rec.recording().changes.clone();
     // Within one instant the report order follows module order; compare as sets per instant.
     changes.sort();
     (DemoReport::of(&sim), changes)

@@ -3,46 +3,16 @@
 //! that the per-cluster probes exist with their real widths and that the stage registers
 //! change as ops move through.
 
-use std::cell::RefCell;
 use std::collections::{BTreeMap, BTreeSet};
-use std::io;
-use std::rc::Rc;
 
 use imagine_hdl::{
-    ClockDomain, ContractError, Design, DomainId, Module, ProbeRegistry, SignalId, SignalKind, Sim,
-    Trace, Tracer, default_domains,
+    ContractError, Design, DomainId, Module, Recorder, SignalKind, Sim, Trace, default_domains,
 };
 use imagine_units::desc::MachineDesc;
 use imagine_units::fu::{Adder, DivSqrt, Issue, Multiplier};
 use imagine_units::ops::Op;
 
 const LANES: usize = 8;
-
-/// Every change the tracer saw, per signal.
-type Changes = Rc<RefCell<BTreeMap<u32, Vec<u64>>>>;
-
-struct Recorder {
-    changes: Changes,
-    registry: Rc<RefCell<ProbeRegistry>>,
-}
-
-impl Tracer for Recorder {
-    fn start(&mut self, probes: &ProbeRegistry, _: &[ClockDomain]) -> io::Result<()> {
-        *self.registry.borrow_mut() = probes.clone();
-        Ok(())
-    }
-    fn time(&mut self, _: u64, _: u64) {}
-    fn change(&mut self, id: SignalId, value: &[u64]) {
-        self.changes
-            .borrow_mut()
-            .entry(id.0)
-            .or_default()
-            .push(value[0]);
-    }
-    fn finish(&mut self) -> io::Result<()> {
-        Ok(())
-    }
-}
 
 /// One cluster column of functional units and the microcode that drives them.
 struct Fus {
@@ -170,20 +140,16 @@ fn units_in_a_design_trace_their_stage_registers() {
     };
     design.add(fus);
     let mut sim = Sim::new(design);
-    let changes = Changes::default();
-    let registry = Rc::new(RefCell::new(ProbeRegistry::new()));
-    sim.attach(Box::new(Recorder {
-        changes: changes.clone(),
-        registry: registry.clone(),
-    }))
-    .unwrap();
+    let recorder = Recorder::default();
+    sim.attach(Box::new(recorder.clone())).unwrap();
     sim.run_core_cycles(200, |_| {}).unwrap();
     sim.finish().unwrap();
 
     let fus = sim.modules_of::<Fus>().next().unwrap();
     assert!(fus.checked > 250, "{} results checked", fus.checked);
 
-    let reg = registry.borrow();
+    let recording = recorder.recording();
+    let reg = &recording.probes;
     let sig = |path: &str| {
         let id = reg.find(path).unwrap_or_else(|| panic!("no probe {path}"));
         (id, reg.get(id).width, reg.get(id).kind)
@@ -226,12 +192,12 @@ fn units_in_a_design_trace_their_stage_registers() {
         assert!(reg.find(missing).is_none(), "{missing}");
     }
 
-    let changes = changes.borrow();
     let seen = |path: &str| -> Vec<u64> {
-        changes
-            .get(&sig(path).0.0)
-            .cloned()
-            .unwrap_or_else(|| panic!("{path} never reported"))
+        let values = recording
+            .values(path)
+            .unwrap_or_else(|| panic!("no probe {path}"));
+        assert!(!values.is_empty(), "{path} never reported");
+        values
     };
     let distinct = |path: &str| seen(path).into_iter().collect::<BTreeSet<_>>();
     // Stage valid bits toggle (bubbles in the adder around iadd), stage ops carry both ops.

@@ -2,42 +2,14 @@
 //! real widths, and a traced run reports stream-buffer levels, modes and the arbiter's
 //! grants as they change.
 
-use std::cell::RefCell;
-use std::collections::{BTreeMap, BTreeSet};
-use std::io;
-use std::rc::Rc;
+use std::collections::BTreeSet;
 
 use imagine_hdl::{
-    ClockDomain, ContractError, Design, DomainId, Module, ProbeRegistry, SignalId, SignalKind, Sim,
-    Trace, Tracer, bits_for, default_domains,
+    ContractError, Design, DomainId, Module, Recorder, SignalKind, Sim, Trace, bits_for,
+    default_domains,
 };
 use imagine_units::desc::MachineDesc;
 use imagine_units::srf::Srf;
-
-type Changes = Rc<RefCell<BTreeMap<u32, Vec<u64>>>>;
-
-struct Recorder {
-    changes: Changes,
-    registry: Rc<RefCell<ProbeRegistry>>,
-}
-
-impl Tracer for Recorder {
-    fn start(&mut self, probes: &ProbeRegistry, _: &[ClockDomain]) -> io::Result<()> {
-        *self.registry.borrow_mut() = probes.clone();
-        Ok(())
-    }
-    fn time(&mut self, _: u64, _: u64) {}
-    fn change(&mut self, id: SignalId, value: &[u64]) {
-        self.changes
-            .borrow_mut()
-            .entry(id.0)
-            .or_default()
-            .push(value[0]);
-    }
-    fn finish(&mut self) -> io::Result<()> {
-        Ok(())
-    }
-}
 
 const LEN: usize = 200;
 
@@ -97,13 +69,8 @@ fn srf_probes_have_their_widths_and_follow_the_streams() {
         flushed: false,
     });
     let mut sim = Sim::new(design);
-    let changes = Changes::default();
-    let registry = Rc::new(RefCell::new(ProbeRegistry::new()));
-    sim.attach(Box::new(Recorder {
-        changes: changes.clone(),
-        registry: registry.clone(),
-    }))
-    .unwrap();
+    let recorder = Recorder::default();
+    sim.attach(Box::new(recorder.clone())).unwrap();
     sim.run_core_cycles(60, |_| {}).unwrap();
     sim.finish().unwrap();
 
@@ -111,7 +78,8 @@ fn srf_probes_have_their_widths_and_follow_the_streams() {
     assert!(k.srf.idle() && k.srf.flushed(1), "the copy finished");
     assert_eq!(k.srf.read_back(1024, LEN).unwrap(), data);
 
-    let reg = registry.borrow();
+    let recording = recorder.recording();
+    let reg = &recording.probes;
     let sig = |path: &str| {
         let id = reg.find(path).unwrap_or_else(|| panic!("no probe {path}"));
         (id, reg.get(id).width, reg.get(id).kind)
@@ -137,12 +105,12 @@ fn srf_probes_have_their_widths_and_follow_the_streams() {
     }
     assert_eq!(sig("top.srf.arbiter.grant").1, 5);
 
-    let changes = changes.borrow();
     let seen = |path: &str| -> Vec<u64> {
-        changes
-            .get(&sig(path).0.0)
-            .cloned()
-            .unwrap_or_else(|| panic!("{path} never reported"))
+        let values = recording
+            .values(path)
+            .unwrap_or_else(|| panic!("no probe {path}"));
+        assert!(!values.is_empty(), "{path} never reported");
+        values
     };
     let distinct = |path: &str| seen(path).into_iter().collect::<BTreeSet<_>>();
     // sb0 is an input (1) throughout; sb1 is an output (2), then flushes (3).
