@@ -86,6 +86,10 @@ pub struct Microcontroller {
     /// For each instruction that begins a loop, the index of the instruction that ends it
     /// (itself for a one-instruction body).
     loop_end: Vec<u16>,
+    /// For each instruction that begins a stream loop, the words of its stream each pass
+    /// reads per cluster (its unconditional reads of that stream): a record of `k` words is
+    /// `k` rows, so a software-pipelined loop runs `rows / k` iterations.
+    rows_per_pass: Vec<u64>,
     q: State,
     d: State,
     /// `d` has been prepared from `q` this cycle.
@@ -129,6 +133,7 @@ impl Microcontroller {
             store_words,
             loop_depth,
             loop_end: Vec::new(),
+            rows_per_pass: Vec::new(),
             q: idle.clone(),
             d: idle,
             dirty: false,
@@ -165,6 +170,21 @@ impl Microcontroller {
         }
         if !open.is_empty() {
             return Err(self.malformed(open[0], "loop without an end"));
+        }
+        self.rows_per_pass = vec![1; code.len()];
+        for (b, inst) in code.iter().enumerate() {
+            if let Some(LoopBegin {
+                kind: LoopKind::UntilStreamEmpty(s),
+                ..
+            }) = inst.control.begin
+            {
+                let reads = code[b..=self.loop_end[b] as usize]
+                    .iter()
+                    .flat_map(|i| i.sin.iter().flatten())
+                    .filter(|r| r.stream == s && r.cond.is_none())
+                    .count();
+                self.rows_per_pass[b] = reads.max(1) as u64;
+            }
         }
         self.q = State {
             phase: Phase::Running,
@@ -216,7 +236,9 @@ impl Microcontroller {
             }
             let iterations = match kind {
                 LoopKind::Counted(n) => Some(n as u64),
-                LoopKind::UntilStreamEmpty(s) if stages > 1 => Some(env.rows_left(s)),
+                LoopKind::UntilStreamEmpty(s) if stages > 1 => {
+                    Some(env.rows_left(s).div_ceil(self.rows_per_pass[pc as usize]))
+                }
                 LoopKind::UntilStreamEmpty(s) if env.exhausted(s) => Some(0),
                 LoopKind::UntilStreamEmpty(_) | LoopKind::UntilCc(_) => None,
             };

@@ -373,6 +373,9 @@ op_table! {
     Mul16x2HiS = "mul_16x2_hi_s", Multiplier, Mul, 2, |a, b, _, _| w(packed::mul_hi_s_16x2(a, b));
     /// Lane-wise high 16 bits of each unsigned lane product.
     Mul16x2HiU = "mul_16x2_hi_u", Multiplier, Mul, 2, |a, b, _, _| w(packed::mul_hi_u_16x2(a, b));
+    // ---- appended ops (opcodes are indices, so new ops go last) ------------------------
+    /// Copies a word: the compiler's register move, from one LRF to others.
+    Mov = "mov", Adder, Int, 1, |a, _, _, _| w(a);
 }
 
 impl Op {

@@ -97,6 +97,7 @@ fn reference(op: Op) -> Reference {
         Op::Mul16x2Lo => |a, b_, _, _| nf(packed::mul_lo_16x2(a, b_)),
         Op::Mul16x2HiS => |a, b_, _, _| nf(packed::mul_hi_s_16x2(a, b_)),
         Op::Mul16x2HiU => |a, b_, _, _| nf(packed::mul_hi_u_16x2(a, b_)),
+        Op::Mov => |a, _, _, _| nf(a),
     }
 }
 
@@ -293,7 +294,7 @@ fn units_latencies_and_arities_follow_the_architecture() {
         Op::FToI32Trunc,
         Op::I32ToF,
     ];
-    const UNARY: [Op; 9] = [
+    const UNARY: [Op; 10] = [
         Op::FSqrt,
         Op::FAbs,
         Op::FNeg,
@@ -303,6 +304,7 @@ fn units_latencies_and_arities_follow_the_architecture() {
         Op::INeg,
         Op::IAbs,
         Op::Not,
+        Op::Mov,
     ];
     // Distinct values so a wrong latency class cannot pass by coincidence.
     let mut desc = MachineDesc::gold8();
@@ -343,5 +345,5 @@ fn units_latencies_and_arities_follow_the_architecture() {
     for class in [UnitClass::Adder, UnitClass::Multiplier, UnitClass::DivSqrt] {
         assert!(Op::ALL.iter().any(|o| o.unit() == class));
     }
-    assert_eq!(Op::ALL.len(), 15 + 26 + 33);
+    assert_eq!(Op::ALL.len(), 15 + 26 + 33 + 1, "fp32, int32, packed, and `mov`");
 }
