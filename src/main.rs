@@ -35,7 +35,7 @@ enum Command {
     #[command(subcommand)]
     Machine(commands::machine::MachineCommand),
     /// Replay a DRAM request trace through the memory access scheduler
-    Dram(commands::pending::DramArgs),
+    Dram(commands::dram::DramArgs),
     /// Run the demonstration design (a pipelined MAC crossing into the DRAM clock domain)
     Demo(commands::demo::DemoArgs),
 }
@@ -47,7 +47,7 @@ fn main() -> ExitCode {
         Command::Verify(c) => commands::verify::run(c),
         Command::Kernel(c) => commands::kernel::run(c),
         Command::Machine(c) => commands::machine::run(c),
-        Command::Dram(a) => commands::pending::dram(a),
+        Command::Dram(a) => commands::dram::run(a),
         Command::Demo(a) => commands::demo::run(a),
     };
     match result {

@@ -284,3 +284,160 @@ fn kernel_errors_name_the_problem() {
         stderr(&o)
     );
 }
+
+fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("imagine-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn dram_replays_a_trace_and_reports_its_statistics() {
+    let trace = temp_file(
+        "ok.trace",
+        "0x0 READ 0\n0x4 READ 0\n0x1000 WRITE 3\n0x8 READ 5\n",
+    );
+    let o = imagine(&["dram", "--trace", trace.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for key in [
+        "bandwidth",
+        "finish cycle",
+        "data bus",
+        "row hits",
+        "ACT",
+        "PRE",
+        "READ 3",
+        "WRITE 1",
+        "read latency",
+        "no violations",
+    ] {
+        assert!(out.contains(key), "`{key}` missing:\n{out}");
+    }
+}
+
+#[test]
+fn dram_bench_json_reaches_peak_on_unit_stride_reads() {
+    let o = imagine(&[
+        "dram",
+        "--bench",
+        "unit-load",
+        "--requests",
+        "4096",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let frac: f64 = out
+        .lines()
+        .find(|l| l.contains("\"fraction_of_peak\""))
+        .and_then(|l| l.split(':').nth(1))
+        .map(|v| v.trim().trim_end_matches(',').parse().unwrap())
+        .expect("fraction_of_peak in the JSON");
+    assert!(frac >= 0.95, "{out}");
+    assert!(out.contains("\"timing_violations\": 0"), "{out}");
+    let o = imagine(&[
+        "dram",
+        "--bench",
+        "random",
+        "--requests",
+        "512",
+        "--policy",
+        "all",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for p in ["in-order", "first-ready", "row-closed", "load-over-store"] {
+        assert!(stdout(&o).contains(p), "{}", stdout(&o));
+    }
+}
+
+#[test]
+fn dram_writes_a_trace_that_replays() {
+    let dir = std::env::temp_dir().join(format!("imagine-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let rec = dir.join("rec.trace");
+    let o = imagine(&[
+        "dram",
+        "--bench",
+        "unit",
+        "--requests",
+        "256",
+        "--dram-trace",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&rec).unwrap();
+    assert_eq!(text.lines().count(), 256);
+    let o = imagine(&["dram", "--trace", rec.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("(256 requests)"), "{}", stdout(&o));
+}
+
+#[test]
+fn dram_bad_input_names_the_line() {
+    for (text, want) in [
+        ("0x0 READ 4\n0x4 READ 2\n", "line 2"),
+        ("0x0 READ 0\nnonsense\n", "line 2"),
+        ("0x0 FETCH 0\n", "line 1"),
+        ("0xfffffffff READ 0\n", "out of range"),
+    ] {
+        let t = temp_file("bad.trace", text);
+        let o = imagine(&["dram", "--trace", t.to_str().unwrap()]);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{text:?} succeeded");
+        assert!(
+            err.starts_with("error:") && err.contains(want),
+            "{text:?}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    let t = temp_file("one.trace", "0x0 READ 0\n");
+    for args in [
+        &[
+            "dram",
+            "--trace",
+            t.to_str().unwrap(),
+            "--policy",
+            "fastest",
+        ][..],
+        &["dram", "--bench", "sequential"],
+        &["dram", "--trace", "/nonexistent/x.trace"],
+        &["dram"],
+        &["dram", "--bench", "unit", "--machine", "gold9"],
+    ] {
+        let o = imagine(args);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(err.contains("error"), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn dram_vcd_is_deterministic_and_has_the_memory_signals() {
+    let dir = std::env::temp_dir().join(format!("imagine-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |name: &str| {
+        let vcd = dir.join(name);
+        let o = imagine(&[
+            "dram",
+            "--bench",
+            "constrained-random",
+            "--requests",
+            "300",
+            "--policy",
+            "row-closed",
+            "--vcd",
+            vcd.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read_to_string(vcd).unwrap()
+    };
+    let (a, b) = (run("a.vcd"), run("b.vcd"));
+    assert_eq!(a, b, "same inputs, same waveform");
+    for sig in ["queue_depth", "decision", "cmd_row", "state", "row", "dq"] {
+        assert!(a.contains(&format!(" {sig} ")), "`{sig}` missing");
+    }
+}

@@ -2,9 +2,9 @@
 
 pub mod bench;
 pub mod demo;
+pub mod dram;
 pub mod kernel;
 pub mod machine;
-pub mod pending;
 pub mod render;
 pub mod verify;
 pub mod waves;

@@ -29,6 +29,11 @@ pub struct WavePaths {
 }
 
 impl WaveArgs {
+    /// Whether `--vcd` was given.
+    pub fn wants_vcd(&self) -> bool {
+        self.vcd.is_some()
+    }
+
     /// Attaches a VCD writer to `sim` if `--vcd` was given.
     pub fn attach(&self, sim: &mut Sim) -> Result<Option<WavePaths>> {
         let Some(path) = &self.vcd else {

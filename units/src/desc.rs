@@ -25,6 +25,9 @@ pub struct MachineDesc {
     pub scratchpad: Scratchpad,
     pub srf: Srf,
     pub microcontroller: Microcontroller,
+    pub dram: Dram,
+    pub memory: Memory,
+    pub stream_controller: StreamController,
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
@@ -96,6 +99,78 @@ pub struct Microcontroller {
     pub store_words: usize,
     /// Nested loops the loop stack holds.
     pub loop_depth: usize,
+}
+
+/// The SDRAM: geometry and timing of one channel's part, in DRAM clock cycles (gold8: a
+/// 128 Mb ×32 SDR part, Micron MT48LC4M32B2 -6 at 167 MHz; see `dram` for the sources).
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct Dram {
+    /// Independent channels, each with its own command and 32-bit data bus.
+    pub channels: usize,
+    /// Internal banks per channel.
+    pub banks: usize,
+    /// Rows per bank.
+    pub rows: usize,
+    /// Columns (32-bit words) per row.
+    pub columns: usize,
+    /// Words moved by one READ or WRITE command (the burst length).
+    pub burst_words: usize,
+    /// CAS latency: READ command to first data word.
+    pub cas_latency: u32,
+    /// ACTIVATE to READ/WRITE of the same bank.
+    pub t_rcd: u32,
+    /// PRECHARGE to ACTIVATE of the same bank.
+    pub t_rp: u32,
+    /// ACTIVATE to PRECHARGE of the same bank.
+    pub t_ras: u32,
+    /// ACTIVATE to ACTIVATE of the same bank.
+    pub t_rc: u32,
+    /// ACTIVATE to ACTIVATE of different banks of a channel.
+    pub t_rrd: u32,
+    /// Last write data word to PRECHARGE of the same bank (write recovery).
+    pub t_wr: u32,
+    /// Idle data-bus cycles between the last read data word and the first write data word.
+    pub turnaround: u32,
+    /// Average interval between AUTO REFRESH commands (tREFI).
+    pub refresh_interval: u32,
+    /// AUTO REFRESH to any command (tRFC).
+    pub t_rfc: u32,
+}
+
+/// The memory system between the SRF and the SDRAM (ARCHITECTURE §4, memory row).
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct Memory {
+    /// Memory access scheduling policy (Rixner et al. ISCA 2000): `in-order`,
+    /// `first-ready`, `col-open`, `col-closed`, `row-open`, `row-closed`,
+    /// `load-over-store`.
+    pub policy: String,
+    /// Entries of each channel's pending-reference buffer.
+    pub pending_references: usize,
+    /// Address generators (each runs one load or store stream at a time).
+    pub address_generators: usize,
+    /// Words each address generator issues and retires per core cycle.
+    pub ag_words_per_cycle: usize,
+    /// Words an address generator may have outstanding (its reorder buffer).
+    pub ag_reorder_words: usize,
+    /// Entries of each clock-crossing FIFO between the core and a channel.
+    pub crossing_entries: usize,
+    /// Flip-flops in each pointer synchroniser of a crossing FIFO.
+    pub sync_stages: usize,
+}
+
+/// The stream controller (ARCHITECTURE §4).
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct StreamController {
+    /// Stream instructions the host may queue ahead of the scoreboard.
+    pub queue_entries: usize,
+    /// Stream instructions tracked at once for dependencies.
+    pub scoreboard_entries: usize,
+    /// Host dispatch overhead: a kernel occupies the clusters for at least this many core
+    /// cycles.
+    pub min_kernel_cycles: u64,
 }
 
 #[derive(Clone, Debug, Default, Deserialize, PartialEq, Eq)]
@@ -405,6 +480,7 @@ impl MachineDesc {
                 return bad(key, format!("is {v}, must be 1..={MAX_LATENCY} cycles"));
             }
         }
+        self.validate_memory()?;
         let shortest = l.div.min(l.sqrt);
         if l.divsqrt_issue_interval > shortest {
             return bad(
@@ -412,6 +488,141 @@ impl MachineDesc {
                 format!(
                     "is {}, longer than the divide/sqrt latency {shortest}",
                     l.divsqrt_issue_interval
+                ),
+            );
+        }
+        Ok(())
+    }
+}
+
+impl MachineDesc {
+    fn validate_memory(&self) -> Result<(), DescError> {
+        let bad = |key, problem: String| {
+            Err(DescError::Invalid {
+                machine: self.name.clone(),
+                key,
+                problem,
+            })
+        };
+        let d = &self.dram;
+        let pow2 = [
+            ("dram.channels", d.channels, 16),
+            ("dram.banks", d.banks, 16),
+            ("dram.rows", d.rows, 1 << 16),
+            ("dram.columns", d.columns, 1 << 12),
+            ("dram.burst_words", d.burst_words, 8),
+        ];
+        for (key, v, hi) in pow2 {
+            if !(1..=hi).contains(&v) || !v.is_power_of_two() {
+                return bad(key, format!("is {v}, must be a power of two in 1..={hi}"));
+            }
+        }
+        if d.burst_words > d.columns {
+            return bad(
+                "dram.burst_words",
+                format!(
+                    "is {}, more than the {} columns of a row",
+                    d.burst_words, d.columns
+                ),
+            );
+        }
+        for (key, v, lo) in [
+            ("dram.cas_latency", d.cas_latency, 1),
+            ("dram.t_rcd", d.t_rcd, 1),
+            ("dram.t_rp", d.t_rp, 1),
+            ("dram.t_ras", d.t_ras, 1),
+            ("dram.t_rc", d.t_rc, 1),
+            ("dram.t_rrd", d.t_rrd, 1),
+            ("dram.t_wr", d.t_wr, 1),
+            ("dram.turnaround", d.turnaround, 0),
+            ("dram.t_rfc", d.t_rfc, 1),
+        ] {
+            if !(lo..=MAX_LATENCY).contains(&v) {
+                return bad(key, format!("is {v}, must be {lo}..={MAX_LATENCY} cycles"));
+            }
+        }
+        if d.t_rc < d.t_ras + d.t_rp {
+            return bad(
+                "dram.t_rc",
+                format!(
+                    "is {}, less than t_ras + t_rp = {} (a row cycle is an activate and a precharge)",
+                    d.t_rc,
+                    d.t_ras + d.t_rp
+                ),
+            );
+        }
+        let min_refi = 4 * (d.t_rc + d.t_rfc);
+        if !(min_refi..=1 << 20).contains(&d.refresh_interval) {
+            return bad(
+                "dram.refresh_interval",
+                format!(
+                    "is {}, must be {min_refi}..={} cycles (at least 4 × (t_rc + t_rfc))",
+                    d.refresh_interval,
+                    1 << 20
+                ),
+            );
+        }
+        let m = &self.memory;
+        if crate::dram::Policy::parse(&m.policy).is_none() {
+            return bad(
+                "memory.policy",
+                format!(
+                    "is `{}`, must be one of {}",
+                    m.policy,
+                    crate::dram::Policy::NAMES.join(", ")
+                ),
+            );
+        }
+        for (key, v, lo, hi) in [
+            ("memory.pending_references", m.pending_references, 1, 256),
+            ("memory.address_generators", m.address_generators, 1, 8),
+            ("memory.ag_words_per_cycle", m.ag_words_per_cycle, 1, 16),
+            ("memory.ag_reorder_words", m.ag_reorder_words, 1, 1 << 16),
+            ("memory.crossing_entries", m.crossing_entries, 1, 1024),
+            ("memory.sync_stages", m.sync_stages, 1, 8),
+            (
+                "stream_controller.queue_entries",
+                self.stream_controller.queue_entries,
+                1,
+                1 << 16,
+            ),
+            (
+                "stream_controller.scoreboard_entries",
+                self.stream_controller.scoreboard_entries,
+                1,
+                256,
+            ),
+        ] {
+            if !(lo..=hi).contains(&v) {
+                return bad(key, format!("is {v}, must be {lo}..={hi}"));
+            }
+        }
+        if m.ag_reorder_words < m.ag_words_per_cycle {
+            return bad(
+                "memory.ag_reorder_words",
+                format!(
+                    "is {}, less than ag_words_per_cycle = {}",
+                    m.ag_reorder_words, m.ag_words_per_cycle
+                ),
+            );
+        }
+        let needed = self.srf.kernel_streams + 2 * m.address_generators;
+        if self.srf.stream_buffers < needed {
+            return bad(
+                "memory.address_generators",
+                format!(
+                    "is {}: each needs 2 stream buffers besides the {} kernel streams, and                      the SRF has {} (need {needed})",
+                    m.address_generators, self.srf.kernel_streams, self.srf.stream_buffers
+                ),
+            );
+        }
+        if self.stream_controller.min_kernel_cycles > 1 << 24 {
+            return bad(
+                "stream_controller.min_kernel_cycles",
+                format!(
+                    "is {}, must be at most {}",
+                    self.stream_controller.min_kernel_cycles,
+                    1 << 24
                 ),
             );
         }
@@ -613,6 +824,48 @@ mod tests {
         assert!(e.to_string().contains("srf.words"), "{e}");
         let e = MachineDesc::parse(&GOLD8.replace("\"add0.a\"", "\"add9.a\""), "t").unwrap_err();
         assert!(e.to_string().contains("add9.a"), "{e}");
+        for (from, to, key) in [
+            ("t_rc = 10", "t_rc = 9", "dram.t_rc"),
+            ("banks = 4", "banks = 3", "dram.banks"),
+            (
+                "policy = \"first-ready\"",
+                "policy = \"fastest\"",
+                "memory.policy",
+            ),
+            (
+                "pending_references = 32",
+                "pending_references = 0",
+                "memory.pending_references",
+            ),
+            (
+                "address_generators = 2",
+                "address_generators = 8",
+                "memory.address_generators",
+            ),
+            (
+                "scoreboard_entries = 32",
+                "scoreboard_entries = 0",
+                "stream_controller.scoreboard_entries",
+            ),
+            (
+                "refresh_interval = 2604",
+                "refresh_interval = 5",
+                "dram.refresh_interval",
+            ),
+        ] {
+            let e = MachineDesc::parse(&GOLD8.replace(from, to), "t").unwrap_err();
+            assert!(e.to_string().contains(key), "{from}: {e}");
+        }
+        let m = MachineDesc::gold8();
+        assert_eq!(
+            (m.dram.channels, m.dram.banks, m.dram.rows, m.dram.columns),
+            (4, 4, 4096, 256)
+        );
+        assert_eq!(
+            (m.memory.pending_references, m.memory.address_generators),
+            (32, 2)
+        );
+        assert_eq!(m.stream_controller.min_kernel_cycles, 300);
         let e = MachineDesc::load(Path::new("/nonexistent/m.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/m.toml"), "{e}");
     }

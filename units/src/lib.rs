@@ -14,6 +14,12 @@
 //!   switch), [`ccfile`] (condition codes), [`scratchpad`], [`comm`] (intercluster network),
 //!   [`delay`] (result pipeline registers), and the [`microcontroller`];
 //! * [`machine`] — the composed machine that runs microcode kernels cycle by cycle.
+//! * [`dram`] — the SDRAM channels in the DRAM clock domain: memory access scheduler, SDRAM
+//!   banks and data bus, timing checker, trace replay.
+//! * [`memory`] — the address generators and their clock-crossing ports to the channels.
+//! * [`stream_controller`] — the stream instruction queue and scoreboard; [`processor`] —
+//!   the whole stream processor (stream controller, address generators, clusters, SRF and
+//!   SDRAM channels) running stream programs.
 //! * [`srf`] — the stream register file: block-interleaved storage, stream buffers and the
 //!   arbiter that grants the SRF port to them.
 
@@ -22,15 +28,19 @@ pub mod ccfile;
 pub mod comm;
 pub mod delay;
 pub mod desc;
+pub mod dram;
 pub mod fu;
 pub mod lanes;
 pub mod lrf;
 pub mod machine;
+pub mod memory;
 pub mod microcode;
 pub mod microcontroller;
 pub mod ops;
+pub mod processor;
 pub mod runner;
 pub mod scratchpad;
 pub mod srf;
+pub mod stream_controller;
 pub mod switch;
 pub mod workloads;

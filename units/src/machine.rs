@@ -427,10 +427,9 @@ impl Machine {
                 bindings.len()
             )));
         }
-        if let Some(k) = self.kernel.take() {
-            for i in 0..k.program.streams.len() {
-                self.srf.unbind(i).map_err(|e| StartError(e.to_string()))?;
-            }
+        if self.kernel.take().is_some() {
+            self.release_streams()
+                .map_err(|e| StartError(e.to_string()))?;
         }
         for (i, (s, b)) in program.streams.iter().zip(bindings).enumerate() {
             let bound = match s.dir {
@@ -486,6 +485,20 @@ impl Machine {
             },
             flushing: false,
         }));
+        Ok(())
+    }
+
+    /// Unbinds the stream buffers of the last kernel (once it is idle), so the memory
+    /// system may bind their SRF regions; its statistics stay. Streams already released
+    /// are skipped.
+    pub fn release_streams(&mut self) -> Result<(), ContractError> {
+        if let Some(k) = &self.kernel {
+            for i in 0..k.program.streams.len() {
+                if self.srf.mode(i) != crate::srf::SbMode::Idle {
+                    self.srf.unbind(i)?;
+                }
+            }
+        }
         Ok(())
     }
 
@@ -816,7 +829,15 @@ impl Machine {
                         }
                     }
                 }
-                if kernel.flushing && self.srf.idle() {
+                // Only the kernel's own output streams: the memory system's stream buffers
+                // may be busy at the same time.
+                let flushed = kernel
+                    .program
+                    .streams
+                    .iter()
+                    .enumerate()
+                    .all(|(i, s)| s.dir != StreamDir::Out || self.srf.flushed(i));
+                if kernel.flushing && flushed {
                     self.uc.finish();
                 }
                 return Ok(());

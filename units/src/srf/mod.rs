@@ -568,6 +568,35 @@ impl Srf {
         }
     }
 
+    // ---- memory side ---------------------------------------------------------------------
+
+    /// The memory system's port on an input SB (a store stream: SRF → memory): takes the
+    /// next `n` words, any count up to [`available`](Self::available). Unlike the
+    /// clusters' reads it is not charged to the clusters' stream bandwidth and need not be
+    /// a multiple of the cluster count; the address generator's own width limits it.
+    pub fn memory_read(&mut self, sb: usize, n: usize) -> Result<&[u32], ContractError> {
+        let ok =
+            matches!(self.sbs.get(sb), Some(b) if b.mode == SbMode::Input && n <= b.available());
+        if !ok {
+            return Err(self.read_error(sb, n, false));
+        }
+        Ok(self.sbs[sb].take(n))
+    }
+
+    /// The memory system's port on an output SB (a load stream: memory → SRF): appends
+    /// `words`, up to [`space`](Self::space), within the bound region; not charged to the
+    /// clusters' stream bandwidth.
+    pub fn memory_write(&mut self, sb: usize, words: &[u32]) -> Result<(), ContractError> {
+        let n = words.len();
+        let ok = matches!(self.sbs.get(sb), Some(b)
+            if b.mode == SbMode::Output && n <= b.space() && b.done + b.pending + n <= b.len);
+        if !ok {
+            return Err(self.write_error(sb, n, false));
+        }
+        self.sbs[sb].put(words);
+        Ok(())
+    }
+
     // ---- cluster side: output ------------------------------------------------------------
 
     /// Free words an output SB can still accept this cycle; 0 for an SB that is not

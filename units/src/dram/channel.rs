@@ -1,0 +1,426 @@
+//! One SDRAM channel in the DRAM clock domain: the memory access scheduler, the command-bus
+//! register, the SDRAM part with its data bus, and the timing checker watching the bus.
+//!
+//! Each DRAM cycle (`eval`):
+//!
+//! 1. the SDRAM executes the command the bus register holds (decided last cycle) and
+//!    drives the data bus; the timing checker checks that command;
+//! 2. read data leaving the data bus is gathered into bursts; a finished burst (or a
+//!    finished write) becomes a reply in the return queue, and the oldest reply leaves
+//!    through the output FIFO when it has room;
+//! 3. the scheduler decides the next command (it issues a read only while the return
+//!    queue and the reads in flight leave room for its data);
+//! 4. one request enters from the input FIFO if the pending-reference buffer has room.
+//!
+//! Probes under the channel's scope: `cmd` (3 bits, see [`Command::code`]), `cmd_bank`,
+//! `cmd_row`, `cmd_column`; the scheduler's `queue_depth`, `decision`, `decision_entry`,
+//! `refresh_pending`; `bankN.state`, `bankN.row`; `dq_valid`, `dq`; `return_depth`.
+
+use std::collections::VecDeque;
+
+use imagine_hdl::{
+    AsyncFifoRx, AsyncFifoTx, ContractError, DomainId, FifoRx, FifoTx, Module, Scope, SignalId,
+    SignalKind, Trace, Violation, bits_for,
+};
+
+use super::scheduler::{Entry, Scheduler};
+use super::sdram::Sdram;
+use super::timing_check::{TimingChecker, TimingViolation};
+use super::{Command, DramParams, Policy, Reply, Request, TraceKind, TraceRequest};
+
+/// Where a channel's requests come from.
+pub enum ChannelInput {
+    /// A FIFO in the DRAM domain (trace replay).
+    Local(FifoRx<Request>),
+    /// A synchronising FIFO from the core domain (the address generators).
+    Crossing(AsyncFifoRx<Request>),
+}
+
+/// Where a channel's replies go.
+pub enum ChannelOutput {
+    /// Nowhere: replies are counted and dropped (trace replay).
+    Discard,
+    /// A synchronising FIFO into the core domain.
+    Crossing(AsyncFifoTx<Reply>),
+    /// A FIFO in the DRAM domain.
+    Local(FifoTx<Reply>),
+}
+
+/// Counters of one channel.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ChannelStats {
+    pub cycles: u64,
+    pub activates: u64,
+    pub precharges: u64,
+    pub reads: u64,
+    pub writes: u64,
+    pub refreshes: u64,
+    /// Cycles the data bus carried a word.
+    pub data_bus_cycles: u64,
+    /// Sum over reads of (cycle the last data word is on the bus − cycle the reference
+    /// entered the pending-reference buffer).
+    pub read_latency_sum: u64,
+    /// The last cycle the channel did anything for a reference (its last data word).
+    pub last_busy: u64,
+    /// References accepted.
+    pub accepted: u64,
+}
+
+/// A read burst coming out of the SDRAM.
+#[derive(Clone, Debug)]
+struct Pending {
+    entry: Entry,
+    words: usize,
+    data: [u32; 8],
+}
+
+/// The command-bus register's contents.
+#[derive(Clone, Copy, Debug)]
+struct Bus {
+    cmd: Command,
+    entry: Option<Entry>,
+}
+
+pub struct DramChannel {
+    domain: DomainId,
+    path: String,
+    index: usize,
+    p: DramParams,
+    input: ChannelInput,
+    output: ChannelOutput,
+    scheduler: Scheduler,
+    sdram: Sdram,
+    checker: TimingChecker,
+    bus_q: Option<Bus>,
+    bus_d: Option<Bus>,
+    reads: VecDeque<Pending>,
+    returns: VecDeque<Reply>,
+    return_capacity: usize,
+    /// Replies leaving this cycle and requests entering (applied at commit).
+    popped_return: bool,
+    cycle: u64,
+    stats: ChannelStats,
+    record: Option<Vec<TraceRequest>>,
+    arriving: Option<TraceRequest>,
+    ids: Probes,
+}
+
+#[derive(Clone, Debug)]
+struct Probes {
+    cmd: SignalId,
+    bank: SignalId,
+    row: SignalId,
+    column: SignalId,
+    returns: SignalId,
+}
+
+/// How to build a channel.
+pub struct ChannelConfig {
+    pub index: usize,
+    pub params: DramParams,
+    /// The timing the scheduler believes in; `None`: `params` (tests inject wrong ones).
+    pub scheduler_params: Option<DramParams>,
+    pub policy: Policy,
+    pub pending_references: usize,
+    /// Keep every arriving request, for `--dram-trace`.
+    pub record: bool,
+}
+
+impl DramChannel {
+    pub fn new(
+        scope: &mut Scope<'_>,
+        domain: DomainId,
+        cfg: ChannelConfig,
+        input: ChannelInput,
+        output: ChannelOutput,
+    ) -> Self {
+        let p = cfg.params;
+        let sched_p = cfg.scheduler_params.unwrap_or_else(|| p.clone());
+        let ids = Probes {
+            cmd: scope.signal("cmd", 3, SignalKind::Reg),
+            bank: scope.signal("cmd_bank", bits_for(p.banks as u64 - 1), SignalKind::Reg),
+            row: scope.signal("cmd_row", bits_for(p.rows as u64 - 1), SignalKind::Reg),
+            column: scope.signal(
+                "cmd_column",
+                bits_for(p.columns as u64 - 1),
+                SignalKind::Reg,
+            ),
+            returns: scope.signal(
+                "return_depth",
+                bits_for(cfg.pending_references as u64),
+                SignalKind::Reg,
+            ),
+        };
+        DramChannel {
+            domain,
+            path: scope.path().to_string(),
+            index: cfg.index,
+            input,
+            output,
+            scheduler: Scheduler::new(scope, cfg.policy, sched_p, cfg.pending_references),
+            sdram: Sdram::new(scope, &p),
+            checker: TimingChecker::new(cfg.index, &p),
+            bus_q: None,
+            bus_d: None,
+            reads: VecDeque::new(),
+            returns: VecDeque::new(),
+            return_capacity: cfg.pending_references,
+            popped_return: false,
+            cycle: 0,
+            stats: ChannelStats::default(),
+            record: cfg.record.then(Vec::new),
+            arriving: None,
+            ids,
+            p,
+        }
+    }
+
+    pub fn index(&self) -> usize {
+        self.index
+    }
+
+    pub fn policy(&self) -> Policy {
+        self.scheduler.policy()
+    }
+
+    pub fn stats(&self) -> &ChannelStats {
+        &self.stats
+    }
+
+    pub fn violations(&self) -> &[TimingViolation] {
+        self.checker.violations()
+    }
+
+    /// Whether nothing is pending, in flight or waiting to be returned.
+    pub fn is_idle(&self) -> bool {
+        self.scheduler.depth() == 0
+            && self.reads.is_empty()
+            && self.returns.is_empty()
+            && self.bus_q.is_none_or(|b| matches!(b.cmd, Command::Refresh))
+            && self.bus_d.is_none()
+    }
+
+    /// The requests that entered this channel (when recording), in order.
+    pub fn recorded(&self) -> &[TraceRequest] {
+        self.record.as_deref().unwrap_or(&[])
+    }
+
+    /// The stored word at a byte address of this channel (host view, between cycles).
+    pub fn peek(&self, byte_addr: u64) -> Option<u32> {
+        let l = self.p.map(byte_addr)?;
+        debug_assert_eq!(l.channel, self.index);
+        let word = (byte_addr / 4) as usize % self.p.burst;
+        Some(self.sdram.peek(
+            l.bank.value() as usize,
+            l.row,
+            l.column.value() as usize + word,
+        ))
+    }
+
+    /// Writes a word at a byte address of this channel (host, before a run).
+    pub fn poke(&mut self, byte_addr: u64, v: u32) -> Option<()> {
+        let l = self.p.map(byte_addr)?;
+        let word = (byte_addr / 4) as usize % self.p.burst;
+        self.sdram.poke(
+            l.bank.value() as usize,
+            l.row,
+            l.column.value() as usize + word,
+            v,
+        );
+        Some(())
+    }
+
+    fn reply_of(e: &Entry, data: [u32; 8]) -> Reply {
+        Reply {
+            write: e.write,
+            data,
+            tag: e.tag,
+        }
+    }
+
+    fn error(&self, what: &str, msg: String) -> ContractError {
+        ContractError::at(&format!("{}.{what}", self.path), Violation::Other(msg))
+    }
+}
+
+impl Module for DramChannel {
+    fn domain(&self) -> DomainId {
+        self.domain
+    }
+
+    fn eval(&mut self) -> Result<(), ContractError> {
+        let cycle = self.cycle;
+        // 1. The SDRAM and the checker act on the command on the bus.
+        let bus = self.bus_q;
+        let (cmd, data) = match &bus {
+            Some(b) => (Some(b.cmd), b.entry.map(|e| e.data).unwrap_or([0; 8])),
+            None => (None, [0; 8]),
+        };
+        let dq = self.sdram.eval(cmd, &data, cycle);
+        self.checker.observe(cycle, cmd);
+        if let Some(b) = bus {
+            match b.cmd {
+                Command::Read { .. } => {
+                    let entry = b.entry.expect("a column command carries its reference");
+                    self.reads.push_back(Pending {
+                        entry,
+                        words: 0,
+                        data: [0; 8],
+                    });
+                }
+                Command::Write { .. } => {
+                    let entry = b.entry.expect("a column command carries its reference");
+                    self.returns.push_back(Self::reply_of(&entry, [0; 8]));
+                }
+                _ => {}
+            }
+        }
+        // 2. Read data into bursts, bursts into replies.
+        if let Some(w) = dq {
+            let Some(head) = self.reads.front_mut() else {
+                return Err(self.error("data", "read data with no read in flight".into()));
+            };
+            head.data[head.words] = w;
+            head.words += 1;
+            if head.words == self.p.burst {
+                let done = self.reads.pop_front().expect("head exists");
+                self.stats.read_latency_sum += cycle - done.entry.arrival;
+                self.returns
+                    .push_back(Self::reply_of(&done.entry, done.data));
+            }
+        }
+        self.popped_return = false;
+        if let Some(r) = self.returns.front() {
+            let r = *r;
+            match &mut self.output {
+                ChannelOutput::Discard => self.popped_return = true,
+                ChannelOutput::Crossing(tx) => {
+                    if tx.can_push() {
+                        tx.push(r)?;
+                        self.popped_return = true;
+                    }
+                }
+                ChannelOutput::Local(tx) => {
+                    if tx.free() > 0 {
+                        tx.push(r)?;
+                        self.popped_return = true;
+                    }
+                }
+            }
+        }
+        // 3. The scheduler decides the next command.
+        let read_room = self.reads.len() + self.returns.len() < self.return_capacity;
+        self.bus_d = self.scheduler.eval(cycle, read_room).map(|i| Bus {
+            cmd: i.cmd,
+            entry: i.entry,
+        });
+        // 4. One request enters.
+        self.arriving = None;
+        if self.scheduler.has_room() {
+            let r = match &mut self.input {
+                ChannelInput::Local(rx) if rx.available() > 0 => Some(rx.pop()?),
+                ChannelInput::Crossing(rx) if rx.can_pop() => Some(rx.pop()?),
+                _ => None,
+            };
+            if let Some(r) = r {
+                let Some(loc) = self.p.map(r.byte_addr) else {
+                    return Err(self.error(
+                        "request",
+                        format!(
+                            "byte address {:#x} is past the end of memory ({} bytes)",
+                            r.byte_addr,
+                            self.p.capacity_bytes()
+                        ),
+                    ));
+                };
+                if loc.channel != self.index {
+                    return Err(self.error(
+                        "request",
+                        format!(
+                            "byte address {:#x} belongs to channel {}, not {}",
+                            r.byte_addr, loc.channel, self.index
+                        ),
+                    ));
+                }
+                self.scheduler.accept(r, loc, cycle);
+                self.arriving = Some(TraceRequest {
+                    byte_addr: r.byte_addr,
+                    kind: if r.write {
+                        TraceKind::Write
+                    } else {
+                        TraceKind::Read
+                    },
+                    cycle,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn commit(&mut self) {
+        let cycle = self.cycle;
+        if let Some(b) = self.bus_q {
+            match b.cmd {
+                Command::Activate { .. } => self.stats.activates += 1,
+                Command::Precharge { .. } => self.stats.precharges += 1,
+                Command::Read { .. } => {
+                    self.stats.reads += 1;
+                    self.stats.last_busy = self
+                        .stats
+                        .last_busy
+                        .max(cycle + self.p.cl + self.p.burst as u64 - 1);
+                }
+                Command::Write { .. } => {
+                    self.stats.writes += 1;
+                    self.stats.last_busy =
+                        self.stats.last_busy.max(cycle + self.p.burst as u64 - 1);
+                }
+                Command::Refresh => self.stats.refreshes += 1,
+            }
+        }
+        if self.sdram.dq_now().is_some() {
+            self.stats.data_bus_cycles += 1;
+        }
+        if let Some(b) = self.bus_q
+            && matches!(b.cmd, Command::Write { .. })
+        {
+            self.stats.data_bus_cycles += self.p.burst as u64;
+        }
+        if self.popped_return {
+            self.returns.pop_front();
+        }
+        if let Some(a) = self.arriving.take() {
+            self.stats.accepted += 1;
+            if let Some(rec) = &mut self.record {
+                rec.push(a);
+            }
+        }
+        self.scheduler.commit(cycle);
+        self.sdram.commit();
+        self.bus_q = self.bus_d.take();
+        self.cycle += 1;
+        self.stats.cycles = self.cycle;
+    }
+
+    fn trace(&self, t: &mut Trace) {
+        match self.bus_q {
+            None => t.value(self.ids.cmd, 0),
+            Some(b) => {
+                t.value(self.ids.cmd, b.cmd.code());
+                if let Some(bank) = b.cmd.bank() {
+                    t.value(self.ids.bank, bank as u64);
+                }
+                match b.cmd {
+                    Command::Activate { row, .. } => t.value(self.ids.row, row as u64),
+                    Command::Read { column, .. } | Command::Write { column, .. } => {
+                        t.value(self.ids.column, column.value() as u64)
+                    }
+                    _ => {}
+                }
+            }
+        }
+        self.scheduler.trace(t, self.cycle);
+        self.sdram.trace(t);
+        t.value(self.ids.returns, self.returns.len() as u64);
+    }
+}

@@ -1,0 +1,303 @@
+//! An independent timing checker for one channel's command bus.
+//!
+//! It sees only the commands on the bus, one per cycle, and the datasheet's numbers (the
+//! machine description's `[dram]` section); it shares no state or code with the
+//! scheduler. Every command is checked against every rule that applies, and each broken
+//! rule is recorded as a [`TimingViolation`] naming the cycle, the bank and the rule:
+//!
+//! | rule | between |
+//! |---|---|
+//! | `tRCD` | ACTIVATE and READ/WRITE of a bank |
+//! | `tRP` | PRECHARGE and ACTIVATE (or REFRESH) of a bank |
+//! | `tRAS` | ACTIVATE and PRECHARGE of a bank |
+//! | `tRC` | ACTIVATE and ACTIVATE of a bank |
+//! | `tRRD` | ACTIVATEs of different banks |
+//! | `tWR` | the last write data word and PRECHARGE of the bank |
+//! | `read burst` | READ and a PRECHARGE that would cut its burst short |
+//! | `data bus` | bursts overlapping on the data bus |
+//! | `turnaround` | read data and the next write data without the idle cycles |
+//! | `tRFC` | REFRESH and any command |
+//! | `bank state` | ACTIVATE of an active bank, READ/WRITE of an idle bank, REFRESH with a bank open |
+//! | `refresh interval` | a refresh interval of `refresh_interval` cycles passed without its REFRESH |
+//! | `address` | a row or column outside the part |
+//!
+//! (Source of the rules: the Micron MT48LC4M32B2 datasheet, timing parameters and
+//! command truth tables.)
+
+use std::fmt;
+
+use super::{Command, DramParams};
+
+/// A broken timing or protocol rule.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TimingViolation {
+    /// The command-bus cycle of the offending command.
+    pub cycle: u64,
+    pub channel: usize,
+    pub bank: Option<usize>,
+    pub rule: &'static str,
+    pub detail: String,
+}
+
+impl fmt::Display for TimingViolation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "channel {} ", self.channel)?;
+        if let Some(b) = self.bank {
+            write!(f, "bank {b} ")?;
+        }
+        write!(
+            f,
+            "DRAM cycle {}: {} violated: {}",
+            self.cycle, self.rule, self.detail
+        )
+    }
+}
+
+#[derive(Clone, Debug, Default)]
+struct BankHistory {
+    open: Option<u16>,
+    act: Option<u64>,
+    pre: Option<u64>,
+    read: Option<u64>,
+    write: Option<u64>,
+}
+
+/// The checker of one channel.
+#[derive(Clone, Debug)]
+pub struct TimingChecker {
+    channel: usize,
+    p: DramParams,
+    banks: Vec<BankHistory>,
+    last_act: Option<u64>,
+    last_read: Option<u64>,
+    last_write: Option<u64>,
+    last_ref: Option<u64>,
+    refreshes: u64,
+    /// Refresh intervals already reported as missed.
+    missed: u64,
+    violations: Vec<TimingViolation>,
+    commands: u64,
+}
+
+impl TimingChecker {
+    pub fn new(channel: usize, p: &DramParams) -> Self {
+        TimingChecker {
+            channel,
+            banks: vec![BankHistory::default(); p.banks],
+            p: p.clone(),
+            last_act: None,
+            last_read: None,
+            last_write: None,
+            last_ref: None,
+            refreshes: 0,
+            missed: 0,
+            violations: Vec::new(),
+            commands: 0,
+        }
+    }
+
+    pub fn violations(&self) -> &[TimingViolation] {
+        &self.violations
+    }
+
+    /// Commands checked so far.
+    pub fn commands(&self) -> u64 {
+        self.commands
+    }
+
+    fn flag(&mut self, cycle: u64, bank: Option<usize>, rule: &'static str, detail: String) {
+        self.violations.push(TimingViolation {
+            cycle,
+            channel: self.channel,
+            bank,
+            rule,
+            detail,
+        });
+    }
+
+    /// Requires `now - since >= min` when `since` happened.
+    fn gap(
+        &mut self,
+        now: u64,
+        since: Option<u64>,
+        min: u64,
+        bank: Option<usize>,
+        rule: &'static str,
+        what: &str,
+    ) {
+        if let Some(s) = since
+            && now < s + min
+        {
+            self.flag(
+                now,
+                bank,
+                rule,
+                format!("{what}: {} cycles after cycle {s}, need {min}", now - s),
+            );
+        }
+    }
+
+    /// Checks the bus in `cycle`: `cmd` is the command it carries, if any.
+    pub fn observe(&mut self, cycle: u64, cmd: Option<Command>) {
+        let p = self.p.clone();
+        // The refresh interval: by the end of interval k+1 the k-th refresh must be done.
+        let deadline = (self.refreshes + self.missed + 2) * p.t_refi;
+        if cycle >= deadline {
+            self.missed += 1;
+            self.flag(
+                cycle,
+                None,
+                "refresh interval",
+                format!(
+                    "{} refreshes by cycle {cycle}, {} were due",
+                    self.refreshes,
+                    cycle / p.t_refi
+                ),
+            );
+        }
+        let Some(cmd) = cmd else { return };
+        self.commands += 1;
+        let t = cycle;
+        let bl = p.burst as u64;
+        self.gap(
+            t,
+            self.last_ref,
+            p.t_rfc,
+            None,
+            "tRFC",
+            "command after REFRESH",
+        );
+        match cmd {
+            Command::Activate { bank, row } => {
+                let b = bank.value() as usize;
+                if (row as usize) >= p.rows {
+                    self.flag(t, Some(b), "address", format!("row {row} of {}", p.rows));
+                }
+                if let Some(r) = self.banks[b].open {
+                    self.flag(
+                        t,
+                        Some(b),
+                        "bank state",
+                        format!("ACTIVATE row {row} while row {r} is open"),
+                    );
+                }
+                let h = self.banks[b].clone();
+                self.gap(t, h.pre, p.t_rp, Some(b), "tRP", "PRECHARGE to ACTIVATE");
+                self.gap(t, h.act, p.t_rc, Some(b), "tRC", "ACTIVATE to ACTIVATE");
+                self.gap(
+                    t,
+                    self.last_act,
+                    p.t_rrd,
+                    Some(b),
+                    "tRRD",
+                    "ACTIVATE to ACTIVATE",
+                );
+                self.banks[b].open = Some(row);
+                self.banks[b].act = Some(t);
+                self.last_act = Some(t);
+            }
+            Command::Read { bank, column } | Command::Write { bank, column } => {
+                let write = matches!(cmd, Command::Write { .. });
+                let b = bank.value() as usize;
+                let name = if write { "WRITE" } else { "READ" };
+                if column.value() as usize + p.burst > p.columns {
+                    self.flag(
+                        t,
+                        Some(b),
+                        "address",
+                        format!("column {column} of {}", p.columns),
+                    );
+                }
+                if self.banks[b].open.is_none() {
+                    self.flag(t, Some(b), "bank state", format!("{name} of an idle bank"));
+                }
+                let act = self.banks[b].act;
+                self.gap(
+                    t,
+                    act,
+                    p.t_rcd,
+                    Some(b),
+                    "tRCD",
+                    &format!("ACTIVATE to {name}"),
+                );
+                if write {
+                    self.gap(
+                        t,
+                        self.last_write,
+                        bl,
+                        Some(b),
+                        "data bus",
+                        "write bursts overlap",
+                    );
+                    // Write data at t must follow the last read data (r + CL .. r + CL + BL)
+                    // and the turnaround.
+                    self.gap(
+                        t,
+                        self.last_read,
+                        p.cl + bl + p.turnaround,
+                        Some(b),
+                        "turnaround",
+                        "READ to WRITE",
+                    );
+                    self.banks[b].write = Some(t);
+                    self.last_write = Some(t);
+                } else {
+                    self.gap(
+                        t,
+                        self.last_read,
+                        bl,
+                        Some(b),
+                        "data bus",
+                        "read bursts overlap",
+                    );
+                    if let Some(w) = self.last_write
+                        && t + p.cl < w + bl
+                    {
+                        self.flag(
+                            t,
+                            Some(b),
+                            "data bus",
+                            format!("read data at {} meets write data of cycle {w}", t + p.cl),
+                        );
+                    }
+                    self.banks[b].read = Some(t);
+                    self.last_read = Some(t);
+                }
+            }
+            Command::Precharge { bank } => {
+                let b = bank.value() as usize;
+                let h = self.banks[b].clone();
+                if h.open.is_some() {
+                    self.gap(t, h.act, p.t_ras, Some(b), "tRAS", "ACTIVATE to PRECHARGE");
+                    self.gap(
+                        t,
+                        h.write,
+                        bl - 1 + p.t_wr,
+                        Some(b),
+                        "tWR",
+                        "WRITE to PRECHARGE",
+                    );
+                    self.gap(t, h.read, bl, Some(b), "read burst", "READ to PRECHARGE");
+                }
+                self.banks[b].open = None;
+                self.banks[b].pre = Some(t);
+            }
+            Command::Refresh => {
+                for b in 0..p.banks {
+                    let h = self.banks[b].clone();
+                    if h.open.is_some() {
+                        self.flag(
+                            t,
+                            Some(b),
+                            "bank state",
+                            "REFRESH with the bank open".into(),
+                        );
+                    }
+                    self.gap(t, h.pre, p.t_rp, Some(b), "tRP", "PRECHARGE to REFRESH");
+                }
+                self.last_ref = Some(t);
+                self.refreshes += 1;
+            }
+        }
+    }
+}

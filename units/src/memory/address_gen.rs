@@ -1,0 +1,322 @@
+//! An address generator (ARCHITECTURE §4: 2 on gold8): runs one stream memory operation at
+//! a time, between SDRAM and the SRF, through SRF stream buffers.
+//!
+//! * **Patterns**: strided (`base + i·stride + j` for word `j` of record `i`), record
+//!   (the same with `record_words > 1`: several consecutive words per element), and
+//!   indexed gather/scatter (`base + index[i]·scale + j`, the indices read from an index
+//!   stream in the SRF through a second stream buffer).
+//! * **Loads** (memory → SRF): up to `memory.ag_words_per_cycle` word references issue per
+//!   core cycle, in stream order, each to the request FIFO of the channel its address maps
+//!   to (a reference waits while that FIFO is full or already took one this cycle, and holds
+//!   back the ones behind it). Replies come back in any order; the reorder buffer
+//!   (`memory.ag_reorder_words` words, which also bounds the references outstanding) puts
+//!   them back in stream order, and up to `ag_words_per_cycle` words per cycle enter the
+//!   data stream buffer through the SRF's memory port. When every word is in, the stream
+//!   buffer is flushed into the SRF; the operation is over once it has drained.
+//! * **Stores** (SRF → memory): each reference takes its word from the data stream buffer
+//!   (which the SRF fills ahead); the operation is over when every write has been
+//!   acknowledged by its channel (performed by the SDRAM).
+//!
+//! Stream buffers: address generator `k` uses SB `n − 1 − 2k` for data and `n − 2 − 2k` for
+//! indices (`n` = `srf.stream_buffers`), clear of the kernel's SBs `0..kernel_streams`.
+//!
+//! The address path assumes a one-word burst (`dram.burst_words = 1`, the default): each
+//! reference is one column access. Probes: `busy`, `issued`, `retired`, `outstanding`.
+
+use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
+
+use super::MemPorts;
+use crate::dram::{Reply, Request, Tag};
+use crate::srf::Srf;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MemOpKind {
+    /// Memory → SRF.
+    Load,
+    /// SRF → memory.
+    Store,
+}
+
+/// How a stream's element addresses are formed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pattern {
+    /// Record `i` starts at `base + i·stride` words.
+    Strided { stride: u64 },
+    /// Record `i` starts at `base + index[i]·scale` words; the `records` indices are a
+    /// stream at SRF word `index_start`.
+    Indexed { index_start: usize, scale: u64 },
+}
+
+/// A stream memory operation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MemOp {
+    pub kind: MemOpKind,
+    /// DRAM word address of record 0 (byte address / 4).
+    pub base: u64,
+    pub pattern: Pattern,
+    /// Words per record (1: a plain strided or indexed stream).
+    pub record_words: usize,
+    pub records: usize,
+    /// First SRF word of the stream (a block boundary).
+    pub srf_start: usize,
+}
+
+impl MemOp {
+    /// Words the operation moves.
+    pub fn words(&self) -> usize {
+        self.records * self.record_words
+    }
+
+    /// The DRAM words it may touch, `[lo, hi)`; `None` for an indexed stream (anywhere).
+    pub fn mem_range(&self) -> Option<(u64, u64)> {
+        match self.pattern {
+            Pattern::Strided { stride } if self.records > 0 => Some((
+                self.base,
+                self.base + (self.records as u64 - 1) * stride + self.record_words as u64,
+            )),
+            Pattern::Strided { .. } => Some((self.base, self.base)),
+            Pattern::Indexed { .. } => None,
+        }
+    }
+
+    /// The SRF index stream `[start, start + records)`, for an indexed stream.
+    pub fn index_region(&self) -> Option<(usize, usize)> {
+        match self.pattern {
+            Pattern::Indexed { index_start, .. } => Some((index_start, self.records)),
+            Pattern::Strided { .. } => None,
+        }
+    }
+}
+
+/// Counters of one address generator.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct AgStats {
+    pub ops: u64,
+    pub words: u64,
+    pub busy_cycles: u64,
+}
+
+pub struct AddressGenerator {
+    id: u8,
+    path: String,
+    sb: usize,
+    isb: usize,
+    width: usize,
+    window: usize,
+    op: Option<MemOp>,
+    issued: usize,
+    retired: usize,
+    rob: Vec<Option<u32>>,
+    /// The index of the record being issued (indexed streams), once read.
+    index: Option<u64>,
+    flushing: bool,
+    /// The operation ended at the last edge.
+    finished: bool,
+    buf: Vec<u32>,
+    stats: AgStats,
+    ids: [SignalId; 4],
+}
+
+impl AddressGenerator {
+    /// Address generator `id` of a machine with `stream_buffers` SBs.
+    pub fn new(
+        scope: &mut Scope<'_>,
+        id: usize,
+        stream_buffers: usize,
+        width: usize,
+        window: usize,
+    ) -> Self {
+        let count = bits_for(u32::MAX as u64);
+        AddressGenerator {
+            id: id as u8,
+            path: scope.path().to_string(),
+            sb: stream_buffers - 1 - 2 * id,
+            isb: stream_buffers - 2 - 2 * id,
+            width,
+            window,
+            op: None,
+            issued: 0,
+            retired: 0,
+            rob: vec![None; window],
+            index: None,
+            flushing: false,
+            finished: false,
+            buf: Vec::with_capacity(width),
+            stats: AgStats::default(),
+            ids: [
+                scope.signal("busy", 1, SignalKind::Reg),
+                scope.signal("issued", count, SignalKind::Reg),
+                scope.signal("retired", count, SignalKind::Reg),
+                scope.signal("outstanding", bits_for(window as u64), SignalKind::Reg),
+            ],
+        }
+    }
+
+    pub fn is_busy(&self) -> bool {
+        self.op.is_some()
+    }
+
+    /// Whether an operation ended at the last edge (and it is free again).
+    pub fn just_finished(&self) -> bool {
+        self.finished
+    }
+
+    pub fn stats(&self) -> &AgStats {
+        &self.stats
+    }
+
+    /// Starts `op` (between cycles): binds its stream buffers.
+    pub fn start(&mut self, op: MemOp, srf: &mut Srf) -> Result<(), ContractError> {
+        if self.op.is_some() {
+            return Err(self.error("start", "an operation is already running".into()));
+        }
+        match op.kind {
+            MemOpKind::Load => srf.bind_output(self.sb, op.srf_start, op.words())?,
+            MemOpKind::Store => srf.bind_input(self.sb, op.srf_start, op.words())?,
+        }
+        if let Some((start, len)) = op.index_region() {
+            srf.bind_input(self.isb, start, len)?;
+        }
+        self.op = Some(op);
+        self.issued = 0;
+        self.retired = 0;
+        self.index = None;
+        self.flushing = false;
+        self.stats.ops += 1;
+        Ok(())
+    }
+
+    /// A reply for this generator (read data or a write acknowledgement).
+    pub fn accept(&mut self, r: &Reply) -> Result<(), ContractError> {
+        let Some(op) = &self.op else {
+            return Err(self.error("reply", "a reply arrived with no operation running".into()));
+        };
+        match op.kind {
+            MemOpKind::Load => {
+                let slot = r.tag.seq as usize % self.window;
+                if self.rob[slot].is_some() {
+                    return Err(self.error("reply", format!("reorder slot {slot} taken twice")));
+                }
+                self.rob[slot] = Some(r.data[0]);
+            }
+            MemOpKind::Store => self.retired += 1,
+        }
+        Ok(())
+    }
+
+    fn error(&self, what: &str, msg: String) -> ContractError {
+        ContractError::at(&format!("{}.{what}", self.path), Violation::Other(msg))
+    }
+
+    /// One core cycle: retire load data into the stream buffer, issue references.
+    pub fn eval(&mut self, srf: &mut Srf, ports: &mut MemPorts) -> Result<(), ContractError> {
+        let Some(op) = self.op else { return Ok(()) };
+        self.stats.busy_cycles += 1;
+        let words = op.words();
+        if op.kind == MemOpKind::Load {
+            self.buf.clear();
+            let room = srf.space(self.sb).min(self.width);
+            while self.buf.len() < room && self.retired + self.buf.len() < words {
+                let slot = (self.retired + self.buf.len()) % self.window;
+                match self.rob[slot].take() {
+                    Some(w) => self.buf.push(w),
+                    None => break,
+                }
+            }
+            if !self.buf.is_empty() {
+                srf.memory_write(self.sb, &self.buf)?;
+                self.retired += self.buf.len();
+                self.stats.words += self.buf.len() as u64;
+            }
+            if self.retired == words && !self.flushing {
+                srf.flush(self.sb)?;
+                self.flushing = true;
+            }
+        }
+        for _ in 0..self.width {
+            if self.issued == words || self.issued - self.retired >= self.window {
+                break;
+            }
+            let rec = (self.issued / op.record_words) as u64;
+            let j = (self.issued % op.record_words) as u64;
+            let start = match op.pattern {
+                Pattern::Strided { stride } => op.base + rec * stride,
+                Pattern::Indexed { scale, .. } => {
+                    if self.index.is_none() {
+                        if srf.available(self.isb) == 0 {
+                            break;
+                        }
+                        self.index = Some(srf.memory_read(self.isb, 1)?[0] as u64);
+                    }
+                    op.base + self.index.expect("read above") * scale
+                }
+            };
+            let byte = (start + j) * 4;
+            let Some(loc) = ports.params().map(byte) else {
+                return Err(self.error(
+                    "address",
+                    format!(
+                        "word {} of the stream is at byte address {byte:#x}, past the end of memory ({} bytes)",
+                        self.issued,
+                        ports.params().capacity_bytes()
+                    ),
+                ));
+            };
+            if !ports.can_push(loc.channel) {
+                break;
+            }
+            let mut data = [0u32; 8];
+            if op.kind == MemOpKind::Store {
+                if srf.available(self.sb) == 0 {
+                    break;
+                }
+                data[0] = srf.memory_read(self.sb, 1)?[0];
+                self.stats.words += 1;
+            }
+            ports.push(
+                loc.channel,
+                Request {
+                    write: op.kind == MemOpKind::Store,
+                    byte_addr: byte,
+                    data,
+                    tag: Tag {
+                        source: self.id,
+                        seq: self.issued as u32,
+                    },
+                },
+            )?;
+            self.issued += 1;
+            if j + 1 == op.record_words as u64 {
+                self.index = None;
+            }
+        }
+        Ok(())
+    }
+
+    /// The clock edge (after the SRF's): ends a finished operation and frees its stream
+    /// buffers.
+    pub fn commit(&mut self, srf: &mut Srf) -> Result<(), ContractError> {
+        self.finished = false;
+        let Some(op) = self.op else { return Ok(()) };
+        let done = match op.kind {
+            MemOpKind::Load => self.flushing && srf.flushed(self.sb),
+            MemOpKind::Store => self.retired == op.words(),
+        };
+        if done {
+            srf.unbind(self.sb)?;
+            if op.index_region().is_some() {
+                srf.unbind(self.isb)?;
+            }
+            self.op = None;
+            self.finished = true;
+        }
+        Ok(())
+    }
+
+    pub fn trace(&self, t: &mut Trace) {
+        t.value(self.ids[0], self.op.is_some() as u64);
+        t.value(self.ids[1], self.issued as u64 & 0xFFFF_FFFF);
+        t.value(self.ids[2], self.retired as u64 & 0xFFFF_FFFF);
+        t.value(self.ids[3], (self.issued - self.retired) as u64);
+    }
+}

@@ -1,0 +1,412 @@
+//! The stream processor as a whole: the stream controller, the address generators, the
+//! clusters and the SRF in the core clock domain, and the SDRAM channels in the DRAM clock
+//! domain, joined by synchronising FIFOs (ARCHITECTURE §4).
+//!
+//! ```text
+//!  host ─▶ stream controller ─┬─▶ clusters + SRF (Machine)
+//!          (queue, scoreboard)├─▶ AG0, AG1 ◀──▶ SRF stream buffers
+//!                             └─▶ microcode loader     │
+//!                                   MemPorts ◀─ async FIFOs ─▶ top.mem.chN (DRAM domain)
+//! ```
+//!
+//! The core-domain part is one hdl module, [`Processor`] (its blocks are evaluated in a
+//! fixed order within the cycle and each reads only committed state of the others); each
+//! channel is its own module. A stream program ([`StreamProgram`]) is a list of stream
+//! instructions plus the kernels they name; the host hands all of them to the stream
+//! controller before the first cycle and the run ends when every instruction has
+//! completed and the channels are idle.
+
+use imagine_hdl::{
+    ClockDomain, ContractError, Design, DomainId, Module, SignalId, SignalKind, Sim, Trace,
+    Violation, bits_for,
+};
+
+use crate::desc::MachineDesc;
+use crate::dram::replay::report_of;
+use crate::dram::{DramChannel, DramParams, Policy, ReplayReport, Reply};
+use crate::machine::Machine;
+use crate::memory::{AddressGenerator, MemPorts, MemoryConfig, build_memory};
+use crate::microcode::Program;
+use crate::runner::{OnStart, RunError};
+use crate::stream_controller::{InstrRecord, Issue, StreamController, StreamInstr, Unit};
+
+/// Kernels and the stream instructions that use them.
+#[derive(Clone, Debug, Default)]
+pub struct StreamProgram {
+    pub kernels: Vec<Program>,
+    pub instrs: Vec<StreamInstr>,
+}
+
+/// How to build the processor.
+#[derive(Default)]
+pub struct ProcessorOptions {
+    /// The scheduling policy (`None`: the machine description's).
+    pub policy: Option<Policy>,
+    /// Keep every DRAM request, for `--dram-trace`.
+    pub record_dram: bool,
+    /// Words to place in DRAM before the run: (word address, words).
+    pub dram_init: Vec<(u64, Vec<u32>)>,
+    /// Words to place in the SRF before the run: (SRF word, words).
+    pub srf_init: Vec<(usize, Vec<u32>)>,
+    pub on_start: Option<OnStart>,
+}
+
+struct RunningKernel {
+    id: usize,
+    program: usize,
+    started: u64,
+}
+
+/// The core-domain part of the processor.
+pub struct Processor {
+    domain: DomainId,
+    machine: Machine,
+    ags: Vec<AddressGenerator>,
+    ports: MemPorts,
+    sc: StreamController,
+    cycle: u64,
+    issue: Option<Issue>,
+    kernel: Option<RunningKernel>,
+    /// Microcode load in progress: (instruction, done at cycle).
+    loader: Option<(usize, u64)>,
+    ag_ops: Vec<Option<usize>>,
+    replies: Vec<Reply>,
+    /// An error met at a clock edge, reported by the next `eval`.
+    deferred: Option<ContractError>,
+    path: String,
+    ids: [SignalId; 4],
+}
+
+impl Processor {
+    pub fn controller(&self) -> &StreamController {
+        &self.sc
+    }
+
+    pub fn machine(&self) -> &Machine {
+        &self.machine
+    }
+
+    pub fn address_generators(&self) -> &[AddressGenerator] {
+        &self.ags
+    }
+
+    /// Whether every stream instruction has completed.
+    pub fn is_done(&self) -> bool {
+        self.sc.is_done() && self.issue.is_none()
+    }
+
+    fn error(&self, what: &str, msg: String) -> ContractError {
+        ContractError::at(&format!("{}.{what}", self.path), Violation::Other(msg))
+    }
+
+    fn start(&mut self, is: &Issue) -> Result<(), ContractError> {
+        let cycle = self.cycle;
+        match (&is.instr, is.unit) {
+            (StreamInstr::Memory(op), Unit::AddressGenerator(a)) => {
+                self.ags[a].start(*op, self.machine.srf_mut())?;
+                self.ag_ops[a] = Some(is.id);
+            }
+            (StreamInstr::Kernel { program, bindings }, Unit::Clusters) => {
+                let p = &self.sc.programs()[*program];
+                if !self.sc.is_resident(*program) {
+                    return Err(self.error(
+                        "issue",
+                        format!("kernel `{}` issued before its microcode was loaded", p.name),
+                    ));
+                }
+                let p = p.clone();
+                self.machine
+                    .start(&p, bindings)
+                    .map_err(|e| self.error("issue", e.to_string()))?;
+                self.kernel = Some(RunningKernel {
+                    id: is.id,
+                    program: *program,
+                    started: cycle,
+                });
+            }
+            (StreamInstr::LoadMicrocode { program }, Unit::MicrocodeLoader) => {
+                let in_use = self.kernel.as_ref().map(|k| k.program);
+                self.sc
+                    .load_microcode(*program, in_use)
+                    .map_err(|e| self.error("issue", e))?;
+                let len = self.sc.programs()[*program].code.len() as u64;
+                self.loader = Some((is.id, cycle + len.max(1)));
+            }
+            _ => unreachable!("the controller picks a unit of the instruction's kind"),
+        }
+        Ok(())
+    }
+
+    fn edge(&mut self) -> Result<(), ContractError> {
+        let cycle = self.cycle;
+        for ag in &mut self.ags {
+            ag.commit(self.machine.srf_mut())?;
+        }
+        self.ports.commit();
+        for a in 0..self.ags.len() {
+            if self.ags[a].just_finished()
+                && let Some(id) = self.ag_ops[a].take()
+            {
+                self.sc.complete(id, cycle);
+            }
+        }
+        if let Some(k) = &self.kernel
+            && self.machine.is_idle()
+            && cycle >= k.started + self.sc.min_kernel_cycles()
+        {
+            let id = k.id;
+            self.machine.release_streams()?;
+            self.sc.complete(id, cycle);
+            self.kernel = None;
+        }
+        if let Some((id, done)) = self.loader
+            && cycle >= done
+        {
+            self.sc.complete(id, cycle);
+            self.loader = None;
+        }
+        let issue = self.issue.take();
+        if let Some(is) = &issue {
+            self.start(is)?;
+        }
+        self.sc.commit(cycle, issue.as_ref());
+        Ok(())
+    }
+}
+
+impl Module for Processor {
+    fn domain(&self) -> DomainId {
+        self.domain
+    }
+
+    fn eval(&mut self) -> Result<(), ContractError> {
+        if let Some(e) = self.deferred.take() {
+            return Err(e);
+        }
+        let ags = &self.ags;
+        self.issue = self.sc.select(
+            |a| !ags[a].is_busy(),
+            ags.len(),
+            self.kernel.is_none(),
+            self.loader.is_none(),
+        );
+        self.replies.clear();
+        self.ports.pop_replies(&mut self.replies)?;
+        for r in &self.replies {
+            let Some(ag) = self.ags.get_mut(r.tag.source as usize) else {
+                return Err(self.error(
+                    "replies",
+                    format!("a reply for address generator {}", r.tag.source),
+                ));
+            };
+            ag.accept(r)?;
+        }
+        // The address generators take turns at offering references first (round robin).
+        let n = self.ags.len();
+        for k in 0..n {
+            let a = (self.cycle as usize + k) % n;
+            self.ags[a].eval(self.machine.srf_mut(), &mut self.ports)?;
+        }
+        self.machine.eval()
+    }
+
+    fn commit(&mut self) {
+        self.machine.commit();
+        if let Err(e) = self.edge() {
+            self.deferred = Some(e);
+        }
+        self.cycle += 1;
+    }
+
+    fn trace(&self, t: &mut Trace) {
+        self.machine.trace(t);
+        self.ags.iter().for_each(|a| a.trace(t));
+        t.value(self.ids[0], self.sc.occupancy() as u64);
+        t.value(self.ids[1], self.kernel.is_some() as u64);
+        t.value(self.ids[2], self.loader.is_some() as u64);
+        t.value(
+            self.ids[3],
+            self.ags.iter().filter(|a| a.is_busy()).count() as u64,
+        );
+    }
+}
+
+/// Builds the processor of `desc` running `program`.
+pub fn build(
+    desc: &MachineDesc,
+    program: StreamProgram,
+    mut opts: ProcessorOptions,
+) -> Result<Sim, RunError> {
+    let setup = |e: String| RunError::Setup(e);
+    if desc.dram.burst_words != 1 {
+        return Err(setup(format!(
+            "machine `{}`: the address generators issue one-word references and need \
+             dram.burst_words = 1, not {}",
+            desc.name, desc.dram.burst_words
+        )));
+    }
+    for (i, k) in program.kernels.iter().enumerate() {
+        k.check(desc)
+            .map_err(|e| setup(format!("kernel {i} (`{}`): {e}", k.name)))?;
+    }
+    for (i, instr) in program.instrs.iter().enumerate() {
+        let bad = match instr {
+            StreamInstr::Kernel { program: p, .. } | StreamInstr::LoadMicrocode { program: p } => {
+                *p >= program.kernels.len()
+            }
+            StreamInstr::Memory(m) => m.record_words == 0,
+        };
+        if bad {
+            return Err(setup(format!(
+                "stream instruction {i} names a kernel that is not in the program or has 0-word records"
+            )));
+        }
+    }
+    let domains = vec![
+        ClockDomain::mhz("core", desc.clocks.core_mhz),
+        ClockDomain::mhz("dram", desc.clocks.dram_mhz),
+    ];
+    let mut design = Design::new("top", domains).map_err(|e| setup(e.to_string()))?;
+    let core = design.domain("core").map_err(|e| setup(e.to_string()))?;
+    let policy = match opts.policy {
+        Some(p) => p,
+        None => Policy::parse(&desc.memory.policy).expect("validated"),
+    };
+    let ports = build_memory(
+        &mut design,
+        desc,
+        MemoryConfig {
+            policy,
+            record: opts.record_dram,
+            init: std::mem::take(&mut opts.dram_init),
+        },
+    )
+    .map_err(|e| setup(e.to_string()))?;
+    let mut top = design.scope();
+    let mut machine = Machine::new(&mut top, desc);
+    for (start, words) in &opts.srf_init {
+        machine.srf_mut().load(*start, words)?;
+    }
+    let m = &desc.memory;
+    let ags = (0..m.address_generators)
+        .map(|k| {
+            AddressGenerator::new(
+                &mut top.child(&format!("ag{k}")),
+                k,
+                desc.srf.stream_buffers,
+                m.ag_words_per_cycle,
+                m.ag_reorder_words,
+            )
+        })
+        .collect::<Vec<_>>();
+    let mut s = top.child("sc");
+    let ids = [
+        s.signal(
+            "scoreboard",
+            bits_for(desc.stream_controller.scoreboard_entries as u64),
+            SignalKind::Reg,
+        ),
+        s.signal("kernel_busy", 1, SignalKind::Reg),
+        s.signal("loader_busy", 1, SignalKind::Reg),
+        s.signal(
+            "ags_busy",
+            bits_for(m.address_generators as u64),
+            SignalKind::Reg,
+        ),
+    ];
+    let path = s.path().to_string();
+    let n_ags = ags.len();
+    design.add(Processor {
+        domain: core,
+        machine,
+        ags,
+        ports,
+        sc: StreamController::new(desc, program.kernels, program.instrs),
+        cycle: 0,
+        issue: None,
+        kernel: None,
+        loader: None,
+        ag_ops: vec![None; n_ags],
+        replies: Vec::new(),
+        deferred: None,
+        path,
+        ids,
+    });
+    let mut sim = Sim::new(design);
+    if let Some(f) = opts.on_start.take() {
+        f(&mut sim).map_err(RunError::Setup)?;
+    }
+    Ok(sim)
+}
+
+/// What a stream program run did.
+#[derive(Clone, Debug)]
+pub struct StreamReport {
+    pub core_cycles: u64,
+    pub dram_cycles: u64,
+    /// Per stream instruction: when it entered the scoreboard, issued and completed.
+    pub records: Vec<InstrRecord>,
+    /// Per instruction, a short name (`load`, `kernel madd`, …).
+    pub names: Vec<String>,
+    pub dram: ReplayReport,
+}
+
+pub fn processor(sim: &Sim) -> &Processor {
+    sim.modules_of::<Processor>()
+        .next()
+        .expect("the design holds a processor")
+}
+
+/// Runs a built processor until the stream program has completed.
+pub fn run(
+    sim: &mut Sim,
+    desc: &MachineDesc,
+    max_core_cycles: u64,
+) -> Result<StreamReport, RunError> {
+    let done = |sim: &Sim| {
+        processor(sim).is_done() && sim.modules_of::<DramChannel>().all(DramChannel::is_idle)
+    };
+    let finished = sim.run_until(max_core_cycles, done)?;
+    sim.finish()
+        .map_err(|e| RunError::Setup(format!("cannot finish the trace: {e}")))?;
+    if !finished {
+        return Err(RunError::Timeout {
+            kernel: "stream program".into(),
+            cycles: max_core_cycles,
+        });
+    }
+    let p = processor(sim);
+    let dram = sim.clocks().find("dram").expect("built with a DRAM domain");
+    let policy = sim
+        .modules_of::<DramChannel>()
+        .next()
+        .map(DramChannel::policy)
+        .unwrap_or(Policy::FirstReady);
+    Ok(StreamReport {
+        core_cycles: sim.core_cycles(),
+        dram_cycles: sim.clocks().cycles(dram),
+        names: p
+            .sc
+            .records()
+            .iter()
+            .map(|r| r.kind(p.sc.programs()))
+            .collect(),
+        records: p.sc.records().to_vec(),
+        dram: report_of(sim, policy, &DramParams::of(desc)),
+    })
+}
+
+/// `n` words of DRAM from word address `word` (host view, after a run).
+pub fn read_dram(sim: &Sim, desc: &MachineDesc, word: u64, n: usize) -> Vec<u32> {
+    let p = DramParams::of(desc);
+    let chans: Vec<&DramChannel> = sim.modules_of::<DramChannel>().collect();
+    (0..n as u64)
+        .map(|k| {
+            let byte = (word + k) * 4;
+            p.map(byte)
+                .and_then(|l| chans.iter().find(|c| c.index() == l.channel))
+                .and_then(|c| c.peek(byte))
+                .unwrap_or(0)
+        })
+        .collect()
+}

@@ -1,0 +1,368 @@
+//! The stream controller (ARCHITECTURE §4): takes stream instructions from the host,
+//! tracks their dependencies in a scoreboard and issues them to the address generators
+//! (loads, stores), the clusters (kernels) and the microcode store (microcode loads).
+//!
+//! * **Queue**: the host writes instructions into a queue of
+//!   `stream_controller.queue_entries`; one instruction per cycle moves from the queue into
+//!   a free scoreboard entry.
+//! * **Scoreboard** (`stream_controller.scoreboard_entries`, 32 on gold8): an entry may
+//!   issue when no older entry still in the scoreboard conflicts with it and its unit is
+//!   free. Two instructions conflict when one writes what the other reads or writes: SRF
+//!   words (a load writes its SRF stream, a store reads it, a kernel reads its inputs and
+//!   writes its outputs, an indexed stream also reads its index stream), DRAM words (a
+//!   store writes its range, a load reads it; an indexed stream may touch any word), or a
+//!   kernel's microcode (a microcode load writes it, a kernel reads it). Of the entries
+//!   that may issue, the oldest issues, one per cycle; an entry leaves the scoreboard when
+//!   its operation completes.
+//! * **Units**: the address generators (`memory.address_generators`), the clusters (one
+//!   kernel at a time), and the microcode loader (one program at a time, one VLIW
+//!   instruction per cycle (A), into a store of `microcontroller.store_words`
+//!   instructions; the oldest programs not in use are evicted to make room).
+//! * **Host dispatch overhead**: a kernel holds the clusters for at least
+//!   `stream_controller.min_kernel_cycles` core cycles (300 on gold8; Owens 2002 measured
+//!   200–500), however short its microcode run.
+//!
+//! The controller is pure decision logic: [`StreamController::select`] picks from
+//! committed state; the processor starts the chosen operation at the clock edge and
+//! reports completions back with [`StreamController::complete`].
+
+use std::collections::VecDeque;
+
+use crate::desc::MachineDesc;
+use crate::machine::StreamBinding;
+use crate::memory::{MemOp, MemOpKind};
+use crate::microcode::{Program, StreamDir};
+
+/// A stream instruction.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum StreamInstr {
+    /// A stream memory operation (load or store) on an address generator.
+    Memory(MemOp),
+    /// Run program `program` (an index into the stream program's kernels) with its
+    /// streams bound to these SRF regions, in declaration order.
+    Kernel {
+        program: usize,
+        bindings: Vec<StreamBinding>,
+    },
+    /// Load program `program`'s microcode into the microcode store.
+    LoadMicrocode { program: usize },
+}
+
+/// The unit an instruction runs on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Unit {
+    AddressGenerator(usize),
+    Clusters,
+    MicrocodeLoader,
+}
+
+/// When an instruction went through the controller (core cycles).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct InstrRecord {
+    pub instr: StreamInstr,
+    /// Entered the scoreboard.
+    pub entered: Option<u64>,
+    pub issued: Option<u64>,
+    pub unit: Option<Unit>,
+    pub completed: Option<u64>,
+}
+
+impl InstrRecord {
+    /// A short name: `load`, `store`, `kernel NAME`, `microcode NAME`.
+    pub fn kind(&self, programs: &[Program]) -> String {
+        match &self.instr {
+            StreamInstr::Memory(m) if m.kind == MemOpKind::Load => "load".into(),
+            StreamInstr::Memory(_) => "store".into(),
+            StreamInstr::Kernel { program, .. } => format!("kernel {}", programs[*program].name),
+            StreamInstr::LoadMicrocode { program } => {
+                format!("microcode {}", programs[*program].name)
+            }
+        }
+    }
+}
+
+/// What an instruction reads and writes, for the scoreboard.
+#[derive(Clone, Debug, Default)]
+struct Footprint {
+    srf_reads: Vec<(usize, usize)>,
+    srf_writes: Vec<(usize, usize)>,
+    /// DRAM words `[lo, hi)`; `None` inside means the whole memory.
+    mem_reads: Vec<Option<(u64, u64)>>,
+    mem_writes: Vec<Option<(u64, u64)>>,
+    code_read: Option<usize>,
+    code_write: Option<usize>,
+}
+
+fn overlap(a: (usize, usize), b: (usize, usize)) -> bool {
+    a.1 > 0 && b.1 > 0 && a.0 < b.0 + b.1 && b.0 < a.0 + a.1
+}
+
+fn mem_overlap(a: Option<(u64, u64)>, b: Option<(u64, u64)>) -> bool {
+    match (a, b) {
+        (Some(a), Some(b)) => a.0 < b.1 && b.0 < a.1,
+        _ => true,
+    }
+}
+
+impl Footprint {
+    fn of(instr: &StreamInstr, programs: &[Program]) -> Self {
+        let mut f = Footprint::default();
+        match instr {
+            StreamInstr::Memory(m) => {
+                let region = (m.srf_start, m.words());
+                if let Some(ix) = m.index_region() {
+                    f.srf_reads.push(ix);
+                }
+                match m.kind {
+                    MemOpKind::Load => {
+                        f.srf_writes.push(region);
+                        f.mem_reads.push(m.mem_range());
+                    }
+                    MemOpKind::Store => {
+                        f.srf_reads.push(region);
+                        f.mem_writes.push(m.mem_range());
+                    }
+                }
+            }
+            StreamInstr::Kernel { program, bindings } => {
+                for (s, b) in programs[*program].streams.iter().zip(bindings) {
+                    match s.dir {
+                        StreamDir::In => f.srf_reads.push((b.start, b.words)),
+                        StreamDir::Out => f.srf_writes.push((b.start, b.words)),
+                    }
+                }
+                f.code_read = Some(*program);
+            }
+            StreamInstr::LoadMicrocode { program } => f.code_write = Some(*program),
+        }
+        f
+    }
+
+    /// Whether `later` must wait for `self` (an older instruction).
+    fn blocks(&self, later: &Footprint) -> bool {
+        let srf = |w: &[(usize, usize)], r: &[(usize, usize)]| {
+            w.iter().any(|&a| r.iter().any(|&b| overlap(a, b)))
+        };
+        let mem = |w: &[Option<(u64, u64)>], r: &[Option<(u64, u64)>]| {
+            w.iter().any(|&a| r.iter().any(|&b| mem_overlap(a, b)))
+        };
+        srf(&self.srf_writes, &later.srf_reads)
+            || srf(&self.srf_writes, &later.srf_writes)
+            || srf(&later.srf_writes, &self.srf_reads)
+            || mem(&self.mem_writes, &later.mem_reads)
+            || mem(&self.mem_writes, &later.mem_writes)
+            || mem(&later.mem_writes, &self.mem_reads)
+            || (self.code_write.is_some()
+                && (self.code_write == later.code_read || self.code_write == later.code_write))
+            || (later.code_write.is_some() && later.code_write == self.code_read)
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Entry {
+    /// Index into the instruction list (program order).
+    id: usize,
+    footprint: Footprint,
+    running: bool,
+}
+
+/// Counters of the controller.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ScStats {
+    /// Cycles some scoreboard entry was ready but its unit was busy.
+    pub unit_busy_cycles: u64,
+    /// Cycles the scoreboard was full while the queue held instructions.
+    pub scoreboard_full_cycles: u64,
+    /// Most entries in the scoreboard at once.
+    pub max_occupancy: usize,
+}
+
+pub struct StreamController {
+    programs: Vec<Program>,
+    records: Vec<InstrRecord>,
+    /// Instructions the host has not yet written into the queue, and the queue.
+    host: VecDeque<usize>,
+    queue: VecDeque<usize>,
+    queue_cap: usize,
+    scoreboard: Vec<Entry>,
+    sb_cap: usize,
+    min_kernel: u64,
+    store_words: usize,
+    /// Programs in the microcode store, oldest first.
+    resident: Vec<usize>,
+    stats: ScStats,
+}
+
+/// The operation the controller wants started this cycle.
+#[derive(Clone, Debug)]
+pub struct Issue {
+    pub id: usize,
+    pub unit: Unit,
+    pub instr: StreamInstr,
+}
+
+impl StreamController {
+    pub fn new(desc: &MachineDesc, programs: Vec<Program>, instrs: Vec<StreamInstr>) -> Self {
+        let n = instrs.len();
+        StreamController {
+            programs,
+            records: instrs
+                .into_iter()
+                .map(|instr| InstrRecord {
+                    instr,
+                    entered: None,
+                    issued: None,
+                    unit: None,
+                    completed: None,
+                })
+                .collect(),
+            host: (0..n).collect(),
+            queue: VecDeque::new(),
+            queue_cap: desc.stream_controller.queue_entries,
+            scoreboard: Vec::new(),
+            sb_cap: desc.stream_controller.scoreboard_entries,
+            min_kernel: desc.stream_controller.min_kernel_cycles,
+            store_words: desc.microcontroller.store_words,
+            resident: Vec::new(),
+            stats: ScStats::default(),
+        }
+    }
+
+    pub fn programs(&self) -> &[Program] {
+        &self.programs
+    }
+
+    pub fn records(&self) -> &[InstrRecord] {
+        &self.records
+    }
+
+    pub fn stats(&self) -> &ScStats {
+        &self.stats
+    }
+
+    pub fn min_kernel_cycles(&self) -> u64 {
+        self.min_kernel
+    }
+
+    /// Whether every instruction has completed.
+    pub fn is_done(&self) -> bool {
+        self.host.is_empty() && self.queue.is_empty() && self.scoreboard.is_empty()
+    }
+
+    /// Entries in the scoreboard.
+    pub fn occupancy(&self) -> usize {
+        self.scoreboard.len()
+    }
+
+    /// Picks the oldest scoreboard entry that may issue on a free unit (`free_ag` gives the
+    /// free address generators, `clusters_free` and `loader_free` the other units), from
+    /// committed state.
+    pub fn select(
+        &mut self,
+        free_ag: impl Fn(usize) -> bool,
+        ags: usize,
+        clusters_free: bool,
+        loader_free: bool,
+    ) -> Option<Issue> {
+        let mut unit_busy = false;
+        for (k, e) in self.scoreboard.iter().enumerate() {
+            if e.running {
+                continue;
+            }
+            let blocked = self.scoreboard[..k]
+                .iter()
+                .any(|o| o.footprint.blocks(&e.footprint));
+            if blocked {
+                continue;
+            }
+            let instr = &self.records[e.id].instr;
+            let unit = match instr {
+                StreamInstr::Memory(_) => {
+                    (0..ags).find(|&a| free_ag(a)).map(Unit::AddressGenerator)
+                }
+                StreamInstr::Kernel { .. } => clusters_free.then_some(Unit::Clusters),
+                StreamInstr::LoadMicrocode { .. } => loader_free.then_some(Unit::MicrocodeLoader),
+            };
+            match unit {
+                Some(unit) => {
+                    return Some(Issue {
+                        id: e.id,
+                        unit,
+                        instr: instr.clone(),
+                    });
+                }
+                None => unit_busy = true,
+            }
+        }
+        if unit_busy {
+            self.stats.unit_busy_cycles += 1;
+        }
+        None
+    }
+
+    /// The clock edge: records the issue of `issue` in `cycle`, and moves one instruction
+    /// host → queue and one queue → scoreboard.
+    pub fn commit(&mut self, cycle: u64, issue: Option<&Issue>) {
+        if let Some(is) = issue {
+            let r = &mut self.records[is.id];
+            r.issued = Some(cycle);
+            r.unit = Some(is.unit);
+            if let Some(e) = self.scoreboard.iter_mut().find(|e| e.id == is.id) {
+                e.running = true;
+            }
+        }
+        if self.scoreboard.len() < self.sb_cap {
+            if let Some(id) = self.queue.pop_front() {
+                let footprint = Footprint::of(&self.records[id].instr, &self.programs);
+                self.records[id].entered = Some(cycle);
+                self.scoreboard.push(Entry {
+                    id,
+                    footprint,
+                    running: false,
+                });
+            }
+        } else if !self.queue.is_empty() {
+            self.stats.scoreboard_full_cycles += 1;
+        }
+        if self.queue.len() < self.queue_cap
+            && let Some(id) = self.host.pop_front()
+        {
+            self.queue.push_back(id);
+        }
+        self.stats.max_occupancy = self.stats.max_occupancy.max(self.scoreboard.len());
+    }
+
+    /// Instruction `id` completed in `cycle`: its entry leaves the scoreboard.
+    pub fn complete(&mut self, id: usize, cycle: u64) {
+        self.records[id].completed = Some(cycle);
+        self.scoreboard.retain(|e| e.id != id);
+    }
+
+    /// Makes room for and records program `p` in the microcode store; `in_use` is the
+    /// program the clusters are running. Errors if it cannot fit.
+    pub fn load_microcode(&mut self, p: usize, in_use: Option<usize>) -> Result<(), String> {
+        let size = |q: usize| self.programs[q].code.len();
+        if size(p) > self.store_words {
+            return Err(format!(
+                "kernel `{}` has {} instructions; the microcode store holds {}",
+                self.programs[p].name,
+                size(p),
+                self.store_words
+            ));
+        }
+        self.resident.retain(|&q| q != p);
+        while self.resident.iter().map(|&q| size(q)).sum::<usize>() + size(p) > self.store_words {
+            let Some(pos) = self.resident.iter().position(|&q| Some(q) != in_use) else {
+                break;
+            };
+            self.resident.remove(pos);
+        }
+        self.resident.push(p);
+        Ok(())
+    }
+
+    /// Whether program `p`'s microcode is in the store.
+    pub fn is_resident(&self, p: usize) -> bool {
+        self.resident.contains(&p)
+    }
+}
