@@ -345,5 +345,9 @@ fn units_latencies_and_arities_follow_the_architecture() {
     for class in [UnitClass::Adder, UnitClass::Multiplier, UnitClass::DivSqrt] {
         assert!(Op::ALL.iter().any(|o| o.unit() == class));
     }
-    assert_eq!(Op::ALL.len(), 15 + 26 + 33 + 1, "fp32, int32, packed, and `mov`");
+    assert_eq!(
+        Op::ALL.len(),
+        15 + 26 + 33 + 1,
+        "fp32, int32, packed, and `mov`"
+    );
 }
