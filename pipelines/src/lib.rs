@@ -1,2 +1,7 @@
 //! imagine-pipelines: kernel IR, interpreter, compiler to microcode, stream programs,
 //! rendering pipelines and scenes (ARCHITECTURE §5).
+
+pub mod compile;
+pub mod kernel;
+pub mod kernels;
+pub mod run;

@@ -1,4 +1,5 @@
-//! `imagine kernel`: microcode assembly, disassembly and runs.
+//! `imagine kernel`: the kernel library (list, show its compiled schedule, check it on the
+//! machine against the interpreter), and microcode assembly, disassembly and runs.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -12,6 +13,10 @@ use imagine_units::microcode::image::{read_image, write_image};
 use imagine_units::microcode::layout::InstructionLayout;
 use imagine_units::microcode::{Program, StreamDir};
 use imagine_units::runner::{RunOptions, run_kernel};
+
+use imagine_pipelines::compile::compile;
+use imagine_pipelines::kernels::{LibraryKernel, find, library};
+use imagine_pipelines::run::check;
 
 use super::waves::WaveArgs;
 
@@ -56,11 +61,38 @@ pub enum KernelCommand {
         waves: WaveArgs,
     },
     /// List the kernel library
-    List,
-    /// Show a kernel's schedule and resource use
-    Show { name: String },
-    /// Run a kernel on random inputs on the machine and in the interpreter and compare
-    Check { name: String },
+    List {
+        #[arg(long)]
+        json: bool,
+    },
+    /// Compile a library kernel and show its schedule and resource use: op counts per unit
+    /// class, II bounds and achieved II, stages, ops/cycle, LRF use, the schedule table
+    Show {
+        /// Kernel name (see `imagine kernel list`)
+        name: String,
+        #[arg(long, default_value = "gold8")]
+        machine: String,
+        #[arg(long)]
+        json: bool,
+        /// Also print the microcode
+        #[arg(long)]
+        microcode: bool,
+    },
+    /// Run a library kernel on random inputs on the machine and in the interpreter and
+    /// compare every output word
+    Check {
+        /// Kernel name, or `all`
+        name: String,
+        #[arg(long, default_value = "gold8")]
+        machine: String,
+        /// Loop iterations of random input
+        #[arg(long, default_value_t = 4)]
+        rows: usize,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -151,11 +183,111 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
                 host
             );
         }
-        KernelCommand::List | KernelCommand::Show { .. } | KernelCommand::Check { .. } => {
-            bail!("the kernel library and compiler are not available yet in this build")
+        KernelCommand::List { json } => {
+            let lib = library();
+            if json {
+                let list: Vec<_> = lib
+                    .iter()
+                    .map(|k| serde_json::json!({"name": k.name, "description": k.description}))
+                    .collect();
+                println!("{}", serde_json::to_string_pretty(&list)?);
+            } else {
+                for k in lib {
+                    println!("{:<12} {}", k.name, k.description);
+                }
+            }
+        }
+        KernelCommand::Show {
+            name,
+            machine,
+            json,
+            microcode,
+        } => {
+            let desc = MachineDesc::resolve(&machine)?;
+            let lk = find_kernel(&name)?;
+            let compiled = compile(&(lk.build)(&desc), &desc)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&compiled.report)?);
+            } else {
+                print!("{}", compiled.report.text());
+            }
+            if microcode {
+                print!("{}", disassemble(&compiled.program, &desc));
+            }
+        }
+        KernelCommand::Check {
+            name,
+            machine,
+            rows,
+            seed,
+            json,
+        } => {
+            let desc = MachineDesc::resolve(&machine)?;
+            let kernels: Vec<&LibraryKernel> = if name == "all" {
+                library().iter().collect()
+            } else {
+                vec![find_kernel(&name)?]
+            };
+            let mut results = Vec::new();
+            let mut failed = false;
+            for lk in kernels {
+                let kernel = (lk.build)(&desc);
+                let compiled = compile(&kernel, &desc)?;
+                let inputs = (lk.inputs)(&desc, rows.max(1), seed);
+                let check =
+                    check(&kernel, &compiled, &desc, &inputs).map_err(|e| anyhow::anyhow!(e))?;
+                failed |= check.mismatch.is_some();
+                let r = &compiled.report;
+                if json {
+                    results.push(serde_json::json!({
+                        "kernel": lk.name,
+                        "machine": desc.name,
+                        "words": check.words,
+                        "pass": check.mismatch.is_none(),
+                        "mismatch": check.mismatch.as_ref().map(|m| m.to_string()),
+                        "cycles": check.stats.cycles,
+                        "ii": r.ii,
+                        "mii": r.mii(),
+                        "ops_per_cycle_loop": r.ops_per_cycle,
+                    }));
+                } else {
+                    match &check.mismatch {
+                        None => println!(
+                            "{}: pass on {}: {} output words equal the interpreter's \
+                             ({} cycles, II {} vs bound {})",
+                            lk.name,
+                            desc.name,
+                            check.words,
+                            check.stats.cycles,
+                            r.ii.map_or("-".into(), |i| i.to_string()),
+                            r.mii()
+                        ),
+                        Some(m) => println!("{}: FAIL on {}: {m}", lk.name, desc.name),
+                    }
+                }
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&results)?);
+            }
+            if failed {
+                return Ok(ExitCode::FAILURE);
+            }
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+fn find_kernel(name: &str) -> Result<&'static LibraryKernel> {
+    match find(name) {
+        Some(k) => Ok(k),
+        None => {
+            let names: Vec<&str> = library().iter().map(|k| k.name).collect();
+            bail!(
+                "no kernel `{name}` in the library (there are: {})",
+                names.join(", ")
+            )
+        }
+    }
 }
 
 fn format_word(w: u32, format: Format) -> String {

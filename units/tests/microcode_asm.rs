@@ -771,10 +771,10 @@ fn check_errors_point_at_the_offending_text() {
         "`until cc` loop cannot be software-pipelined",
     );
     fails(
-        &body("nop\nloop count 1, stages 9:\nnop\nnop\nend\ndone"),
+        &body("nop\nloop count 1, stages 17:\nnop\nnop\nend\ndone"),
         6,
         1,
-        "1..=8 software-pipeline stages, not 9",
+        "1..=16 software-pipeline stages, not 17",
     );
     let nested = "loop count 2:\nnop\n".repeat(5) + &"nop\nend\n".repeat(5);
     fails(&body(&format!("{nested}done")), 13, 1, "nested 5 deep");

@@ -777,16 +777,16 @@ fn loop_headers() {
         &looped(&d, LoopKind::Counted(4), 0, body()),
         0,
         "ctl.stages",
-        "a loop has 1..=8 software-pipeline stages, not 0",
+        "a loop has 1..=16 software-pipeline stages, not 0",
     );
     fails(
         &d,
-        &looped(&d, LoopKind::Counted(4), 9, body()),
+        &looped(&d, LoopKind::Counted(4), 17, body()),
         0,
         "ctl.stages",
-        "not 9",
+        "not 17",
     );
-    looped(&d, LoopKind::Counted(4), 8, body())
+    looped(&d, LoopKind::Counted(4), 16, body())
         .check(&d)
         .unwrap();
     fails(

@@ -47,8 +47,9 @@ use super::{
     Permutation, Program, SpSlot, StreamDir, StreamIn, StreamOut,
 };
 
-/// Software-pipeline stages a loop may have: the `stage` field of a slot is 3 bits wide.
-pub const MAX_STAGES: u8 = 8;
+/// Software-pipeline stages a loop may have: the `stage` field of a slot is 4 bits wide
+/// (short loops of long-latency ops, at an initiation interval of 1 or 2, need more than 8).
+pub const MAX_STAGES: u8 = 16;
 
 /// A program that does not fit the machine, or a word that is not an instruction. Names
 /// where: the kernel, the instruction index and the slot or field (as the instruction

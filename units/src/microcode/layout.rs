@@ -38,7 +38,7 @@
 //! *s* = bits of the largest stream index (`srf.kernel_streams − 1`), *l* = bits of the
 //! largest LRF index, *w* = bits of the largest scratchpad address, *k* = bits of the largest
 //! cluster index. [`InstructionLayout::describe`] prints the table with offsets for a
-//! machine; the `gold8` word is 632 bits wide (snapshot in `tests/microcode_layout.rs`).
+//! machine; the `gold8` word is 647 bits wide (snapshot in `tests/microcode_layout.rs`).
 //!
 //! [`InstructionLayout::encode`] requires every value to fit its field (a program that
 //! passes [`Program::check`](super::Program::check) always does);

@@ -1,0 +1,228 @@
+//! LRF and condition-code entry allocation, after scheduling.
+//!
+//! Values live across regions (computed before the loop and read in or after it, and the
+//! loop's carried values) keep their entries for the whole kernel. The other values are
+//! packed first-fit: a value written at cycle `w` and last read at `r` holds its entry over
+//! `[w, r)` — in the loop modulo the initiation interval, where it must fit in one interval
+//! because the next iteration rewrites it.
+
+use std::collections::HashMap;
+
+use super::graph::{Graph, Loc, Source};
+use super::schedule::{Schedule, Slots};
+use crate::kernel::Region;
+
+/// Entries of every (value, location) pair.
+#[derive(Clone, Debug, Default)]
+pub struct Entries {
+    pub entry: HashMap<(usize, Loc), u16>,
+    /// Entries in use per LRF (highest + 1), then the condition codes.
+    pub peak: Vec<usize>,
+    pub cc_peak: usize,
+}
+
+/// A location full: which, how many entries were needed, how many it has.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Overflow {
+    pub loc: Loc,
+    pub needed: usize,
+    pub entries: usize,
+    pub region: Option<Region>,
+}
+
+/// The ops whose results stay in their entries for the whole kernel.
+pub fn permanent(g: &Graph, s: &Schedule) -> Vec<bool> {
+    let mut p = vec![false; g.ops.len()];
+    for (i, op) in g.ops.iter().enumerate() {
+        if op.region == Region::Pre && !op.seeded.is_empty() {
+            p[i] = true;
+        }
+        if let Some(m) = op.tie {
+            p[m] = true;
+            p[i] = true;
+        }
+    }
+    let _ = s;
+    p
+}
+
+struct Occupancy {
+    /// Loop entries: cycles (mod II) each is held.
+    modulo: Vec<Vec<bool>>,
+    /// Straight-line entries: held intervals per region.
+    line: Vec<Vec<(Region, i64, i64)>>,
+}
+
+pub fn allocate(
+    g: &Graph,
+    s: &Schedule,
+    slots: &Slots,
+    ii: Option<i64>,
+    desc: &imagine_units::desc::MachineDesc,
+) -> Result<Entries, Overflow> {
+    let n = g.ops.len();
+    let perm = permanent(g, s);
+    // Last read of each (value, loc), in the reader's region time.
+    let mut last_read: HashMap<(usize, Loc), i64> = HashMap::new();
+    for (u, op) in g.ops.iter().enumerate() {
+        let Some(pl) = s.place[u] else { continue };
+        for a in &op.args {
+            if let Source::Local(p) = a.src {
+                let loc = slots_loc(slots, op.kind, pl, a);
+                let e = last_read.entry((p, loc)).or_insert(pl.time);
+                *e = (*e).max(pl.time);
+            }
+        }
+    }
+    let nlrf = slots.lrfs();
+    let capacity = |loc: Loc| match loc {
+        Loc::Lrf(l) => slots.shape.lrf_sizes[l as usize],
+        Loc::Cc => slots.shape.condition_codes,
+    };
+    let index = |loc: Loc| match loc {
+        Loc::Lrf(l) => l as usize,
+        Loc::Cc => nlrf,
+    };
+    let mut out = Entries {
+        peak: vec![0; nlrf],
+        ..Entries::default()
+    };
+    let mut next_perm = vec![0usize; nlrf + 1];
+    // Permanent values first: carried movs, then what their initialising movs share.
+    let mut order: Vec<usize> = (0..n)
+        .filter(|&i| perm[i] && g.ops[i].tie.is_none())
+        .collect();
+    order.extend((0..n).filter(|&i| perm[i] && g.ops[i].tie.is_some()));
+    for u in order {
+        for &loc in &s.dests[u] {
+            let e = match g.ops[u].tie {
+                Some(m) => *out
+                    .entry
+                    .get(&(m, loc))
+                    .expect("carried entries come first"),
+                None => {
+                    let k = index(loc);
+                    let e = next_perm[k];
+                    next_perm[k] += 1;
+                    if e >= capacity(loc) {
+                        return Err(Overflow {
+                            loc,
+                            needed: e + 1,
+                            entries: capacity(loc),
+                            region: None,
+                        });
+                    }
+                    e as u16
+                }
+            };
+            out.entry.insert((u, loc), e);
+        }
+    }
+    // Before the loop, a kept value's entry is free until the value is written.
+    let mut kept_from: HashMap<(usize, u16), i64> = HashMap::new();
+    for (u, op) in g.ops.iter().enumerate() {
+        let (true, Region::Pre, Some(pl)) = (perm[u], op.region, s.place[u]) else {
+            continue;
+        };
+        let w = pl.time + g.latency(u, desc);
+        for &loc in &s.dests[u] {
+            if let Some(&e) = out.entry.get(&(u, loc)) {
+                let at = kept_from.entry((index(loc), e)).or_insert(w);
+                *at = (*at).min(w);
+            }
+        }
+    }
+    let mut occ: Vec<Occupancy> = (0..=nlrf)
+        .map(|k| {
+            let cap = if k == nlrf {
+                slots.shape.condition_codes
+            } else {
+                slots.shape.lrf_sizes[k]
+            };
+            Occupancy {
+                modulo: vec![Vec::new(); cap],
+                line: vec![Vec::new(); cap],
+            }
+        })
+        .collect();
+    let mut values: Vec<usize> = (0..n)
+        .filter(|&i| !perm[i] && s.place[i].is_some() && !s.dests[i].is_empty())
+        .collect();
+    values.sort_by_key(|&i| (g.ops[i].region, s.place[i].map(|p| p.time)));
+    for u in values {
+        let pl = s.place[u].expect("placed");
+        let region = g.ops[u].region;
+        let w = pl.time + g.latency(u, desc);
+        for &loc in &s.dests[u] {
+            let r = last_read
+                .get(&(u, loc))
+                .copied()
+                .unwrap_or(w + 1)
+                .max(w + 1);
+            let k = index(loc);
+            let first = next_perm[k];
+            let cap = capacity(loc);
+            let o = &mut occ[k];
+            let mut chosen = None;
+            for e in 0..cap {
+                if e < first {
+                    // A kept value's entry, usable before the loop until it is written.
+                    let until = kept_from.get(&(k, e as u16)).copied();
+                    if region != Region::Pre || until.is_none_or(|w0| r > w0) {
+                        continue;
+                    }
+                }
+                let free = match (region, ii) {
+                    (Region::Loop, Some(ii)) => {
+                        let bits = &mut o.modulo[e];
+                        if bits.is_empty() {
+                            bits.resize(ii as usize, false);
+                        }
+                        (w..r).all(|c| !bits[c.rem_euclid(ii) as usize])
+                    }
+                    _ => o.line[e]
+                        .iter()
+                        .all(|&(rg, a, b)| rg != region || r <= a || b <= w),
+                };
+                if free {
+                    chosen = Some(e);
+                    break;
+                }
+            }
+            let Some(e) = chosen else {
+                return Err(Overflow {
+                    loc,
+                    needed: cap + 1,
+                    entries: cap,
+                    region: Some(region),
+                });
+            };
+            match (region, ii) {
+                (Region::Loop, Some(ii)) => {
+                    for c in w..r {
+                        o.modulo[e][c.rem_euclid(ii) as usize] = true;
+                    }
+                }
+                _ => o.line[e].push((region, w, r)),
+            }
+            out.entry.insert((u, loc), e as u16);
+        }
+    }
+    for (&(_, loc), &e) in &out.entry {
+        match loc {
+            Loc::Lrf(l) => out.peak[l as usize] = out.peak[l as usize].max(e as usize + 1),
+            Loc::Cc => out.cc_peak = out.cc_peak.max(e as usize + 1),
+        }
+    }
+    Ok(out)
+}
+
+/// Where operand `a` of an op placed at `pl` is read.
+pub fn slots_loc(
+    slots: &Slots,
+    kind: super::graph::Kind,
+    pl: super::schedule::Placement,
+    a: &super::graph::Arg,
+) -> Loc {
+    slots.operand_loc(kind, pl.slot, pl.swap, a)
+}

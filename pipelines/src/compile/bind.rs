@@ -1,0 +1,293 @@
+//! Unit binding, before scheduling: every op gets its slot (which adder, multiplier, comm
+//! unit) and commutative ops their operand order. The binding decides which LRFs each value
+//! is written to — one per distinct (slot, input) its readers read it through — so the
+//! scheduler knows, when it places a producer, every write port its result needs.
+//!
+//! Ops are bound in program order to the least-loaded unit of their class, preferring
+//! units whose input LRFs already receive their operands. A value read from more than two
+//! LRFs (a result has two switch destinations) gets `mov` copies: it keeps its most-read
+//! LRF and a copy on an adder serves the rest (recursively). This is the copy insertion of
+//! communication scheduling on distributed register files (Mattson et al., MICRO 2000), in
+//! its simplest greedy form.
+
+use std::collections::HashMap;
+
+use imagine_units::ops::{Op, UnitClass};
+
+use super::graph::{Arg, CopyKind, Graph, Input, Kind, Loc, MOp, Source, commutative};
+use super::schedule::{Schedule, Slots};
+use crate::kernel::Region;
+
+/// Binds the ops of `region` and sets their destinations (and the locations earlier
+/// regions' values are required in).
+pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>, slots: &Slots) {
+    undo_fanout_copies(g, region);
+    let mut ops = g.in_region(region);
+    ops.sort_by_key(|&o| (g.ops[o].ir.map_or(u32::MAX, |v| v.0), o));
+    let nfu = slots.shape.fu_count();
+    let mut load = vec![0usize; nfu + slots.shape.comm_units];
+    let mut groups: HashMap<usize, Vec<Loc>> = HashMap::new();
+    // Values of earlier regions kept in each LRF (for the whole loop), and where.
+    let mut kept = vec![0usize; slots.lrfs()];
+    let mut kept_at: std::collections::HashSet<(usize, Loc)> = std::collections::HashSet::new();
+    for (p, r) in sched.required.iter().enumerate() {
+        for &(l, by) in r {
+            if by != region
+                && kept_at.insert((p, l))
+                && let Loc::Lrf(x) = l
+            {
+                kept[x as usize] += 1;
+            }
+        }
+    }
+    for &o in &ops {
+        groups.insert(o, g.ops[o].seeded.clone());
+    }
+    for &u in &ops {
+        let op = &g.ops[u];
+        let options: Vec<(usize, bool)> = match op.kind {
+            Kind::Fu(o) => {
+                let units: Vec<usize> = match op.fixed_slot {
+                    Some(s) => vec![s],
+                    None => slots.fu_slots(o.unit()).collect(),
+                };
+                let swaps: &[bool] = if commutative(o) && op.args.len() == 2 {
+                    &[false, true]
+                } else {
+                    &[false]
+                };
+                units
+                    .iter()
+                    .flat_map(|&k| swaps.iter().map(move |&s| (k, s)))
+                    .collect()
+            }
+            Kind::Comm(_) => (0..slots.shape.comm_units).map(|k| (k, false)).collect(),
+            // One scratchpad holds the kernel's data; stream and immediate slots are
+            // assigned when the instruction is written.
+            _ => vec![(0, false)],
+        };
+        let weight = match op.kind {
+            Kind::Fu(o) if o.unit() == UnitClass::DivSqrt => slots.dsq_interval,
+            _ => 1,
+        };
+        let load_index = |k: usize| match op.kind {
+            Kind::Fu(_) => Some(k),
+            Kind::Comm(_) => Some(nfu + k),
+            _ => None,
+        };
+        let cost = |&(k, swap): &(usize, bool)| -> usize {
+            let mut c = load_index(k).map_or(0, |i| load[i] * 2);
+            for a in &op.args {
+                if let Source::Earlier(p) = a.src
+                    && let Loc::Lrf(l) = slots.operand_loc(op.kind, k, swap, a)
+                    && !kept_at.contains(&(p, Loc::Lrf(l)))
+                {
+                    // A new entry for the whole loop: cheap in an LRF with room.
+                    let room = slots.shape.lrf_sizes[l as usize];
+                    c += 8 + 96 * kept[l as usize] / room.max(1);
+                }
+                let Some(q) = local_source(a) else { continue };
+                let loc = slots.operand_loc(op.kind, k, swap, a);
+                let have = groups.get(&q).map_or(&[][..], |v| &v[..]);
+                if loc != Loc::Cc && !have.contains(&loc) {
+                    c += if have.len() >= 2 { 40 } else { 6 };
+                }
+            }
+            c
+        };
+        // A unit may not take more than an interval's worth of ops.
+        let fits = |&&(k, _): &&(usize, bool)| {
+            ii.is_none_or(|ii| load_index(k).is_none_or(|i| (load[i] + weight) as i64 <= ii))
+        };
+        let &(slot, swap) = options
+            .iter()
+            .filter(fits)
+            .min_by_key(|o| cost(o))
+            .or_else(|| options.iter().min_by_key(|o| cost(o)))
+            .expect("every op has a slot");
+        if let Some(i) = load_index(slot) {
+            load[i] += weight;
+        }
+        let reads: Vec<(usize, Loc)> = op
+            .args
+            .iter()
+            .filter_map(|a| local_source(a).map(|q| (q, slots.operand_loc(op.kind, slot, swap, a))))
+            .collect();
+        for a in &op.args {
+            if let Source::Earlier(p) = a.src {
+                let loc = slots.operand_loc(op.kind, slot, swap, a);
+                if kept_at.insert((p, loc))
+                    && let Loc::Lrf(x) = loc
+                {
+                    kept[x as usize] += 1;
+                }
+            }
+        }
+        let op = &mut g.ops[u];
+        op.slot = slot;
+        op.swap = swap;
+        for (q, loc) in reads {
+            let v = groups.entry(q).or_default();
+            if !v.contains(&loc) {
+                v.push(loc);
+            }
+        }
+    }
+    // Values read from more than two places get copies.
+    loop {
+        let mut over: Vec<usize> = groups
+            .iter()
+            .filter(|(_, v)| v.len() > 2)
+            .map(|(&q, _)| q)
+            .collect();
+        over.sort_unstable();
+        let Some(&q) = over.first() else { break };
+        split(g, &mut groups, &mut load, q, region, slots);
+    }
+    for r in &mut sched.required {
+        r.retain(|&(_, by)| by != region);
+    }
+    sched.grow(g.ops.len());
+    for u in 0..g.ops.len() {
+        if g.ops[u].region == region && g.ops[u].dead {
+            sched.dests[u].clear();
+        }
+    }
+    for u in g.in_region(region) {
+        sched.dests[u] = groups.get(&u).cloned().unwrap_or_default();
+        let op = &g.ops[u];
+        for a in &op.args {
+            if let Source::Earlier(p) = a.src {
+                let loc = slots.operand_loc(op.kind, op.slot, op.swap, a);
+                if !sched.required[p].contains(&(loc, region)) {
+                    sched.required[p].push((loc, region));
+                }
+            }
+        }
+    }
+    // Carried values' movs are in the loop; their readers there are bound above.
+    for (&q, v) in &groups {
+        if g.ops[q].region == region {
+            sched.dests[q] = v.clone();
+        }
+    }
+}
+
+/// The op whose result an operand reads in this region (carried values included).
+fn local_source(a: &Arg) -> Option<usize> {
+    match a.src {
+        Source::Local(q) | Source::Carried(q) => Some(q),
+        Source::Earlier(_) => None,
+    }
+}
+
+/// Gives value `q` a copy: `q` keeps its seeded and most-read location, the copy (on the
+/// least-loaded adder, reading `q` from that adder's `a` LRF) serves the other readers.
+fn split(
+    g: &mut Graph,
+    groups: &mut HashMap<usize, Vec<Loc>>,
+    load: &mut [usize],
+    q: usize,
+    region: Region,
+    slots: &Slots,
+) {
+    let readers: Vec<(usize, usize, Loc)> = g
+        .in_region(region)
+        .into_iter()
+        .flat_map(|o| {
+            let op = &g.ops[o];
+            op.args
+                .iter()
+                .enumerate()
+                .filter(|(_, a)| local_source(a) == Some(q))
+                .map(|(i, a)| (o, i, slots.operand_loc(op.kind, op.slot, op.swap, a)))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    // The copy reads `q` from an adder's `a` LRF: one `q` is written to already if there is
+    // one, else the least-loaded adder's.
+    let adders = slots.fu_slots(UnitClass::Adder);
+    let have = &groups[&q];
+    let copy_slot = adders
+        .clone()
+        .find(|&k| have.contains(&Loc::Lrf(slots.fu_inputs[k][0])))
+        .unwrap_or_else(|| {
+            adders
+                .clone()
+                .min_by_key(|&k| (load[k], k))
+                .expect("machines have adders")
+        });
+    let copy_loc = Loc::Lrf(slots.fu_inputs[copy_slot][0]);
+    let mut keep: Vec<Loc> = g.ops[q].seeded.clone();
+    if !keep.contains(&copy_loc) {
+        keep.push(copy_loc);
+    }
+    if keep.len() < 2 {
+        // The most-read other location stays too.
+        let best = have.iter().filter(|l| !keep.contains(l)).max_by_key(|&&l| {
+            (
+                readers.iter().filter(|r| r.2 == l).count(),
+                std::cmp::Reverse(l),
+            )
+        });
+        if let Some(&l) = best {
+            keep.push(l);
+        }
+    }
+    load[copy_slot] += 1;
+    let src = match g.ops[readers[0].0].args[readers[0].1].src {
+        Source::Carried(m) => Source::Carried(m),
+        _ => Source::Local(q),
+    };
+    let c = g.ops.len();
+    g.ops.push(MOp {
+        kind: Kind::Fu(Op::Mov),
+        args: vec![Arg {
+            src,
+            input: Input::A,
+        }],
+        region,
+        ir: g.ops[q].ir,
+        copy: true,
+        copy_kind: Some(CopyKind::Fanout),
+        fixed_slot: None,
+        slot: copy_slot,
+        swap: false,
+        dead: false,
+        just_in_time: false,
+        seeded: Vec::new(),
+        tie: None,
+        deadline: None,
+    });
+    let mut moved: Vec<Loc> = Vec::new();
+    for (o, i, loc) in readers {
+        if keep.contains(&loc) {
+            continue;
+        }
+        g.ops[o].args[i].src = Source::Local(c);
+        if !moved.contains(&loc) {
+            moved.push(loc);
+        }
+    }
+    groups.insert(q, keep);
+    groups.insert(c, moved);
+}
+
+/// Removes the fan-out copies a previous binding of `region` made: their readers read the
+/// copied value again.
+fn undo_fanout_copies(g: &mut Graph, region: Region) {
+    for c in g.in_region(region) {
+        if g.ops[c].copy_kind != Some(CopyKind::Fanout) {
+            continue;
+        }
+        let src = g.ops[c].args[0].src;
+        for o in 0..g.ops.len() {
+            for a in &mut g.ops[o].args {
+                if a.src == Source::Local(c) {
+                    a.src = src;
+                }
+            }
+        }
+        g.ops[c].dead = true;
+    }
+}

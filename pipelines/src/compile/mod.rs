@@ -1,0 +1,553 @@
+//! The kernel compiler (ARCHITECTURE §5): kernel IR to the machine's microcode.
+//!
+//! 1. [`graph`] lowers the IR to machine operations with their dependences;
+//! 2. [`schedule`] modulo-schedules the main loop (software pipelining: the hardware squash
+//!    supplies prologue and epilogue) and list-schedules the code before and after it,
+//!    binding every op to a slot and every operand to the LRF that slot reads;
+//! 3. [`alloc`] gives every value its LRF or condition-code entries;
+//! 4. [`emit`] writes the instructions, which [`Program::check`] then checks against the
+//!    machine description.
+//!
+//! The initiation interval starts at its lower bound, the larger of the resource bound
+//! (ops per unit class over units, stream words over SRF ports, …) and the recurrence bound
+//! (the longest dependence cycle through carried values and scratchpad order), and rises
+//! until the loop schedules, fits the stage field and its values fit the LRFs. A kernel that
+//! cannot fit fails with a [`CompileError`] naming the kernel and the resource.
+
+pub mod alloc;
+pub mod bind;
+pub mod emit;
+pub mod graph;
+pub mod report;
+pub mod schedule;
+
+use std::collections::HashMap;
+use std::fmt;
+
+use imagine_units::desc::MachineDesc;
+use imagine_units::microcode::{MAX_STAGES, Permutation, Program};
+use imagine_units::ops::UnitClass;
+
+use crate::kernel::{Kernel, Region};
+use graph::{Edge, Graph, Kind, Loc, MOp};
+pub use report::Report;
+use schedule::{Failure, Schedule, Slots, schedule_region};
+
+/// A kernel that does not fit the machine.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CompileError {
+    pub kernel: String,
+    pub machine: String,
+    /// The resource that ran out: `LRF add0.a`, `microcode store`, `kernel streams`, …
+    pub resource: String,
+    pub message: String,
+}
+
+impl fmt::Display for CompileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "kernel `{}` does not fit machine `{}`: {}: {}",
+            self.kernel, self.machine, self.resource, self.message
+        )
+    }
+}
+
+impl std::error::Error for CompileError {}
+
+/// A compiled kernel: its microcode and what the compiler learned.
+#[derive(Clone, Debug)]
+pub struct Compiled {
+    pub program: Program,
+    pub report: Report,
+    /// Index of the hidden `params` stream in the program, if the kernel has parameters.
+    pub params_stream: Option<usize>,
+}
+
+/// Compiles `kernel` for `desc`.
+pub fn compile(kernel: &Kernel, desc: &MachineDesc) -> Result<Compiled, CompileError> {
+    crate::kernel::verify::verify(kernel).map_err(|e| CompileError {
+        kernel: kernel.name.clone(),
+        machine: desc.name.clone(),
+        resource: "kernel".into(),
+        message: e.message,
+    })?;
+    let slots = Slots::new(desc);
+    let err = |resource: &str, message: String| CompileError {
+        kernel: kernel.name.clone(),
+        machine: desc.name.clone(),
+        resource: resource.into(),
+        message,
+    };
+    let streams = kernel.streams.len() + usize::from(!kernel.params.is_empty());
+    if streams > desc.srf.kernel_streams {
+        return Err(err(
+            "kernel streams",
+            format!(
+                "it addresses {streams} streams{}; a kernel may address {} \
+                 (`srf.kernel_streams`)",
+                if kernel.params.is_empty() {
+                    ""
+                } else {
+                    " (with the hidden `params` stream)"
+                },
+                desc.srf.kernel_streams
+            ),
+        ));
+    }
+    let add0_a = slots.shape.lrf("add0", "a").0 as u16;
+    let base = graph::lower(kernel, add0_a);
+    check_static(kernel, &base, desc).map_err(|(r, m)| err(&r, m))?;
+    let has_loop = !base.in_region(Region::Loop).is_empty() || kernel.main_loop.is_some();
+    // Constants the loop reads are made again by immediates just before each read instead
+    // of each holding an LRF entry for the whole loop, as far as the immediate slot has
+    // room in the interval.
+    let mut base = base;
+    let room = bounds(&base, desc, &slots).res_mii as usize * 3 / 4;
+    base.rematerialize_constants(room);
+    let result = search(kernel, &base, desc, &slots, has_loop);
+    result.map_err(|(r, m)| err(&r, m))
+}
+
+/// Searches initiation intervals upward from the lower bound.
+fn search(
+    kernel: &Kernel,
+    base: &Graph,
+    desc: &MachineDesc,
+    slots: &Slots,
+    has_loop: bool,
+) -> Result<Compiled, (String, String)> {
+    let bounds = bounds(base, desc, slots);
+    let mii = bounds.res_mii.max(bounds.rec_mii).max(1);
+    // Beyond this the body is no longer worth pipelining; give up with the last reason.
+    let max_ii = if has_loop { mii * 3 + 64 } else { mii };
+    let mut last_error = None;
+    let compiled = |(program, g, s, lay, entries): Attempted| {
+        let report = report::build(
+            kernel, &g, &s, &lay, &entries, slots, desc, &bounds, &program,
+        );
+        Compiled {
+            program,
+            report,
+            params_stream: base.params_stream.map(usize::from),
+        }
+    };
+    if !has_loop {
+        return try_ii(kernel, base, desc, slots, LoopMode::None)
+            .map(compiled)
+            .map_err(|e| match e {
+                Retry::Fatal(e) | Retry::Larger(e) | Retry::Repair(_, e) => e,
+            });
+    }
+    // Copies that move long-lived values out of a full LRF, then the same mode again.
+    let with_repairs = |mode: LoopMode| -> Result<Attempted, Retry> {
+        let mut work = base.clone();
+        let mut last = None;
+        for _repair in 0..=MAX_REPAIRS {
+            match try_ii(kernel, &work, desc, slots, mode) {
+                Err(Retry::Repair(g, e)) => {
+                    work = *g;
+                    last = Some(e);
+                }
+                other => return other,
+            }
+        }
+        Err(Retry::Larger(last.expect("repairs were tried")))
+    };
+    // The body list-scheduled, one iteration at a time: the interval to beat.
+    let line = match with_repairs(LoopMode::Line) {
+        Ok(a) => Some(compiled(a)),
+        Err(Retry::Fatal(e) | Retry::Larger(e) | Retry::Repair(_, e)) => {
+            last_error = Some(e);
+            None
+        }
+    };
+    let max_ii = match &line {
+        Some(c) => (c.report.ii.unwrap_or(1) - 1).min(max_ii),
+        None => max_ii,
+    };
+    // Software pipelining pays for big bodies only when close to the bound.
+    let max_ii = if mii >= 64 {
+        max_ii.min(mii + mii / 4)
+    } else {
+        max_ii
+    };
+    for ii in mii..=max_ii {
+        match with_repairs(LoopMode::Modulo(ii as i64)) {
+            Ok(a) => return Ok(compiled(a)),
+            Err(Retry::Fatal(e)) => return Err(e),
+            Err(Retry::Larger(e) | Retry::Repair(_, e)) => {
+                last_error = Some(e);
+            }
+        }
+    }
+    line.ok_or_else(|| last_error.unwrap_or(("schedule".into(), "no schedule found".into())))
+}
+
+/// Static limits: scratchpad addresses that can never fit.
+fn check_static(kernel: &Kernel, g: &Graph, desc: &MachineDesc) -> Result<(), (String, String)> {
+    let words = crate::kernel::interp::scratchpad_words(kernel, desc);
+    let clusters = desc.cluster.count;
+    for op in &g.ops {
+        if let Kind::Comm(Permutation::Xor(k) | Permutation::Broadcast(k)) = op.kind
+            && usize::from(k) >= clusters
+        {
+            return Err((
+                "intercluster network".into(),
+                format!(
+                    "{} names cluster {k}; the machine has {clusters}",
+                    op.ir.map_or("a permutation".into(), |v| kernel.describe(v))
+                ),
+            ));
+        }
+        if let Kind::SpRead { base } | Kind::SpWrite { base } = op.kind
+            && usize::from(base) >= words
+        {
+            return Err((
+                "scratchpad".into(),
+                format!(
+                    "{} uses base address {base}; the scratchpad has {words} usable words",
+                    op.ir.map_or("an access".into(), |v| kernel.describe(v))
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// How the main loop is scheduled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum LoopMode {
+    /// No loop.
+    None,
+    /// Software-pipelined at this initiation interval.
+    Modulo(i64),
+    /// One iteration at a time, list-scheduled.
+    Line,
+}
+
+/// Repairs of a full LRF tried at one initiation interval before a larger one.
+const MAX_REPAIRS: usize = 96;
+
+enum Retry {
+    /// Try a larger initiation interval.
+    Larger((String, String)),
+    /// Try the same interval again with this graph (a copy moves a long-lived value out
+    /// of a full LRF).
+    Repair(Box<Graph>, (String, String)),
+    /// No interval helps.
+    Fatal((String, String)),
+}
+
+type Attempted = (Program, Graph, Schedule, emit::Layout, alloc::Entries);
+
+fn try_ii(
+    kernel: &Kernel,
+    base: &Graph,
+    desc: &MachineDesc,
+    slots: &Slots,
+    mode: LoopMode,
+) -> Result<Attempted, Retry> {
+    let mut g = base.clone();
+    let mut s = Schedule::new(g.ops.len());
+    let describe = |g: &Graph, f: &Failure| -> String {
+        let (op, why) = match f {
+            Failure::NoSlot { op, why } => (*op, why.clone()),
+            Failure::Copies { op } => (*op, "too many register copies needed".into()),
+        };
+        let what = g.ops[op]
+            .ir
+            .map_or_else(|| "a copy".to_string(), |v| kernel.describe(v));
+        format!("{what} {} cannot be placed: {why}", g.ops[op].region.name())
+    };
+    let ii = match mode {
+        LoopMode::None => None,
+        LoopMode::Modulo(ii) => Some(ii),
+        LoopMode::Line => {
+            // The body as straight-line code; the next iteration starts when every result
+            // has landed.
+            schedule_region(&mut g, &mut s, Region::Loop, None, slots, desc)
+                .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
+            let len = g
+                .in_region(Region::Loop)
+                .iter()
+                .filter_map(|&u| s.place[u].map(|p| p.time + g.latency(u, desc) + 1))
+                .max()
+                .unwrap_or(1);
+            Some(len.max(1))
+        }
+    };
+    if let (LoopMode::Modulo(_), Some(ii)) = (mode, ii) {
+        schedule_region(&mut g, &mut s, Region::Loop, Some(ii), slots, desc).map_err(|f| {
+            Retry::Larger((
+                "schedule".into(),
+                format!("at initiation interval {ii}, {}", describe(&g, &f)),
+            ))
+        })?;
+        let last = g
+            .in_region(Region::Loop)
+            .iter()
+            .filter_map(|&u| s.place[u].map(|p| p.time))
+            .max()
+            .unwrap_or(0);
+        let stages = last / ii + 1;
+        if stages > i64::from(MAX_STAGES) {
+            return Err(Retry::Larger((
+                "software-pipeline stages".into(),
+                format!(
+                    "the loop needs {stages} stages at initiation interval {ii}; the stage \
+                     field holds {MAX_STAGES}"
+                ),
+            )));
+        }
+    }
+    let after_loop = g.clone();
+    schedule_region(&mut g, &mut s, Region::Post, None, slots, desc)
+        .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
+    let providers = fan_out(&mut g, &mut s);
+    schedule_region(&mut g, &mut s, Region::Pre, None, slots, desc)
+        .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
+    let entries = alloc::allocate(&g, &s, slots, ii, desc).map_err(|o| {
+        let name = match o.loc {
+            Loc::Lrf(l) => format!("LRF {}", slots.shape.lrf_names[l as usize]),
+            Loc::Cc => "condition codes".into(),
+        };
+        let message = format!(
+            "more than its {} entries hold live values at once{}",
+            o.entries,
+            match o.region {
+                Some(r) => format!(" ({})", r.name()),
+                None => " (values kept across the loop)".into(),
+            }
+        );
+        if o.region == Some(Region::Loop) {
+            match longest_read(&after_loop, &s, slots, desc, o.loc) {
+                Some((user, arg, deadline)) => {
+                    let mut g = after_loop.clone();
+                    g.insert_lifetime_copy(user, arg, deadline);
+                    Retry::Repair(Box::new(g), (name, message))
+                }
+                None => Retry::Larger((name, message)),
+            }
+        } else {
+            Retry::Fatal((name, message))
+        }
+    })?;
+    let lay = emit::layout(&g, &s, ii, desc);
+    if lay.len > desc.microcontroller.store_words {
+        return Err(Retry::Fatal((
+            "microcode store".into(),
+            format!(
+                "it needs {} instructions; the store holds {} (`microcontroller.store_words`)",
+                lay.len, desc.microcontroller.store_words
+            ),
+        )));
+    }
+    let program = emit::emit(kernel, &g, &s, &entries, &lay, slots, desc, &providers);
+    program
+        .check(desc)
+        .map_err(|e| Retry::Fatal(("microcode".into(), format!("internal error: {e}"))))?;
+    Ok((program, g, s, lay, entries))
+}
+
+/// The loop operand read from `loc` that waits longest after its value lands (if it waits
+/// long enough for a copy elsewhere to help).
+fn longest_read(
+    g: &Graph,
+    s: &Schedule,
+    slots: &Slots,
+    desc: &MachineDesc,
+    loc: Loc,
+) -> Option<(usize, usize, i64)> {
+    let mut best = None;
+    let mut longest = 3;
+    for u in g.in_region(Region::Loop) {
+        let Some(pl) = s.place[u] else { continue };
+        if g.ops[u].copy_kind == Some(graph::CopyKind::Lifetime) {
+            continue;
+        }
+        for (i, a) in g.ops[u].args.iter().enumerate() {
+            let graph::Source::Local(p) = a.src else {
+                continue;
+            };
+            let Some(pp) = s.place[p] else { continue };
+            if slots.operand_loc(g.ops[u].kind, pl.slot, pl.swap, a) != loc {
+                continue;
+            }
+            let wait = pl.time - (pp.time + g.latency(p, desc));
+            if wait > longest {
+                longest = wait;
+                best = Some((u, i, pl.time - i64::from(desc.latency.int) - 1));
+            }
+        }
+    }
+    best
+}
+
+/// Values computed before the loop and read later must be written where their readers
+/// read them: up to two places directly, more through extra immediates or `mov` copies.
+/// Returns, for each (value, location), the op that writes it there.
+fn fan_out(g: &mut Graph, s: &mut Schedule) -> HashMap<(usize, Loc), usize> {
+    let mut providers = HashMap::new();
+    let pre = g.in_region(Region::Pre);
+    for &p in &pre {
+        if let Some(m) = g.ops[p].tie {
+            g.ops[p].seeded = s.dests[m].clone();
+        }
+    }
+    for &p in &pre {
+        let mut need: Vec<Loc> = s.required[p].iter().map(|&(l, _)| l).collect();
+        need.sort();
+        need.dedup();
+        if need.is_empty() {
+            continue;
+        }
+        let local_readers = g.ops.iter().any(|o| {
+            o.region == Region::Pre && o.args.iter().any(|a| a.src == graph::Source::Local(p))
+        });
+        let is_imm = matches!(g.ops[p].kind, Kind::Imm(_));
+        if need.len() <= 2 && !local_readers {
+            g.ops[p].seeded = need.clone();
+            for l in need {
+                providers.insert((p, l), p);
+            }
+            continue;
+        }
+        for chunk in need.chunks(2) {
+            let q = g.ops.len();
+            let (kind, args) = if is_imm {
+                (g.ops[p].kind, vec![])
+            } else {
+                (
+                    Kind::Fu(imagine_units::ops::Op::Mov),
+                    vec![graph::Arg {
+                        src: graph::Source::Local(p),
+                        input: graph::Input::A,
+                    }],
+                )
+            };
+            g.ops.push(MOp {
+                kind,
+                args,
+                region: Region::Pre,
+                ir: g.ops[p].ir,
+                copy: !is_imm,
+                copy_kind: None,
+                fixed_slot: None,
+                slot: 0,
+                swap: false,
+                dead: false,
+                just_in_time: false,
+                deadline: None,
+                seeded: chunk.to_vec(),
+                tie: None,
+            });
+            for &l in chunk {
+                providers.insert((p, l), q);
+            }
+        }
+    }
+    s.grow(g.ops.len());
+    providers
+}
+
+/// Lower bounds on the initiation interval.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Bounds {
+    /// Resource bound and the resource that sets it.
+    pub res_mii: u32,
+    pub res_limit: String,
+    /// Recurrence bound.
+    pub rec_mii: u32,
+}
+
+fn bounds(g: &Graph, desc: &MachineDesc, slots: &Slots) -> Bounds {
+    let ops = g.in_region(Region::Loop);
+    if ops.is_empty() {
+        return Bounds::default();
+    }
+    let sh = &slots.shape;
+    let count = |f: &dyn Fn(&MOp) -> bool| ops.iter().filter(|&&o| f(&g.ops[o])).count();
+    let class = |c: UnitClass| count(&|o: &MOp| matches!(o.kind, Kind::Fu(op) if op.unit() == c));
+    let conditional = count(&|o: &MOp| o.kind.is_conditional_stream());
+    let sp = count(&|o: &MOp| matches!(o.kind, Kind::SpRead { .. } | Kind::SpWrite { .. }));
+    let comm = count(&|o: &MOp| matches!(o.kind, Kind::Comm(_)));
+    let sin = count(&|o: &MOp| matches!(o.kind, Kind::StreamIn { .. }));
+    let sout = count(&|o: &MOp| matches!(o.kind, Kind::StreamOut { .. }));
+    let imm = count(&|o: &MOp| matches!(o.kind, Kind::Imm(_)));
+    let per = |n: usize, units: usize| n.div_ceil(units.max(1));
+    let interval = desc.latency.divsqrt_issue_interval.max(1) as usize;
+    let limits = [
+        (per(class(UnitClass::Adder), sh.adders), "adders"),
+        (
+            per(class(UnitClass::Multiplier), sh.multipliers),
+            "multipliers",
+        ),
+        (
+            per(class(UnitClass::DivSqrt) * interval, sh.divsqrt),
+            "divide/sqrt unit",
+        ),
+        (sp + conditional, "scratchpad"),
+        (
+            per(comm + conditional, sh.comm_units).max(conditional),
+            "intercluster network",
+        ),
+        (
+            per(sin + sout, desc.srf.cluster_words_per_cycle),
+            "stream words",
+        ),
+        (sout, "stream output slot"),
+        (
+            per(conditional, desc.srf.conditional_words_per_cycle),
+            "conditional streams",
+        ),
+        (imm, "immediate slot"),
+    ];
+    let (res, what) = limits
+        .iter()
+        .max_by_key(|(n, _)| *n)
+        .map(|&(n, w)| (n, w))
+        .unwrap_or((1, "none"));
+    let edges = g.edges(Region::Loop, desc);
+    Bounds {
+        res_mii: res.max(1) as u32,
+        res_limit: what.into(),
+        rec_mii: rec_mii(g.ops.len(), &edges),
+    }
+}
+
+/// The smallest II with no dependence cycle longer than its distance allows: no positive
+/// cycle in the graph weighted `latency − II·distance` (Bellman–Ford).
+fn rec_mii(n: usize, edges: &[Edge]) -> u32 {
+    let feasible = |ii: i64| -> bool {
+        let mut dist = vec![0i64; n];
+        for _ in 0..=n {
+            let mut changed = false;
+            for e in edges {
+                let w = e.latency - ii * i64::from(e.distance);
+                if dist[e.from] + w > dist[e.to] {
+                    dist[e.to] = dist[e.from] + w;
+                    changed = true;
+                }
+            }
+            if !changed {
+                return true;
+            }
+        }
+        false
+    };
+    let mut hi: i64 = 1 + edges.iter().map(|e| e.latency.max(0)).sum::<i64>();
+    let mut lo: i64 = 1;
+    if feasible(lo) {
+        return 1;
+    }
+    while lo + 1 < hi {
+        let mid = (lo + hi) / 2;
+        if feasible(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi as u32
+}

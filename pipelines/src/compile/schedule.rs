@@ -1,0 +1,692 @@
+//! Scheduling with unit binding: the main loop by modulo scheduling (Rau, "Iterative modulo
+//! scheduling", MICRO 1994: a modulo reservation table, operations placed in height order
+//! within `[Estart, Estart + II)`, II raised until the body fits), straight-line code by
+//! list scheduling on the same table with an unbounded modulus.
+//!
+//! Placing an op also binds it to a slot, and so decides which LRFs its operands are read
+//! from — the distributed register files make register allocation part of scheduling, as in
+//! Imagine's communication scheduling (Mattson et al., MICRO 2000). An operand must then be
+//! written to that LRF by its producer, which has one switch result port with two
+//! destinations and needs the LRF's single write port in the cycle its result lands. In a
+//! loop, a value must be read within one initiation interval of being written (the entry is
+//! rewritten by the next iteration; there is no rotating register file). When an operand
+//! cannot be delivered (its producer's destinations are taken, or it would live too long),
+//! the scheduler asks for a `mov` copy between producer and consumer and starts over.
+
+use imagine_units::desc::MachineDesc;
+use imagine_units::microcode::check::Shape;
+use imagine_units::ops::UnitClass;
+
+use super::graph::{Arg, CopyKind, Edge, Graph, Input, Kind, Loc, Source};
+use crate::kernel::Region;
+
+/// The slots and LRFs of a cluster, as the scheduler sees them.
+pub struct Slots {
+    pub shape: Shape,
+    /// LRF of input `a`, `b` of each FU slot.
+    pub fu_inputs: Vec<[u16; 2]>,
+    /// `addr`, `data` of each scratchpad.
+    pub sp_inputs: Vec<[u16; 2]>,
+    /// `data`, `perm` of each comm unit.
+    pub comm_inputs: Vec<[u16; 2]>,
+    pub sout_input: u16,
+    pub stream_words: usize,
+    pub conditional_words: usize,
+    pub dsq_interval: usize,
+}
+
+impl Slots {
+    pub fn new(desc: &MachineDesc) -> Slots {
+        let shape = Shape::new(desc);
+        let lrf = |slot: &str, input: &str| shape.lrf(slot, input).0 as u16;
+        let fu_inputs = (0..shape.fu_count())
+            .map(|i| {
+                let n = shape.fu_name(i);
+                [lrf(&n, "a"), lrf(&n, "b")]
+            })
+            .collect();
+        let sp_inputs = (0..shape.scratchpads)
+            .map(|i| {
+                [
+                    lrf(&format!("sp{i}"), "addr"),
+                    lrf(&format!("sp{i}"), "data"),
+                ]
+            })
+            .collect();
+        let comm_inputs = (0..shape.comm_units)
+            .map(|i| {
+                [
+                    lrf(&format!("comm{i}"), "data"),
+                    lrf(&format!("comm{i}"), "perm"),
+                ]
+            })
+            .collect();
+        let sout_input = lrf("sout", "data");
+        Slots {
+            fu_inputs,
+            sp_inputs,
+            comm_inputs,
+            sout_input,
+            stream_words: desc.srf.cluster_words_per_cycle,
+            conditional_words: desc.srf.conditional_words_per_cycle,
+            dsq_interval: desc.latency.divsqrt_issue_interval.max(1) as usize,
+            shape,
+        }
+    }
+
+    pub fn lrfs(&self) -> usize {
+        self.shape.lrf_names.len()
+    }
+
+    /// FU slots of a unit class.
+    pub fn fu_slots(&self, class: UnitClass) -> std::ops::Range<usize> {
+        let s = &self.shape;
+        match class {
+            UnitClass::Adder => 0..s.adders,
+            UnitClass::Multiplier => s.adders..s.adders + s.multipliers,
+            UnitClass::DivSqrt => s.adders + s.multipliers..s.fu_count(),
+        }
+    }
+
+    /// Where operand `a` of an op bound to `slot` (operands swapped or not) is read.
+    pub fn operand_loc(&self, kind: Kind, slot: usize, swap: bool, a: &Arg) -> Loc {
+        self.loc(kind, slot, input_of(a, swap))
+    }
+
+    /// Where operand `input` of an op on `slot` is read.
+    fn loc(&self, kind: Kind, slot: usize, input: Input) -> Loc {
+        let l = match (kind, input) {
+            (_, Input::Cc) => return Loc::Cc,
+            (Kind::Fu(_), Input::A) => self.fu_inputs[slot][0],
+            (Kind::Fu(_), Input::B) => self.fu_inputs[slot][1],
+            (_, Input::SpAddr) => self.sp_inputs[slot][0],
+            (_, Input::SpData) => self.sp_inputs[slot][1],
+            (_, Input::CommData) => self.comm_inputs[slot][0],
+            (_, Input::CommPerm) => self.comm_inputs[slot][1],
+            (_, Input::SoutData) => self.sout_input,
+            _ => unreachable!("operand {input:?} of {kind:?}"),
+        };
+        Loc::Lrf(l)
+    }
+}
+
+/// Where and when an op issues.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Placement {
+    pub time: i64,
+    /// FU, scratchpad or comm slot (0 for stream and immediate ops).
+    pub slot: usize,
+    /// The two operands of a commutative op are read swapped.
+    pub swap: bool,
+}
+
+/// The schedule of every region so far.
+#[derive(Clone, Debug, Default)]
+pub struct Schedule {
+    pub place: Vec<Option<Placement>>,
+    /// Where each op's result is written.
+    pub dests: Vec<Vec<Loc>>,
+    /// Locations ops of later regions read an earlier region's value from, and the
+    /// region reading it.
+    pub required: Vec<Vec<(Loc, Region)>>,
+}
+
+impl Schedule {
+    pub fn new(ops: usize) -> Schedule {
+        Schedule {
+            place: vec![None; ops],
+            dests: vec![Vec::new(); ops],
+            required: vec![Vec::new(); ops],
+        }
+    }
+
+    pub fn grow(&mut self, ops: usize) {
+        self.place.resize(ops, None);
+        self.dests.resize(ops, Vec::new());
+        self.required.resize(ops, Vec::new());
+    }
+}
+
+/// Why a region did not schedule.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Failure {
+    /// Op `op` found no cycle and slot in its window.
+    NoSlot { op: usize, why: String },
+    /// Too many copies were needed.
+    Copies { op: usize },
+}
+
+const FREE: u32 = u32::MAX;
+
+/// The modulo reservation table.
+struct Table {
+    modulus: i64,
+    fu: Vec<u32>,
+    /// Each FU has one result port: ops of different latencies must not land together.
+    fu_result: Vec<u32>,
+    sp: Vec<u32>,
+    comm: Vec<u32>,
+    sout: Vec<u32>,
+    imm: Vec<u32>,
+    stream_words: Vec<u8>,
+    conditional: Vec<u8>,
+    /// LRF write ports: the op whose result lands.
+    ports: Vec<u32>,
+    nfu: usize,
+    nsp: usize,
+    ncomm: usize,
+    nlrf: usize,
+}
+
+impl Table {
+    fn new(modulus: i64, s: &Slots) -> Table {
+        let m = modulus as usize;
+        let (nfu, nsp, ncomm, nlrf) = (
+            s.shape.fu_count(),
+            s.shape.scratchpads,
+            s.shape.comm_units,
+            s.lrfs(),
+        );
+        Table {
+            modulus,
+            fu: vec![FREE; m * nfu],
+            fu_result: vec![FREE; m * nfu],
+            sp: vec![FREE; m * nsp],
+            comm: vec![FREE; m * ncomm],
+            sout: vec![FREE; m],
+            imm: vec![FREE; m],
+            stream_words: vec![0; m],
+            conditional: vec![0; m],
+            ports: vec![FREE; m * nlrf],
+            nfu,
+            nsp,
+            ncomm,
+            nlrf,
+        }
+    }
+
+    fn row(&self, t: i64) -> usize {
+        t.rem_euclid(self.modulus) as usize
+    }
+
+    fn port(&self, lrf: u16, t: i64) -> u32 {
+        self.ports[self.row(t) * self.nlrf + lrf as usize]
+    }
+}
+
+/// Schedules the ops of `region` (bound to their slots by [`super::bind`]). `ii` is the
+/// loop's initiation interval (`None`: straight line). Copies the scheduler needs are added
+/// to `g`, which is then bound again.
+pub fn schedule_region(
+    g: &mut Graph,
+    sched: &mut Schedule,
+    region: Region,
+    ii: Option<i64>,
+    slots: &Slots,
+    desc: &MachineDesc,
+) -> Result<(), Failure> {
+    let budget = g.in_region(region).len() + 64;
+    for _ in 0..budget {
+        sched.grow(g.ops.len());
+        super::bind::bind(g, sched, region, ii, slots);
+        sched.grow(g.ops.len());
+        match attempt(g, sched, region, ii, slots, desc) {
+            Ok(()) => return Ok(()),
+            Err(Attempt::Copy { user, arg, wanted }) => {
+                let deadline = wanted - i64::from(desc.latency.int) - 1;
+                g.insert_lifetime_copy(user, arg, deadline);
+            }
+            Err(Attempt::Fail(f)) => return Err(f),
+        }
+    }
+    let op = g.in_region(region).last().copied().unwrap_or(0);
+    Err(Failure::Copies { op })
+}
+
+enum Attempt {
+    /// Operand `arg` of `user` lives too long: copy it, the copy issuing by `wanted`.
+    Copy {
+        user: usize,
+        arg: usize,
+        wanted: i64,
+    },
+    Fail(Failure),
+}
+
+/// Longest latency path from each op to the end of the iteration (distance-0 edges).
+fn heights(n: usize, edges: &[Edge], order: &[usize]) -> Vec<i64> {
+    let mut h = vec![0i64; n];
+    let mut succ: Vec<Vec<(usize, i64)>> = vec![Vec::new(); n];
+    for e in edges.iter().filter(|e| e.distance == 0) {
+        succ[e.from].push((e.to, e.latency));
+    }
+    for &u in order.iter().rev() {
+        h[u] = succ[u]
+            .iter()
+            .map(|&(s, l)| l + h[s])
+            .max()
+            .unwrap_or(0)
+            .max(0);
+    }
+    h
+}
+
+/// A topological order of the distance-0 edges.
+fn topo(n: usize, ops: &[usize], edges: &[Edge]) -> Vec<usize> {
+    let mut indeg = vec![0usize; n];
+    let mut succ: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for e in edges.iter().filter(|e| e.distance == 0) {
+        indeg[e.to] += 1;
+        succ[e.from].push(e.to);
+    }
+    let mut ready: Vec<usize> = ops.iter().copied().filter(|&o| indeg[o] == 0).collect();
+    ready.reverse();
+    let mut order = Vec::with_capacity(ops.len());
+    while let Some(u) = ready.pop() {
+        order.push(u);
+        for &s in &succ[u] {
+            indeg[s] -= 1;
+            if indeg[s] == 0 {
+                ready.push(s);
+            }
+        }
+    }
+    order
+}
+
+fn attempt(
+    g: &Graph,
+    sched: &mut Schedule,
+    region: Region,
+    ii: Option<i64>,
+    slots: &Slots,
+    desc: &MachineDesc,
+) -> Result<(), Attempt> {
+    let ops = g.in_region(region);
+    let n = g.ops.len();
+    let mut edges = g.edges(region, desc);
+    if ii.is_none() {
+        // Straight line (or a loop body run one iteration at a time, whose interval is
+        // its length): dependences on earlier iterations hold by themselves.
+        edges.retain(|e| e.distance == 0);
+    }
+    let order = topo(n, &ops, &edges);
+    debug_assert_eq!(order.len(), ops.len(), "distance-0 dependences form a DAG");
+    let height = heights(n, &edges, &order);
+    // Straight-line code uses a table longer than any region can be.
+    const LINE: i64 = 1 << 14;
+    let span = ii.unwrap_or(LINE);
+    let mut table = Table::new(span, slots);
+    // (Copies a rebinding removed lose their places too.)
+    for o in 0..n {
+        if g.ops[o].region == region {
+            sched.place[o] = None;
+        }
+    }
+    let mut preds: Vec<Vec<Edge>> = vec![Vec::new(); n];
+    let mut succs: Vec<Vec<Edge>> = vec![Vec::new(); n];
+    // A rematerialised constant is placed after its reader, just in time for it.
+    let just_in_time = |o: usize| g.ops[o].just_in_time && ii.is_some();
+    let mut indeg = vec![0usize; n];
+    for e in &edges {
+        preds[e.to].push(*e);
+        succs[e.from].push(*e);
+        if e.distance == 0 {
+            if just_in_time(e.from) {
+                indeg[e.from] += 1;
+            } else {
+                indeg[e.to] += 1;
+            }
+        }
+    }
+    // Straight-line code goes mostly in program order (it keeps values short-lived, which
+    // the small LRFs need), leaning towards the critical path; loops by height.
+    let height: Vec<i64> = if ii.is_none() {
+        (0..n)
+            .map(|o| height[o] * 5 - i64::from(g.ops[o].ir.map_or(0, |v| v.0)))
+            .collect()
+    } else {
+        height
+    };
+    let mut ready: std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)> = ops
+        .iter()
+        .filter(|&&o| indeg[o] == 0)
+        .map(|&o| (height[o], std::cmp::Reverse(o)))
+        .collect();
+    while let Some((_, std::cmp::Reverse(u))) = ready.pop() {
+        let shift = |e: &Edge| ii.unwrap_or(0) * i64::from(e.distance);
+        let mut estart = 0;
+        for e in &preds[u] {
+            if let Some(p) = sched.place[e.from] {
+                estart = estart.max(p.time + e.latency - shift(e));
+            }
+        }
+        let mut lstart = i64::MAX;
+        for e in &succs[u] {
+            if let Some(p) = sched.place[e.to] {
+                lstart = lstart.min(p.time - e.latency + shift(e));
+            }
+        }
+        let mut last = lstart.min(estart + span - 1);
+        // Values must be read within one interval of landing (the next iteration rewrites
+        // their entries).
+        let mut lifetime: Option<(usize, i64)> = None;
+        if let Some(ii) = ii {
+            for (i, a) in g.ops[u].args.iter().enumerate() {
+                if let Source::Local(p) = a.src
+                    && let Some(pp) = sched.place[p]
+                {
+                    let limit = pp.time + g.latency(p, desc) + ii;
+                    if limit < last {
+                        last = limit;
+                        lifetime = Some((i, limit));
+                    }
+                }
+            }
+        }
+        // A lifetime copy goes as late as it may, to carry its value furthest.
+        let late = g.ops[u].copy_kind == Some(CopyKind::Lifetime) && ii.is_some();
+        let times: Box<dyn Iterator<Item = i64>> = if just_in_time(u) {
+            // Backwards from just before its reader, no further than its value may live.
+            let ii = ii.expect("loops only");
+            let reader = succs[u]
+                .iter()
+                .filter_map(|e| sched.place[e.to].map(|p| p.time))
+                .max()
+                .unwrap_or(0);
+            // (It may go before the body's first cycle: times are shifted afterwards.)
+            let lowest = reader - ii - g.latency(u, desc);
+            Box::new((lowest..=lstart).rev())
+        } else if late {
+            let d = g.ops[u]
+                .deadline
+                .unwrap_or(last)
+                .clamp(estart, last.max(estart));
+            Box::new((estart..=d).rev().chain(d + 1..=last))
+        } else {
+            Box::new(estart..=last)
+        };
+        // Divide/sqrt ops hold their unit for `interval` cycles: issuing them on multiples
+        // of the interval packs them without gaps when the II allows it.
+        let dsq_align = match (g.ops[u].kind, ii) {
+            (Kind::Fu(o), Some(ii)) if o.unit() == UnitClass::DivSqrt => {
+                let k = slots.dsq_interval as i64;
+                (k > 1 && ii % k == 0).then_some(k)
+            }
+            _ => None,
+        };
+        let mut why = String::new();
+        let mut placed = false;
+        for t in times {
+            if dsq_align.is_some_and(|k| t.rem_euclid(span) % k != 0) {
+                continue;
+            }
+            match try_place(g, sched, &mut table, u, t, slots, desc) {
+                Ok(()) => {
+                    placed = true;
+                    break;
+                }
+                Err(w) => why = w,
+            }
+        }
+        if !placed {
+            if let Some((arg, _)) = lifetime.filter(|_| !late) {
+                return Err(Attempt::Copy {
+                    user: u,
+                    arg,
+                    wanted: estart.max(last),
+                });
+            }
+            if why.is_empty() {
+                why = format!(
+                    "its dependences leave no cycle (earliest {estart}, latest {})",
+                    last
+                );
+            }
+            return Err(Attempt::Fail(Failure::NoSlot { op: u, why }));
+        }
+        for e in &succs[u] {
+            if e.distance == 0 && !just_in_time(u) {
+                indeg[e.to] -= 1;
+                if indeg[e.to] == 0 {
+                    ready.push((height[e.to], std::cmp::Reverse(e.to)));
+                }
+            }
+        }
+        for e in &preds[u] {
+            if e.distance == 0 && just_in_time(e.from) {
+                indeg[e.from] -= 1;
+                if indeg[e.from] == 0 {
+                    ready.push((height[e.from], std::cmp::Reverse(e.from)));
+                }
+            }
+        }
+    }
+    if ii.is_none() {
+        sink(g, sched, &mut table, &order, &succs, slots, desc);
+    }
+    // Ops placed before the first cycle (just-in-time constants) shift the whole body by
+    // whole intervals: rows stay, stages grow.
+    let first = ops
+        .iter()
+        .filter_map(|&o| sched.place[o].map(|p| p.time))
+        .min()
+        .unwrap_or(0);
+    if first < 0 {
+        let shift = (-first + span - 1) / span * span;
+        for &o in &ops {
+            if let Some(p) = &mut sched.place[o] {
+                p.time += shift;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Moves ops of straight-line code as late as their readers allow (last first), so values
+/// are made when they are needed rather than waiting in the small LRFs.
+fn sink(
+    g: &Graph,
+    sched: &mut Schedule,
+    table: &mut Table,
+    order: &[usize],
+    succs: &[Vec<Edge>],
+    slots: &Slots,
+    desc: &MachineDesc,
+) {
+    for &u in order.iter().rev() {
+        let Some(p) = sched.place[u] else { continue };
+        if !matches!(
+            g.ops[u].kind,
+            Kind::Fu(_)
+                | Kind::Imm(_)
+                | Kind::SpRead { .. }
+                | Kind::Comm(_)
+                | Kind::StreamIn { cond: false, .. }
+        ) {
+            continue;
+        }
+        let latest = succs[u]
+            .iter()
+            .filter(|e| e.distance == 0)
+            .filter_map(|e| sched.place[e.to].map(|q| q.time - e.latency))
+            .min();
+        let Some(latest) = latest else { continue };
+        if latest <= p.time {
+            continue;
+        }
+        unplace(g, sched, table, u, slots, desc);
+        let moved = (p.time + 1..=latest)
+            .rev()
+            .any(|t| try_place(g, sched, table, u, t, slots, desc).is_ok());
+        if !moved {
+            try_place(g, sched, table, u, p.time, slots, desc).expect("its old place is free");
+        }
+    }
+}
+
+/// Frees the resources op `u` holds.
+fn unplace(
+    g: &Graph,
+    sched: &mut Schedule,
+    table: &mut Table,
+    u: usize,
+    slots: &Slots,
+    desc: &MachineDesc,
+) {
+    let Some(p) = sched.place[u].take() else {
+        return;
+    };
+    let op = &g.ops[u];
+    let row = table.row(p.time);
+    let write = p.time + g.latency(u, desc);
+    match op.kind {
+        Kind::Fu(o) => {
+            let span = if o.unit() == UnitClass::DivSqrt {
+                slots.dsq_interval as i64
+            } else {
+                1
+            };
+            for k in 0..span.min(table.modulus) {
+                let r = table.row(p.time + k);
+                table.fu[r * table.nfu + p.slot] = FREE;
+            }
+            let r = table.row(write);
+            table.fu_result[r * table.nfu + p.slot] = FREE;
+        }
+        Kind::Imm(_) => table.imm[row] = FREE,
+        Kind::SpRead { .. } => table.sp[row * table.nsp + p.slot] = FREE,
+        Kind::Comm(_) => table.comm[row * table.ncomm + p.slot] = FREE,
+        Kind::StreamIn { cond: false, .. } => table.stream_words[row] -= 1,
+        _ => unreachable!("writes and conditional streams do not move"),
+    }
+    for l in &sched.dests[u] {
+        if let Loc::Lrf(x) = *l {
+            let i = table.row(write) * table.nlrf + x as usize;
+            table.ports[i] = FREE;
+        }
+    }
+}
+
+/// The input an operand is read through when a commutative op's operands are swapped.
+pub fn input_of(a: &Arg, swap: bool) -> Input {
+    match (a.input, swap) {
+        (Input::A, true) => Input::B,
+        (Input::B, true) => Input::A,
+        (i, _) => i,
+    }
+}
+
+/// Places op `u` at cycle `t` on its bound slot, if its resources are free: the slot (a
+/// divide/sqrt unit for its issue interval), the unit's result port, stream and immediate
+/// slots, and the write port of every LRF its result goes to, in the cycle it lands.
+fn try_place(
+    g: &Graph,
+    sched: &mut Schedule,
+    table: &mut Table,
+    u: usize,
+    t: i64,
+    slots: &Slots,
+    desc: &MachineDesc,
+) -> Result<(), String> {
+    let op = &g.ops[u];
+    let slot = op.slot;
+    let row = table.row(t);
+    let write = t + g.latency(u, desc);
+    let span = match op.kind {
+        Kind::Fu(o) if o.unit() == UnitClass::DivSqrt => slots.dsq_interval as i64,
+        _ => 1,
+    };
+    match op.kind {
+        Kind::Fu(_) => {
+            for k in 0..span.min(table.modulus) {
+                if table.fu[table.row(t + k) * table.nfu + slot] != FREE {
+                    return Err(format!("{} is busy", slots.shape.fu_name(slot)));
+                }
+            }
+            if table.fu_result[table.row(write) * table.nfu + slot] != FREE {
+                return Err(format!(
+                    "the result port of {} is busy",
+                    slots.shape.fu_name(slot)
+                ));
+            }
+        }
+        Kind::SpRead { .. } | Kind::SpWrite { .. } => {
+            if table.sp[row * table.nsp + slot] != FREE || table.conditional[row] > 0 {
+                return Err(format!("sp{slot} is busy"));
+            }
+        }
+        Kind::Comm(_) => {
+            let cond_blocks = slot == 0 && table.conditional[row] > 0;
+            if table.comm[row * table.ncomm + slot] != FREE || cond_blocks {
+                return Err(format!("comm{slot} is busy"));
+            }
+        }
+        Kind::StreamIn { cond, .. } | Kind::StreamOut { cond, .. } => {
+            if table.stream_words[row] as usize >= slots.stream_words {
+                return Err("the SRF stream words of the cycle are used".into());
+            }
+            if matches!(op.kind, Kind::StreamOut { .. }) && table.sout[row] != FREE {
+                return Err("the stream output slot is used".into());
+            }
+            if cond
+                && (table.conditional[row] as usize >= slots.conditional_words
+                    || table.comm[row * table.ncomm] != FREE
+                    || table.sp[row * table.nsp] != FREE)
+            {
+                return Err("a conditional stream needs comm0 and sp0 in its cycle".into());
+            }
+        }
+        Kind::Imm(_) => {
+            if table.imm[row] != FREE {
+                return Err("the immediate slot is used".into());
+            }
+        }
+    }
+    for l in &sched.dests[u] {
+        if let Loc::Lrf(x) = *l
+            && table.port(x, write) != FREE
+        {
+            return Err(format!(
+                "the write port of {} is taken when the result lands",
+                slots.shape.lrf_names[x as usize]
+            ));
+        }
+    }
+    // Commit.
+    let id = u as u32;
+    match op.kind {
+        Kind::Fu(_) => {
+            for k in 0..span.min(table.modulus) {
+                let r = table.row(t + k);
+                table.fu[r * table.nfu + slot] = id;
+            }
+            let r = table.row(write);
+            table.fu_result[r * table.nfu + slot] = id;
+        }
+        Kind::SpRead { .. } | Kind::SpWrite { .. } => table.sp[row * table.nsp + slot] = id,
+        Kind::Comm(_) => table.comm[row * table.ncomm + slot] = id,
+        Kind::StreamIn { cond, .. } | Kind::StreamOut { cond, .. } => {
+            table.stream_words[row] += 1;
+            if matches!(op.kind, Kind::StreamOut { .. }) {
+                table.sout[row] = id;
+            }
+            if cond {
+                table.conditional[row] += 1;
+            }
+        }
+        Kind::Imm(_) => table.imm[row] = id,
+    }
+    for l in &sched.dests[u] {
+        if let Loc::Lrf(x) = *l {
+            let i = table.row(write) * table.nlrf + x as usize;
+            table.ports[i] = id;
+        }
+    }
+    sched.place[u] = Some(Placement {
+        time: t,
+        slot,
+        swap: op.swap,
+    });
+    Ok(())
+}

@@ -1,0 +1,183 @@
+//! The kernel library: the kernels of the OpenGL-like pipeline and of the benchmark scenes,
+//! written with the [`KernelBuilder`](crate::kernel::KernelBuilder) (ARCHITECTURE §5).
+//!
+//! Each kernel is a function of the machine description (kernels that split a fixed-size
+//! problem over the clusters, like [`sort32`], are built for `desc.cluster.count`). The
+//! [`library`] registry names every kernel with a builder and a generator of random valid
+//! inputs, so tools and tests can run any of them by name.
+//!
+//! | kernel | computes |
+//! |---|---|
+//! | [`transform`] | 4×4 matrix times a homogeneous position |
+//! | [`vertex`] | the SPHERE vertex program: transform plus three-light Blinn-Phong lighting |
+//! | [`turbulence`] | the MARBLE shader: four octaves of Perlin improved noise, marble colour ramp |
+//! | [`prefix_sum`] | inclusive prefix sum of an int32 stream |
+//! | [`compact`] | keeps the fp32 words below a threshold, in order |
+//! | [`hash`] | the composite stamp test of the OpenGL pipeline (per-cluster 32×32 stamp) |
+//! | [`sort32`] | bitonic sort of 32-word chunks of u32 keys |
+//! | [`merge`] | bitonic merge of pairs of sorted 32-word chunks into 64-word chunks |
+
+pub mod compact;
+pub mod hash;
+pub mod merge;
+pub mod prefix_sum;
+pub mod sort32;
+pub mod transform;
+pub mod turbulence;
+pub mod vertex;
+
+use imagine_units::arith::fp32::testgen::SplitMix64;
+use imagine_units::desc::MachineDesc;
+use imagine_units::ops::UnitClass;
+
+use crate::kernel::{Kernel, KernelInputs, Node, Region};
+
+/// A kernel of the library: how to build it and how to make inputs for it.
+pub struct LibraryKernel {
+    pub name: &'static str,
+    pub description: &'static str,
+    pub build: fn(&MachineDesc) -> Kernel,
+    /// Random valid inputs for `rows` iterations of the kernel's main loop, deterministic
+    /// from `seed` (one entry per stream: output streams get empty vectors).
+    pub inputs: fn(&MachineDesc, rows: usize, seed: u64) -> KernelInputs,
+}
+
+static LIBRARY: &[LibraryKernel] = &[
+    LibraryKernel {
+        name: "transform",
+        description: "4x4 fp32 matrix times (x, y, z, w) position records",
+        build: transform::build,
+        inputs: transform::inputs,
+    },
+    LibraryKernel {
+        name: "vertex",
+        description: "SPHERE vertex program: clip-space transform and three-light Blinn-Phong",
+        build: vertex::build,
+        inputs: vertex::inputs,
+    },
+    LibraryKernel {
+        name: "turbulence",
+        description: "MARBLE shader: four octaves of Perlin improved noise and a marble ramp",
+        build: turbulence::build,
+        inputs: turbulence::inputs,
+    },
+    LibraryKernel {
+        name: "prefix_sum",
+        description: "inclusive prefix sum of an int32 stream (wrapping)",
+        build: prefix_sum::build,
+        inputs: prefix_sum::inputs,
+    },
+    LibraryKernel {
+        name: "compact",
+        description: "keeps the fp32 words below a threshold parameter, in order",
+        build: compact::build,
+        inputs: compact::inputs,
+    },
+    LibraryKernel {
+        name: "hash",
+        description: "composite stamp test: splits (x, y) fragments into ok and conflict",
+        build: hash::build,
+        inputs: hash::inputs,
+    },
+    LibraryKernel {
+        name: "sort32",
+        description: "bitonic sort of 32-word chunks of u32 keys",
+        build: sort32::build,
+        inputs: sort32::inputs,
+    },
+    LibraryKernel {
+        name: "merge",
+        description: "bitonic merge of pairs of sorted 32-word u32 chunks",
+        build: merge::build,
+        inputs: merge::inputs,
+    },
+];
+
+/// Every kernel of the library.
+pub fn library() -> &'static [LibraryKernel] {
+    LIBRARY
+}
+
+/// The library kernel called `name`.
+pub fn find(name: &str) -> Option<&'static LibraryKernel> {
+    LIBRARY.iter().find(|k| k.name == name)
+}
+
+/// Arithmetic ops of a region per unit class.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UnitMix {
+    pub adder: usize,
+    pub multiplier: usize,
+    pub divsqrt: usize,
+}
+
+/// How the arithmetic ops of `region` split over the unit classes.
+pub fn unit_mix(kernel: &Kernel, region: Region) -> UnitMix {
+    let mut mix = UnitMix::default();
+    for d in kernel.nodes.iter().filter(|d| d.region == region) {
+        if let Node::Op { op, .. } = d.node {
+            match op.unit() {
+                UnitClass::Adder => mix.adder += 1,
+                UnitClass::Multiplier => mix.multiplier += 1,
+                UnitClass::DivSqrt => mix.divsqrt += 1,
+            }
+        }
+    }
+    mix
+}
+
+/// Checks a kernel the library built (a failure is a bug of the library).
+fn finish(b: crate::kernel::KernelBuilder) -> Kernel {
+    match b.finish() {
+        Ok(k) => k,
+        Err(e) => panic!("library kernel does not verify: {e}"),
+    }
+}
+
+/// An fp32 uniform in `[lo, hi)` (as bits).
+fn uniform(rng: &mut SplitMix64, lo: f32, hi: f32) -> f32 {
+    let unit = (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+    lo + (hi - lo) * unit
+}
+
+/// `n` fp32 uniforms in `[lo, hi)` as words.
+fn uniform_words(rng: &mut SplitMix64, n: usize, lo: f32, hi: f32) -> Vec<u32> {
+    (0..n).map(|_| uniform(rng, lo, hi).to_bits()).collect()
+}
+
+/// Lays records of `k` words out as a word stream for `clusters` clusters: element `e`'s
+/// word `j` goes to `(e / C)·k·C + j·C + e mod C` (the record count must be a multiple of
+/// `C`).
+pub fn records_to_stream(records: &[Vec<u32>], clusters: usize) -> Vec<u32> {
+    let k = records.first().map_or(0, Vec::len);
+    assert!(
+        records.len().is_multiple_of(clusters),
+        "{} records do not fill rows of {clusters}",
+        records.len()
+    );
+    let mut out = vec![0; records.len() * k];
+    for (e, r) in records.iter().enumerate() {
+        assert_eq!(r.len(), k, "records of different lengths");
+        for (j, &w) in r.iter().enumerate() {
+            out[(e / clusters) * k * clusters + j * clusters + e % clusters] = w;
+        }
+    }
+    out
+}
+
+/// The inverse of [`records_to_stream`]: the records of `k` words of a word stream.
+pub fn stream_to_records(words: &[u32], k: usize, clusters: usize) -> Vec<Vec<u32>> {
+    assert!(
+        words.len().is_multiple_of(k * clusters),
+        "{} words do not fill rows of {clusters} records of {k} words",
+        words.len()
+    );
+    let n = words.len() / k;
+    (0..n)
+        .map(|e| {
+            (0..k)
+                .map(|j| words[(e / clusters) * k * clusters + j * clusters + e % clusters])
+                .collect()
+        })
+        .collect()
+}

@@ -1,0 +1,50 @@
+//! Every library kernel compiles for gold1, gold8 and gold32, and its machine output equals
+//! the interpreter's word for word (what `imagine kernel check` runs).
+
+use imagine_pipelines::compile::compile;
+use imagine_pipelines::kernels::library;
+use imagine_pipelines::run::check;
+use imagine_units::desc::MachineDesc;
+
+fn check_all(machine: &str) {
+    let desc = MachineDesc::resolve(machine).unwrap();
+    for lk in library() {
+        let k = (lk.build)(&desc);
+        let c = compile(&k, &desc).unwrap_or_else(|e| panic!("{e}"));
+        let inputs = (lk.inputs)(&desc, 3, 11);
+        let r = check(&k, &c, &desc, &inputs).unwrap_or_else(|e| panic!("{}: {e}", lk.name));
+        assert!(r.words > 0, "{} on {machine} wrote nothing", lk.name);
+        assert_eq!(
+            r.mismatch,
+            None,
+            "{} on {machine}\n{}",
+            lk.name,
+            c.report.text()
+        );
+        eprintln!(
+            "{machine} {:<12} II {:?} (ResMII {} RecMII {}) stages {} copies {} ops/cycle {:.1}",
+            lk.name,
+            c.report.ii,
+            c.report.res_mii,
+            c.report.rec_mii,
+            c.report.stages,
+            c.report.loop_ops.copies,
+            c.report.ops_per_cycle
+        );
+    }
+}
+
+#[test]
+fn library_on_gold8() {
+    check_all("gold8");
+}
+
+#[test]
+fn library_on_gold1() {
+    check_all("gold1");
+}
+
+#[test]
+fn library_on_gold32() {
+    check_all("gold32");
+}
