@@ -441,3 +441,58 @@ fn dram_vcd_is_deterministic_and_has_the_memory_signals() {
         assert!(a.contains(&format!(" {sig} ")), "`{sig}` missing");
     }
 }
+
+#[test]
+fn kernel_library_list_show_check() {
+    let o = imagine(&["kernel", "list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for name in [
+        "transform",
+        "vertex",
+        "turbulence",
+        "prefix_sum",
+        "compact",
+        "hash",
+        "sort32",
+        "merge",
+    ] {
+        assert!(out.contains(name), "{out}");
+    }
+    let o = imagine(&["kernel", "show", "transform", "--machine", "gold8"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("II 8 (ResMII 8 set by multipliers"), "{out}");
+    assert!(
+        out.contains("schedule (op/stage)") && out.contains("fmul/"),
+        "{out}"
+    );
+    let o = imagine(&[
+        "kernel",
+        "show",
+        "prefix_sum",
+        "--machine",
+        "gold1",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(json["kernel"], "prefix_sum");
+    assert_eq!(json["machine"], "gold1");
+    assert!(json["ii"].as_u64().unwrap() >= json["rec_mii"].as_u64().unwrap());
+    let o = imagine(&["kernel", "check", "compact", "--machine", "gold8", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(json[0]["pass"], true);
+    assert!(json[0]["words"].as_u64().unwrap() > 0);
+    let o = imagine(&["kernel", "check", "sort32", "--machine", "gold32"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("sort32: pass on gold32"),
+        "{}",
+        stdout(&o)
+    );
+    let o = imagine(&["kernel", "show", "nope"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no kernel `nope`"), "{}", stderr(&o));
+}

@@ -48,3 +48,26 @@ fn library_on_gold1() {
 fn library_on_gold32() {
     check_all("gold32");
 }
+
+/// Achieved intervals against their lower bounds on gold8 (a regression guard: the bounds
+/// here are what the compiler reaches today, not the goal).
+#[test]
+fn schedules_stay_near_their_bounds() {
+    let desc = MachineDesc::gold8();
+    for lk in library() {
+        let c = compile(&(lk.build)(&desc), &desc).unwrap();
+        let (ii, mii) = (c.report.ii.unwrap(), c.report.mii());
+        let allowed = match lk.name {
+            "transform" | "prefix_sum" | "compact" | "hash" => mii + 1,
+            "vertex" | "sort32" | "merge" => mii + mii / 8 + 1,
+            _ => mii * 3,
+        };
+        assert!(ii >= mii, "{}: II {ii} below its bound {mii}", lk.name);
+        assert!(
+            ii <= allowed,
+            "{}: II {ii}, bound {mii}\n{}",
+            lk.name,
+            c.report.text()
+        );
+    }
+}
