@@ -12,9 +12,9 @@
 
 use std::collections::HashMap;
 
-use imagine_units::ops::{Op, UnitClass};
+use imagine_units::ops::UnitClass;
 
-use super::graph::{Arg, CopyKind, Graph, Input, Kind, Loc, MOp, Source, commutative};
+use super::graph::{Arg, CopyKind, Graph, Kind, Loc, MOp, Source, commutative};
 use super::schedule::{Schedule, Slots};
 use crate::kernel::Region;
 
@@ -240,25 +240,9 @@ fn split(
         _ => Source::Local(q),
     };
     let c = g.ops.len();
-    g.ops.push(MOp {
-        kind: Kind::Fu(Op::Mov),
-        args: vec![Arg {
-            src,
-            input: Input::A,
-        }],
-        region,
-        ir: g.ops[q].ir,
-        copy: true,
-        copy_kind: Some(CopyKind::Fanout),
-        fixed_slot: None,
-        slot: copy_slot,
-        swap: false,
-        dead: false,
-        just_in_time: false,
-        seeded: Vec::new(),
-        tie: None,
-        deadline: None,
-    });
+    let mut mov = MOp::copy_of(src, region, g.ops[q].ir, CopyKind::Fanout);
+    mov.slot = copy_slot;
+    g.ops.push(mov);
     let mut moved: Vec<Loc> = Vec::new();
     for (o, i, loc) in readers {
         if keep.contains(&loc) {

@@ -131,6 +131,41 @@ pub struct MOp {
     pub tie: Option<usize>,
 }
 
+impl MOp {
+    /// An op of `region` computing (or, for a copy, carrying) IR value `ir`.
+    pub fn new(kind: Kind, args: Vec<Arg>, region: Region, ir: Option<Value>) -> MOp {
+        MOp {
+            kind,
+            args,
+            region,
+            ir,
+            copy: false,
+            copy_kind: None,
+            fixed_slot: None,
+            slot: 0,
+            swap: false,
+            dead: false,
+            just_in_time: false,
+            deadline: None,
+            seeded: Vec::new(),
+            tie: None,
+        }
+    }
+
+    /// A `mov` copying `src` (read through an adder's `a` input).
+    pub fn copy_of(src: Source, region: Region, ir: Option<Value>, kind: CopyKind) -> MOp {
+        let arg = Arg {
+            src,
+            input: Input::A,
+        };
+        MOp {
+            copy: true,
+            copy_kind: Some(kind),
+            ..MOp::new(Kind::Fu(Op::Mov), vec![arg], region, ir)
+        }
+    }
+}
+
 /// An ordering constraint: `to` issues at least `latency` cycles after `from`, minus
 /// `distance` initiation intervals.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -175,25 +210,14 @@ impl Graph {
     pub fn insert_lifetime_copy(&mut self, user: usize, arg: usize, deadline: i64) -> usize {
         let a = self.ops[user].args[arg];
         let copy = self.ops.len();
-        self.ops.push(MOp {
-            kind: Kind::Fu(Op::Mov),
-            args: vec![Arg {
-                src: a.src,
-                input: Input::A,
-            }],
-            region: self.ops[user].region,
-            ir: self.ops[user].ir,
-            copy: true,
-            copy_kind: Some(CopyKind::Lifetime),
-            fixed_slot: None,
-            slot: 0,
-            swap: false,
-            dead: false,
-            just_in_time: false,
-            seeded: Vec::new(),
-            tie: None,
-            deadline: Some(deadline),
-        });
+        let mut mov = MOp::copy_of(
+            a.src,
+            self.ops[user].region,
+            self.ops[user].ir,
+            CopyKind::Lifetime,
+        );
+        mov.deadline = Some(deadline);
+        self.ops.push(mov);
         self.ops[user].args[arg].src = Source::Local(copy);
         copy
     }
@@ -541,22 +565,7 @@ struct Lowerer<'k> {
 
 impl Lowerer<'_> {
     fn push(&mut self, kind: Kind, args: Vec<Arg>, region: Region, ir: Value) -> usize {
-        self.g.ops.push(MOp {
-            kind,
-            args,
-            region,
-            ir: Some(ir),
-            copy: false,
-            copy_kind: None,
-            fixed_slot: None,
-            slot: 0,
-            swap: false,
-            dead: false,
-            just_in_time: false,
-            deadline: None,
-            seeded: Vec::new(),
-            tie: None,
-        });
+        self.g.ops.push(MOp::new(kind, args, region, Some(ir)));
         self.g.ops.len() - 1
     }
 

@@ -427,20 +427,9 @@ fn fan_out(g: &mut Graph, s: &mut Schedule) -> HashMap<(usize, Loc), usize> {
                 )
             };
             g.ops.push(MOp {
-                kind,
-                args,
-                region: Region::Pre,
-                ir: g.ops[p].ir,
                 copy: !is_imm,
-                copy_kind: None,
-                fixed_slot: None,
-                slot: 0,
-                swap: false,
-                dead: false,
-                just_in_time: false,
-                deadline: None,
                 seeded: chunk.to_vec(),
-                tie: None,
+                ..MOp::new(kind, args, Region::Pre, g.ops[p].ir)
             });
             for &l in chunk {
                 providers.insert((p, l), q);

@@ -181,3 +181,15 @@ pub fn stream_to_records(words: &[u32], k: usize, clusters: usize) -> Vec<Vec<u3
         })
         .collect()
 }
+
+/// Three values: a point, a direction or a colour.
+pub(crate) type Vec3 = [crate::kernel::Value; 3];
+
+/// `u · v` in the order the references use: `(u0·v0 + u1·v1) + u2·v2`.
+pub(crate) fn dot(b: &mut crate::kernel::KernelBuilder, u: Vec3, v: Vec3) -> crate::kernel::Value {
+    let xx = b.fmul(u[0], v[0]);
+    let yy = b.fmul(u[1], v[1]);
+    let sum = b.fadd(xx, yy);
+    let zz = b.fmul(u[2], v[2]);
+    b.fadd(sum, zz)
+}

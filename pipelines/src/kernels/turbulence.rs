@@ -297,15 +297,7 @@ pub const RSQRT_STEPS: usize = 3;
 /// Parameters of the kernel (the ramp colours are constants).
 pub const SCALAR_PARAMS: usize = 10;
 
-type Vec3 = [Value; 3];
-
-fn dot(b: &mut KernelBuilder, u: Vec3, v: Vec3) -> Value {
-    let xx = b.fmul(u[0], v[0]);
-    let yy = b.fmul(u[1], v[1]);
-    let sum = b.fadd(xx, yy);
-    let zz = b.fmul(u[2], v[2]);
-    b.fadd(sum, zz)
-}
+use super::{Vec3, dot};
 
 /// `v / |v|` without a divide or square root (see the module notes).
 fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {

@@ -31,7 +31,7 @@ use imagine_units::desc::MachineDesc;
 
 use super::transform::{matrix_params, transform_point};
 use super::{finish, records_to_stream, uniform};
-use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, Value};
+use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec};
 
 /// Lights of the SPHERE vertex program.
 pub const LIGHTS: usize = 3;
@@ -39,15 +39,7 @@ pub const LIGHTS: usize = 3;
 /// Words of a parameter list: 16 matrix, 3 eye, 6 per light, 9 material.
 pub const PARAMS: usize = 16 + 3 + 6 * LIGHTS + 9;
 
-type Vec3 = [Value; 3];
-
-fn dot(b: &mut KernelBuilder, u: Vec3, v: Vec3) -> Value {
-    let xx = b.fmul(u[0], v[0]);
-    let yy = b.fmul(u[1], v[1]);
-    let sum = b.fadd(xx, yy);
-    let zz = b.fmul(u[2], v[2]);
-    b.fadd(sum, zz)
-}
+use super::{Vec3, dot};
 
 fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {
     let length_squared = dot(b, v, v);
