@@ -326,7 +326,7 @@ fn attempt(
     let mut preds: Vec<Vec<Edge>> = vec![Vec::new(); n];
     let mut succs: Vec<Vec<Edge>> = vec![Vec::new(); n];
     // A rematerialised constant is placed after its reader, just in time for it.
-    let just_in_time = |o: usize| g.ops[o].just_in_time && ii.is_some();
+    let just_in_time = |o: usize| g.ops[o].just_in_time;
     let mut indeg = vec![0usize; n];
     for e in &edges {
         preds[e.to].push(*e);
@@ -343,7 +343,7 @@ fn attempt(
     // the small LRFs need), leaning towards the critical path; loops by height.
     let height: Vec<i64> = if ii.is_none() {
         (0..n)
-            .map(|o| height[o] * 5 - i64::from(g.ops[o].ir.map_or(0, |v| v.0)))
+            .map(|o| height[o] * 10 - i64::from(g.ops[o].ir.map_or(0, |v| v.0)))
             .collect()
     } else {
         height
@@ -388,7 +388,8 @@ fn attempt(
         let late = g.ops[u].copy_kind == Some(CopyKind::Lifetime) && ii.is_some();
         let times: Box<dyn Iterator<Item = i64>> = if just_in_time(u) {
             // Backwards from just before its reader, no further than its value may live.
-            let ii = ii.expect("loops only");
+            // (A loop run one iteration at a time keeps them as close as a short interval.)
+            let ii = ii.unwrap_or(64);
             let reader = succs[u]
                 .iter()
                 .filter_map(|e| sched.place[e.to].map(|p| p.time))
@@ -465,15 +466,18 @@ fn attempt(
     if ii.is_none() {
         sink(g, sched, &mut table, &order, &succs, slots, desc);
     }
-    // Ops placed before the first cycle (just-in-time constants) shift the whole body by
-    // whole intervals: rows stay, stages grow.
+    // Ops placed before the first cycle (just-in-time constants) shift the whole body (in a
+    // loop by whole intervals: rows stay, stages grow).
     let first = ops
         .iter()
         .filter_map(|&o| sched.place[o].map(|p| p.time))
         .min()
         .unwrap_or(0);
     if first < 0 {
-        let shift = (-first + span - 1) / span * span;
+        let shift = match ii {
+            Some(_) => (-first + span - 1) / span * span,
+            None => -first,
+        };
         for &o in &ops {
             if let Some(p) = &mut sched.place[o] {
                 p.time += shift;
