@@ -13,6 +13,15 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// A run that fails with an `error:` message, not a panic.
+fn assert_clear_error(args: &[&str]) {
+    let o = imagine(args);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{args:?} succeeded");
+    assert!(err.contains("error"), "{args:?}: {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+}
+
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
@@ -43,11 +52,7 @@ fn bad_arguments_are_errors_not_panics() {
         &["machine", "show", "gold9"],
         &["machine", "show", "/nonexistent/m.toml"],
     ] {
-        let o = imagine(args);
-        let err = stderr(&o);
-        assert!(!o.status.success(), "{args:?} succeeded");
-        assert!(err.contains("error"), "{args:?}: {err}");
-        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert_clear_error(args);
     }
 }
 
@@ -407,11 +412,7 @@ fn dram_bad_input_names_the_line() {
         &["dram"],
         &["dram", "--bench", "unit", "--machine", "gold9"],
     ] {
-        let o = imagine(args);
-        let err = stderr(&o);
-        assert!(!o.status.success(), "{args:?} succeeded");
-        assert!(err.contains("error"), "{args:?}: {err}");
-        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert_clear_error(args);
     }
 }
 

@@ -31,7 +31,7 @@ pub struct Overflow {
 }
 
 /// The ops whose results stay in their entries for the whole kernel.
-pub fn permanent(g: &Graph, s: &Schedule) -> Vec<bool> {
+pub fn permanent(g: &Graph) -> Vec<bool> {
     let mut p = vec![false; g.ops.len()];
     for (i, op) in g.ops.iter().enumerate() {
         if op.region == Region::Pre && !op.seeded.is_empty() {
@@ -42,7 +42,6 @@ pub fn permanent(g: &Graph, s: &Schedule) -> Vec<bool> {
             p[i] = true;
         }
     }
-    let _ = s;
     p
 }
 
@@ -61,14 +60,14 @@ pub fn allocate(
     desc: &imagine_units::desc::MachineDesc,
 ) -> Result<Entries, Overflow> {
     let n = g.ops.len();
-    let perm = permanent(g, s);
+    let perm = permanent(g);
     // Last read of each (value, loc), in the reader's region time.
     let mut last_read: HashMap<(usize, Loc), i64> = HashMap::new();
     for (u, op) in g.ops.iter().enumerate() {
         let Some(pl) = s.place[u] else { continue };
         for a in &op.args {
             if let Source::Local(p) = a.src {
-                let loc = slots_loc(slots, op.kind, pl, a);
+                let loc = slots.operand_loc(op.kind, pl.slot, pl.swap, a);
                 let e = last_read.entry((p, loc)).or_insert(pl.time);
                 *e = (*e).max(pl.time);
             }
@@ -215,14 +214,4 @@ pub fn allocate(
         }
     }
     Ok(out)
-}
-
-/// Where operand `a` of an op placed at `pl` is read.
-pub fn slots_loc(
-    slots: &Slots,
-    kind: super::graph::Kind,
-    pl: super::schedule::Placement,
-    a: &super::graph::Arg,
-) -> Loc {
-    slots.operand_loc(kind, pl.slot, pl.swap, a)
 }

@@ -1,4 +1,4 @@
-//! The kernel interpreter: runs the IR on the machine's op functions ([`Op::eval`]), one
+//! The kernel interpreter: runs the IR on the machine's op functions ([`imagine_units::ops::Op::eval`]), one
 //! lane per cluster. It is the functional golden model of every kernel: the compiled
 //! microcode, run on the clocked machine, must leave identical words in every output stream.
 
@@ -6,7 +6,6 @@ use std::fmt;
 
 use imagine_units::arith::fp32::FpMode;
 use imagine_units::desc::MachineDesc;
-use imagine_units::ops::Op;
 
 use super::{Dir, Kernel, LoopSpec, Node, Perm, Region, Value};
 
@@ -282,10 +281,4 @@ impl State<'_> {
         }
         Ok(a)
     }
-}
-
-/// Evaluates one op on one lane, as the interpreter does (used by tests and the library).
-pub fn eval(op: Op, args: &[u32], mode: FpMode) -> u32 {
-    let a = |n: usize| args.get(n).copied().unwrap_or(0);
-    op.eval(a(0), a(1), a(2), mode).0
 }

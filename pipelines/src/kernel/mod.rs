@@ -267,22 +267,6 @@ impl Kernel {
         }
     }
 
-    pub fn inputs(&self) -> impl Iterator<Item = (StreamId, &Stream)> {
-        self.streams_in(Dir::In)
-    }
-
-    pub fn outputs(&self) -> impl Iterator<Item = (StreamId, &Stream)> {
-        self.streams_in(Dir::Out)
-    }
-
-    fn streams_in(&self, dir: Dir) -> impl Iterator<Item = (StreamId, &Stream)> {
-        self.streams
-            .iter()
-            .enumerate()
-            .filter(move |(_, s)| s.dir == dir)
-            .map(|(i, s)| (StreamId(i as u16), s))
-    }
-
     /// Unconditional reads of `stream` per iteration of the loop.
     pub fn loop_reads(&self, stream: StreamId) -> usize {
         self.nodes
@@ -294,7 +278,7 @@ impl Kernel {
             .count()
     }
 
-    /// Arithmetic ops per unit class (adder, multiplier, divide/sqrt) in a region.
+    /// Arithmetic ops (`Node::Op`) in a region.
     pub fn op_count(&self, region: Region) -> usize {
         self.nodes
             .iter()
