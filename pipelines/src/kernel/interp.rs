@@ -1,6 +1,7 @@
 //! The kernel interpreter: runs the IR on the machine's op functions
-//! ([`imagine_units::ops::Op::eval`]), one lane per cluster. It is the functional golden model of every kernel: the compiled
-//! microcode, run on the clocked machine, must leave identical words in every output stream.
+//! ([`imagine_units::ops::Op::eval`]), one lane per cluster. It is the functional golden
+//! model of every kernel: the compiled microcode, run on the clocked machine, must leave
+//! identical words in every output stream.
 
 use std::fmt;
 
