@@ -5,3 +5,4 @@ pub mod compile;
 pub mod kernel;
 pub mod kernels;
 pub mod run;
+pub mod scene;

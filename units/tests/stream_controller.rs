@@ -39,6 +39,7 @@ fn strided(kind: MemOpKind, base: u64, srf_start: usize) -> StreamInstr {
         record_words: 1,
         records: N,
         srf_start,
+        row_records: 1,
     })
 }
 
@@ -153,6 +154,17 @@ fn double_buffering_overlaps_the_next_load_with_the_kernel() {
 
 #[test]
 fn gather_record_and_scatter_streams_move_the_right_words() {
+    gather_record_and_scatter(1);
+}
+
+/// The same streams with each row of 8 records stored word by word in the SRF (the layout
+/// kernels read): memory sees the same records, the SRF holds them transposed per row.
+#[test]
+fn cluster_row_layout_transposes_records_in_the_srf_only() {
+    gather_record_and_scatter(8);
+}
+
+fn gather_record_and_scatter(row_records: usize) {
     let desc = MachineDesc::gold8();
     const T: u64 = 0x4_0000; // table
     const D: u64 = 0x5_0000; // strided record store
@@ -169,6 +181,7 @@ fn gather_record_and_scatter_streams_move_the_right_words() {
             record_words: 2,
             records: k,
             srf_start,
+            row_records,
         })
     };
     let indexed = Pattern::Indexed {
@@ -200,7 +213,14 @@ fn gather_record_and_scatter_streams_move_the_right_words() {
         .srf()
         .read_back(1024, 2 * k)
         .unwrap();
-    assert_eq!(srf, gathered, "gather");
+    let r_ = row_records;
+    let laid_out: Vec<u32> = (0..2 * k)
+        .map(|n| {
+            let (row, within) = (n / (2 * r_), n % (2 * r_));
+            gathered[2 * (row * r_ + within % r_) + within / r_]
+        })
+        .collect();
+    assert_eq!(srf, laid_out, "gather");
     let d = processor::read_dram(&sim, &desc, D, 3 * k);
     for (n, rec) in gathered.chunks(2).enumerate() {
         assert_eq!(&d[3 * n..3 * n + 2], rec, "record {n} of the strided store");

@@ -59,6 +59,12 @@ pub struct MemOp {
     pub records: usize,
     /// First SRF word of the stream (a block boundary).
     pub srf_start: usize,
+    /// How records are laid out in the SRF: 1 for one record after another; `C` (the
+    /// cluster count) for the layout kernels read, where each row of `C` records is stored
+    /// word by word (record `i`'s word `j` at `(i / C)·k·C + j·C + i mod C`, `k` words per
+    /// record), so that each cluster receives whole records. `records` must then be a
+    /// multiple of `C`. The generator simply issues its references in that order.
+    pub row_records: usize,
 }
 
 impl MemOp {
@@ -77,6 +83,13 @@ impl MemOp {
             Pattern::Strided { .. } => Some((self.base, self.base)),
             Pattern::Indexed { .. } => None,
         }
+    }
+
+    /// Record and word of the stream's `n`-th reference (in SRF order).
+    pub fn reference(&self, n: usize) -> (usize, usize) {
+        let (k, r) = (self.record_words, self.row_records.max(1));
+        let (row, within) = (n / (k * r), n % (k * r));
+        (row * r + within % r, within / r)
     }
 
     /// The SRF index stream `[start, start + records)`, for an indexed stream.
@@ -108,7 +121,9 @@ pub struct AddressGenerator {
     retired: usize,
     rob: Vec<Option<u32>>,
     /// The index of the record being issued (indexed streams), once read.
-    index: Option<u64>,
+    /// Indices of the current row's records (indexed streams).
+    indices: Vec<u64>,
+    indices_row: Option<usize>,
     flushing: bool,
     /// The operation ended at the last edge.
     finished: bool,
@@ -138,7 +153,8 @@ impl AddressGenerator {
             issued: 0,
             retired: 0,
             rob: vec![None; window],
-            index: None,
+            indices: Vec::new(),
+            indices_row: None,
             flushing: false,
             finished: false,
             buf: Vec::with_capacity(width),
@@ -170,6 +186,15 @@ impl AddressGenerator {
         if self.op.is_some() {
             return Err(self.error("start", "an operation is already running".into()));
         }
+        if op.row_records > 1 && !op.records.is_multiple_of(op.row_records) {
+            return Err(self.error(
+                "start",
+                format!(
+                    "{} records do not fill rows of {} (a cluster-row layout needs whole rows)",
+                    op.records, op.row_records
+                ),
+            ));
+        }
         match op.kind {
             MemOpKind::Load => srf.bind_output(self.sb, op.srf_start, op.words())?,
             MemOpKind::Store => srf.bind_input(self.sb, op.srf_start, op.words())?,
@@ -180,7 +205,8 @@ impl AddressGenerator {
         self.op = Some(op);
         self.issued = 0;
         self.retired = 0;
-        self.index = None;
+        self.indices.clear();
+        self.indices_row = None;
         self.flushing = false;
         self.stats.ops += 1;
         Ok(())
@@ -237,20 +263,29 @@ impl AddressGenerator {
             if self.issued == words || self.issued - self.retired >= self.window {
                 break;
             }
-            let rec = (self.issued / op.record_words) as u64;
-            let j = (self.issued % op.record_words) as u64;
+            let (rec, j) = op.reference(self.issued);
             let start = match op.pattern {
-                Pattern::Strided { stride } => op.base + rec * stride,
+                Pattern::Strided { stride } => op.base + rec as u64 * stride,
                 Pattern::Indexed { scale, .. } => {
-                    if self.index.is_none() {
-                        if srf.available(self.isb) == 0 {
-                            break;
-                        }
-                        self.index = Some(srf.memory_read(self.isb, 1)?[0] as u64);
+                    // A row's indices arrive in its first word's pass, one per record.
+                    let rows = op.row_records.max(1);
+                    let (row, in_row) = (rec / rows, rec % rows);
+                    if self.indices_row != Some(row) {
+                        self.indices.clear();
+                        self.indices_row = Some(row);
                     }
-                    op.base + self.index.expect("read above") * scale
+                    if j == 0 {
+                        if self.indices.len() == in_row {
+                            if srf.available(self.isb) == 0 {
+                                break;
+                            }
+                            self.indices.push(srf.memory_read(self.isb, 1)?[0] as u64);
+                        }
+                    }
+                    op.base + self.indices[in_row] * scale
                 }
             };
+            let j = j as u64;
             let byte = (start + j) * 4;
             let Some(loc) = ports.params().map(byte) else {
                 return Err(self.error(
@@ -286,9 +321,6 @@ impl AddressGenerator {
                 },
             )?;
             self.issued += 1;
-            if j + 1 == op.record_words as u64 {
-                self.index = None;
-            }
         }
         Ok(())
     }
