@@ -312,6 +312,15 @@ impl Sim {
             .filter_map(|m| (&**m as &dyn Any).downcast_ref::<M>())
     }
 
+    /// The modules of type `M`, for a host that hands them more work between cycles (a
+    /// stream program's host adding instructions).
+    pub fn modules_of_mut<M: Module>(&mut self) -> impl Iterator<Item = &mut M> {
+        self.design
+            .modules
+            .iter_mut()
+            .filter_map(|m| (&mut **m as &mut dyn Any).downcast_mut::<M>())
+    }
+
     /// Whether a tracer wants this instant's changes (falling edges matter only then).
     #[inline]
     fn tracing(&self) -> bool {

@@ -4,5 +4,6 @@
 pub mod compile;
 pub mod kernel;
 pub mod kernels;
+pub mod opengl;
 pub mod run;
 pub mod scene;

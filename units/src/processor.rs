@@ -86,8 +86,20 @@ impl Processor {
         &self.machine
     }
 
+    /// The machine, for a host that writes kernel parameters into the SRF between cycles
+    /// (the microcontroller's scalar registers, which the host sets over its interface).
+    pub fn machine_mut(&mut self) -> &mut Machine {
+        &mut self.machine
+    }
+
     pub fn address_generators(&self) -> &[AddressGenerator] {
         &self.ags
+    }
+
+    /// The host appends a stream instruction (between cycles); returns its index in
+    /// [`StreamController::records`].
+    pub fn push(&mut self, instr: StreamInstr) -> usize {
+        self.sc.push(instr)
     }
 
     /// Whether every stream instruction has completed.
@@ -155,6 +167,17 @@ impl Processor {
             && cycle >= k.started + self.sc.min_kernel_cycles()
         {
             let id = k.id;
+            let streams = &self.sc.programs()[k.program].streams;
+            let outputs = streams
+                .iter()
+                .enumerate()
+                .map(|(i, d)| match d.dir {
+                    crate::microcode::StreamDir::Out => self.machine.output_len(i),
+                    crate::microcode::StreamDir::In => 0,
+                })
+                .collect();
+            let stats = self.machine.stats().cloned().unwrap_or_default();
+            self.sc.record_kernel(id, outputs, stats);
             self.machine.release_streams()?;
             self.sc.complete(id, cycle);
             self.kernel = None;
@@ -353,6 +376,12 @@ pub struct StreamReport {
 
 pub fn processor(sim: &Sim) -> &Processor {
     sim.modules_of::<Processor>()
+        .next()
+        .expect("the design holds a processor")
+}
+
+pub fn processor_mut(sim: &mut Sim) -> &mut Processor {
+    sim.modules_of_mut::<Processor>()
         .next()
         .expect("the design holds a processor")
 }

@@ -29,7 +29,7 @@
 use std::collections::VecDeque;
 
 use crate::desc::MachineDesc;
-use crate::machine::StreamBinding;
+use crate::machine::{KernelStats, StreamBinding};
 use crate::memory::{MemOp, MemOpKind};
 use crate::microcode::{Program, StreamDir};
 
@@ -65,9 +65,24 @@ pub struct InstrRecord {
     pub issued: Option<u64>,
     pub unit: Option<Unit>,
     pub completed: Option<u64>,
+    /// A kernel's words written per stream (0 for inputs) and statistics, once completed.
+    pub outputs: Vec<usize>,
+    pub kernel_stats: Option<KernelStats>,
 }
 
 impl InstrRecord {
+    fn new(instr: StreamInstr) -> Self {
+        InstrRecord {
+            instr,
+            entered: None,
+            issued: None,
+            unit: None,
+            completed: None,
+            outputs: Vec::new(),
+            kernel_stats: None,
+        }
+    }
+
     /// A short name: `load`, `store`, `kernel NAME`, `microcode NAME`.
     pub fn kind(&self, programs: &[Program]) -> String {
         match &self.instr {
@@ -206,16 +221,7 @@ impl StreamController {
         let n = instrs.len();
         StreamController {
             programs,
-            records: instrs
-                .into_iter()
-                .map(|instr| InstrRecord {
-                    instr,
-                    entered: None,
-                    issued: None,
-                    unit: None,
-                    completed: None,
-                })
-                .collect(),
+            records: instrs.into_iter().map(InstrRecord::new).collect(),
             host: (0..n).collect(),
             queue: VecDeque::new(),
             queue_cap: desc.stream_controller.queue_entries,
@@ -230,6 +236,20 @@ impl StreamController {
 
     pub fn programs(&self) -> &[Program] {
         &self.programs
+    }
+
+    /// The host appends an instruction (between cycles); returns its index.
+    pub fn push(&mut self, instr: StreamInstr) -> usize {
+        self.records.push(InstrRecord::new(instr));
+        self.host.push_back(self.records.len() - 1);
+        self.records.len() - 1
+    }
+
+    /// Notes what a completed kernel instruction wrote.
+    pub fn record_kernel(&mut self, id: usize, outputs: Vec<usize>, stats: KernelStats) {
+        let r = &mut self.records[id];
+        r.outputs = outputs;
+        r.kernel_stats = Some(stats);
     }
 
     pub fn records(&self) -> &[InstrRecord] {

@@ -390,23 +390,32 @@ impl Graph {
 /// the loop must be.
 pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
     let n = kernel.nodes.len();
-    // Which IR values are needed: writes and what they read, transitively.
+    // Which IR values are needed: writes and what they read, transitively. A carried
+    // value's next value comes later in program order, so the backward pass repeats until
+    // nothing changes.
     let mut live = vec![false; n];
-    for i in (0..n).rev() {
-        let d = &kernel.nodes[i];
-        if matches!(
-            d.node,
-            Node::Write { .. } | Node::SpWrite { .. } | Node::Param(_)
-        ) {
-            // Parameters are read in order from the params stream: all are kept.
-            live[i] = true;
-        }
-        if live[i] {
-            for a in d.node.operands() {
-                live[a.index()] = true;
+    let mut changed = true;
+    while changed {
+        changed = false;
+        for i in (0..n).rev() {
+            let d = &kernel.nodes[i];
+            if matches!(
+                d.node,
+                Node::Write { .. } | Node::SpWrite { .. } | Node::Param(_) | Node::Read { .. }
+            ) {
+                // Parameters are read in order from the params stream and reads advance
+                // their streams: all are kept.
+                live[i] = true;
             }
-            if let Node::Carried { next: Some(nx), .. } = d.node {
-                live[nx.index()] = true;
+            if live[i] {
+                let next = match d.node {
+                    Node::Carried { next: Some(nx), .. } => Some(nx),
+                    _ => None,
+                };
+                for a in d.node.operands().into_iter().chain(next) {
+                    changed |= !live[a.index()];
+                    live[a.index()] = true;
+                }
             }
         }
     }

@@ -1,0 +1,619 @@
+//! The kernels of the OpenGL-like pipeline (ARCHITECTURE §5), built per frame: the window
+//! size, the cluster count and the cull mode are compile-time constants of the microcode.
+//!
+//! | kernel | per element | streams |
+//! |---|---|---|
+//! | `vertex` / [`vertex_unlit`] | vertex: clip position and colour | 6 words → 7 words |
+//! | [`setup`] | triangle: assemble, clip (trivial reject), viewport, cull, xyprep, baryprep | 21 words → raster (12), interp (13), row counts |
+//! | [`xyrast`] | candidate pixel: coverage by three edge functions | raster → addr, tri, E0, E1, E2 (conditional) |
+//! | [`irast`] | fragment: perspective-correct colour and depth | E0..E2, interp → z, colour, prim |
+//! | [`zcompare`] | fragment: depth test LESS with primitive-order ties | z, colour, addr, prim, pixel → new pixel, its address, loser |
+//! | [`compact_recycle`] | fragment: keeps the losers of the owner race for the next round | loser, a, b → a', b' (conditional) |
+//!
+//! **Rasterization** is homogeneous (Olano and Greer, "Triangle Scan Conversion using 2D
+//! Homogeneous Coordinates", Graphics Hardware 1997): with `v_k = ((x_k + w_k)·W/2,
+//! (y_k + w_k)·H/2, w_k)` the edge functions of a pixel centre `p = (X, Y, 1)` are
+//! `E_0 = (v_1 × v_2)·p`, `E_1 = (v_2 × v_0)·p`, `E_2 = (v_0 × v_1)·p` and
+//! `det = v_0·(v_1 × v_2)`; `det > 0` is front-facing. After flipping the signs of
+//! clockwise triangles, a pixel is covered when every `E_i > 0`, or `E_i = 0` on a top or
+//! left edge (`A > 0`, or `A = 0` and `B < 0`, for `E = A·X + B·Y + C`). The perspective-
+//! correct barycentrics are `λ_i = E_i / ΣE` and the depth is `z_ndc = Σ E_i·z_i / |det|`:
+//! no divide by w per vertex, and triangles that cross w = 0 need no clipping. Fragments
+//! outside depth [0, 1] are discarded (near and far clipping).
+//!
+//! **Layouts.** Multi-word records in the SRF are in the cluster-row layout the kernels
+//! read (see [`crate::kernel`]); conditional outputs are one-word streams. A triangle is
+//! read as one 21-word record: the host orders the vertex buffer so that triangle `t`'s
+//! corner `k` is vertex `(3·⌊t/C⌋ + k)·C + t mod C`. Conditional outputs end with one row
+//! of null records (`C` of them) so that the host can read them back in whole rows.
+//!
+//! **xyrast** gives each cluster one triangle of a row and walks its bounding box one pixel
+//! per iteration; when every cluster of the row is done (an AND across the clusters by
+//! butterfly exchanges), all read the next row together, so the records stay whole. The
+//! loop runs over a `tickets` stream whose length the host takes from `setup`'s count:
+//! `Σ_rows max(1, max_c candidates)` iterations, exactly what the rows need.
+
+use imagine_units::desc::MachineDesc;
+
+use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, StreamId, Ty, Value};
+
+/// Words of a `setup` raster record: packed bbox low and high, nine edge coefficients, and
+/// the triangle's index in the batch with its three top-left flags.
+pub const RASTER_WORDS: usize = 12;
+/// Words of an interpolation record: z_k / |det| (3), r, g, b per corner (9), primitive.
+pub const INTERP_WORDS: usize = 13;
+/// Words of a framebuffer pixel in DRAM: colour, depth, primitive, owner tag.
+pub const PIXEL_WORDS: usize = 4;
+/// Words `zcompare` writes back per pixel (colour, depth, primitive).
+pub const PIXEL_WRITE_WORDS: usize = 3;
+/// Bits of a triangle index in a raster record (the top three hold the top-left flags).
+pub const TRI_BITS: u32 = 29;
+/// A null fragment's depth: NaN fails every depth test.
+pub const NULL_DEPTH: u32 = 0x7FC0_0000;
+
+/// What the kernels of one frame are built for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameShape {
+    pub width: u32,
+    pub height: u32,
+    pub clusters: usize,
+    pub cull_back: bool,
+}
+
+impl FrameShape {
+    /// The pixel address null fragments go to: one past the window.
+    pub fn trash(&self) -> u32 {
+        self.width * self.height
+    }
+}
+
+fn finish(b: KernelBuilder) -> Kernel {
+    match b.finish() {
+        Ok(k) => k,
+        Err(e) => panic!("pipeline kernel does not verify: {e}"),
+    }
+}
+
+/// `cc ? 1 : 0` as an int32.
+fn flag(b: &mut KernelBuilder, cc: Value) -> Value {
+    let (one, zero) = (b.i32(1), b.i32(0));
+    b.select(cc, one, zero)
+}
+
+/// An int32 flag as a condition.
+fn cond(b: &mut KernelBuilder, flag: Value) -> Value {
+    let zero = b.i32(0);
+    b.ine(flag, zero)
+}
+
+/// Combines `x` across the clusters with `op` by butterfly exchanges (log2 C comms).
+fn all_reduce(
+    b: &mut KernelBuilder,
+    clusters: usize,
+    mut x: Value,
+    op: fn(&mut KernelBuilder, Value, Value) -> Value,
+) -> Value {
+    let mut d = 1;
+    while d < clusters {
+        let other = b.comm(x, Perm::Xor(d as u16));
+        x = op(b, x, other);
+        d *= 2;
+    }
+    x
+}
+
+/// One row of null records after a conditional output: every cluster writes `nulls[i]` to
+/// stream `outs[i]`.
+fn null_row(b: &mut KernelBuilder, outs: &[(StreamId, u32)]) {
+    let zero = b.i32(0);
+    let all = b.ieq(zero, zero);
+    for &(s, null) in outs {
+        let v = b.word(null);
+        b.write_if(s, all, v);
+    }
+}
+
+/// The unlit vertex program: clip position `mvp · (x, y, z, 1)` and the vertex colour.
+/// Input records (x, y, z, r, g, b); output (x, y, z, w, r, g, b).
+pub fn vertex_unlit(_desc: &MachineDesc) -> Kernel {
+    let mut b = KernelBuilder::new("vertex_unlit");
+    let vertices = b.input("vertices");
+    let shaded = b.output("shaded");
+    let mvp = crate::kernels::transform::matrix_params(&mut b, "mvp");
+    b.begin_loop(LoopSpec::OverStream(vertices));
+    let position: [Value; 3] = std::array::from_fn(|_| b.read_f32(vertices));
+    let colour: [Value; 3] = std::array::from_fn(|_| b.read_f32(vertices));
+    let clip = crate::kernels::transform::transform_point(&mut b, &mvp, position, None);
+    for v in clip.into_iter().chain(colour) {
+        b.write(shaded, v);
+    }
+    b.end_loop();
+    finish(b)
+}
+
+/// `setup`: per triangle (21 words: three shaded vertices) — trivial reject against the
+/// six clip planes, viewport, facing and culling, the bounding box (clamped to the
+/// scissor rectangle given as parameters `sx0, sy0, sx1, sy1`, inclusive), the edge
+/// functions and top-left flags (xyprep) and the interpolation record (baryprep).
+///
+/// Outputs: `raster` (12 words per triangle, every triangle: a rejected one gets an empty
+/// box), `interp` (13 words per triangle; its primitive number is `prim_base + index + 1`)
+/// and, after the loop, `rows`: one word per cluster, the iterations `xyrast` needs.
+pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
+    let mut b = KernelBuilder::new("setup");
+    let tris = b.input("triangles");
+    let raster = b.output("raster");
+    let interp = b.output("interp");
+    let rows_out = b.output("rows");
+    let scissor: [Value; 4] = ["sx0", "sy0", "sx1", "sy1"].map(|n| b.param(n, Ty::I32));
+    let prim_base = b.param("prim_base", Ty::I32);
+    let clusters = shape.clusters;
+    let (zero_f, one_f) = (b.f32(0.0), b.f32(1.0));
+    let (zero, one) = (b.i32(0), b.i32(1));
+    let half_w = b.f32(shape.width as f32 / 2.0);
+    let half_h = b.f32(shape.height as f32 / 2.0);
+    let (lo_clamp, hi_clamp) = (b.f32(-2.0), b.f32(8192.0));
+    let row_c = b.i32(clusters as i32);
+    let cluster = b.cluster_id();
+
+    b.begin_loop(LoopSpec::OverStream(tris));
+    let index0 = b.carried(cluster);
+    let iterations0 = b.carried(zero);
+    let v: Vec<[Value; 7]> = (0..3)
+        .map(|_| std::array::from_fn(|_| b.read_f32(tris)))
+        .collect();
+    // Trivial reject: all three corners outside one clip plane.
+    let mut worst = None;
+    for (axis, negate) in [
+        (0, false),
+        (0, true),
+        (1, false),
+        (1, true),
+        (2, false),
+        (2, true),
+    ] {
+        let mut m = None;
+        for c in &v {
+            // Inside the plane iff w - x >= 0 (x <= w) or w + x >= 0 (x >= -w).
+            let d = if negate {
+                b.fadd(c[3], c[axis])
+            } else {
+                b.fsub(c[3], c[axis])
+            };
+            m = Some(m.map_or(d, |m| b.fmax(m, d)));
+        }
+        let m = m.expect("three corners");
+        worst = Some(worst.map_or(m, |w| b.fmin(w, m)));
+    }
+    let outside = b.flt(worst.expect("six planes"), zero_f);
+    let not_rejected = {
+        let f = flag(&mut b, outside);
+        b.xor(f, one)
+    };
+    // Window-homogeneous corners and the edge functions.
+    let hv: Vec<[Value; 3]> = v
+        .iter()
+        .map(|c| {
+            let x = b.fadd(c[0], c[3]);
+            let x = b.fmul(x, half_w);
+            let y = b.fadd(c[1], c[3]);
+            let y = b.fmul(y, half_h);
+            [x, y, c[3]]
+        })
+        .collect();
+    let cross = |b: &mut KernelBuilder, p: [Value; 3], q: [Value; 3]| -> [Value; 3] {
+        let term = |b: &mut KernelBuilder, i: usize, j: usize| {
+            let l = b.fmul(p[i], q[j]);
+            let r = b.fmul(p[j], q[i]);
+            b.fsub(l, r)
+        };
+        [term(b, 1, 2), term(b, 2, 0), term(b, 0, 1)]
+    };
+    let edges = [
+        cross(&mut b, hv[1], hv[2]),
+        cross(&mut b, hv[2], hv[0]),
+        cross(&mut b, hv[0], hv[1]),
+    ];
+    let det = {
+        let a = b.fmul(hv[0][0], edges[0][0]);
+        let c = b.fmul(hv[0][1], edges[0][1]);
+        let s = b.fadd(a, c);
+        let d = b.fmul(hv[0][2], edges[0][2]);
+        b.fadd(s, d)
+    };
+    let front = b.flt(zero_f, det);
+    let edges: Vec<[Value; 3]> = edges
+        .iter()
+        .map(|e| {
+            e.map(|c| {
+                let n = b.fneg(c);
+                b.select(front, c, n)
+            })
+        })
+        .collect();
+    let abs_det = b.fabs(det);
+    let degenerate = b.feq(det, zero_f);
+    let mut keep = {
+        let d = flag(&mut b, degenerate);
+        let nd = b.xor(d, one);
+        b.and(not_rejected, nd)
+    };
+    if shape.cull_back {
+        let f = flag(&mut b, front);
+        keep = b.and(keep, f);
+    }
+    // Bounding box: projected corners when every w > 0, else the scissor rectangle.
+    let w01 = b.fmul(v[0][3], v[1][3]);
+    let w012 = b.fmul(w01, v[2][3]);
+    let inv_w012 = b.fdiv(one_f, w012);
+    let w12 = b.fmul(v[1][3], v[2][3]);
+    let w02 = b.fmul(v[0][3], v[2][3]);
+    let inv_w = [
+        b.fmul(w12, inv_w012),
+        b.fmul(w02, inv_w012),
+        b.fmul(w01, inv_w012),
+    ];
+    let w_min = {
+        let m = b.fmin(v[0][3], v[1][3]);
+        b.fmin(m, v[2][3])
+    };
+    let all_in_front = b.flt(zero_f, w_min);
+    let mut bounds = [zero; 4];
+    for axis in 0..2 {
+        let p: Vec<Value> = (0..3).map(|k| b.fmul(hv[k][axis], inv_w[k])).collect();
+        let lo = {
+            let m = b.fmin(p[0], p[1]);
+            b.fmin(m, p[2])
+        };
+        let hi = {
+            let m = b.fmax(p[0], p[1]);
+            b.fmax(m, p[2])
+        };
+        for (slot, value, widen) in [(axis, lo, -1), (axis + 2, hi, 1)] {
+            // Clamped before conversion (NaN and huge values included), widened by a
+            // pixel: the box only has to be conservative.
+            let c = b.fmax(value, lo_clamp);
+            let c = b.fmin(c, hi_clamp);
+            let i = b.ftoi_trunc(c);
+            let widen = b.i32(widen);
+            let i = b.iadd(i, widen);
+            let projected = if slot < 2 {
+                b.imax(i, scissor[slot])
+            } else {
+                b.imin(i, scissor[slot])
+            };
+            bounds[slot] = b.select(all_in_front, projected, scissor[slot]);
+        }
+    }
+    let [x0, y0, x1, y1] = bounds;
+    let x_ok = b.ile(x0, x1);
+    let y_ok = b.ile(y0, y1);
+    let nonempty = {
+        let a = flag(&mut b, x_ok);
+        let c = flag(&mut b, y_ok);
+        b.and(a, c)
+    };
+    keep = b.and(keep, nonempty);
+    let kept = cond(&mut b, keep);
+    let sixteen = b.i32(16);
+    let pack = |b: &mut KernelBuilder, x: Value, y: Value| {
+        let y = b.shl(y, sixteen);
+        b.or(x, y)
+    };
+    let lo = pack(&mut b, x0, y0);
+    let hi = pack(&mut b, x1, y1);
+    let empty_lo = b.i32(1 | 1 << 16);
+    let lo = b.select(kept, lo, empty_lo);
+    let hi = b.select(kept, hi, zero);
+    // Candidates: the box's area (0 when not kept).
+    let width = {
+        let d = b.isub(x1, x0);
+        b.iadd(d, one)
+    };
+    let height = {
+        let d = b.isub(y1, y0);
+        b.iadd(d, one)
+    };
+    let area = b.imul(width, height);
+    let candidates = b.select(kept, area, zero);
+    let row_max = all_reduce(&mut b, clusters, candidates, KernelBuilder::imax);
+    let row_iterations = b.imax(row_max, one);
+    let iterations = b.iadd(iterations0, row_iterations);
+    b.set_next(iterations0, iterations);
+    // Top-left flags: A > 0, or A = 0 and B < 0.
+    let mut tag = index0;
+    for (i, e) in edges.iter().enumerate() {
+        let a_pos = b.flt(zero_f, e[0]);
+        let a_zero = b.feq(e[0], zero_f);
+        let b_neg = b.flt(e[1], zero_f);
+        let bn = flag(&mut b, b_neg);
+        let az = flag(&mut b, a_zero);
+        let horizontal_top = b.and(az, bn);
+        let t = b.select(a_pos, one, horizontal_top);
+        let shift = b.i32((TRI_BITS + i as u32) as i32);
+        let t = b.shl(t, shift);
+        tag = b.or(tag, t);
+    }
+    for w in [lo, hi]
+        .into_iter()
+        .chain(edges.iter().flatten().copied())
+        .chain([tag])
+    {
+        b.write(raster, w);
+    }
+    // Interpolation record.
+    let inv_det = b.fdiv(one_f, abs_det);
+    for c in &v {
+        let q = b.fmul(c[2], inv_det);
+        b.write(interp, q);
+    }
+    for c in &v {
+        for ch in 4..7 {
+            b.write(interp, c[ch]);
+        }
+    }
+    let prim = {
+        let p = b.iadd(prim_base, index0);
+        b.iadd(p, one)
+    };
+    b.write(interp, prim);
+    let next_index = b.iadd(index0, row_c);
+    b.set_next(index0, next_index);
+    b.end_loop();
+    b.write(rows_out, iterations0);
+    finish(b)
+}
+
+/// `xyrast`: walks each cluster's triangle's bounding box one pixel per iteration and
+/// writes the covered ones: `addr` (`y·W + x`), `tri` (the triangle's index in the batch)
+/// and its edge values `e0`, `e1`, `e2`, then a row of nulls (address one past the window).
+pub fn xyrast(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
+    let mut b = KernelBuilder::new("xyrast");
+    let raster = b.input("raster");
+    let tickets = b.input("tickets");
+    let addr_out = b.output("addr");
+    let tri_out = b.output("tri");
+    let e_out: [StreamId; 3] = ["e0", "e1", "e2"].map(|n| b.output(n));
+    let (zero, one) = (b.i32(0), b.i32(1));
+    let zero_f = b.f32(0.0);
+    let half = b.f32(0.5);
+    let width = b.i32(shape.width as i32);
+    let low16 = b.i32(0xFFFF);
+    let sixteen = b.i32(16);
+    let tri_mask = b.i32((1 << TRI_BITS) - 1);
+
+    b.begin_loop(LoopSpec::OverStream(tickets));
+    let zero_word = b.word(0);
+    let init: Vec<Value> = (0..RASTER_WORDS).map(|_| b.carried(zero_word)).collect();
+    let x0c = b.carried(zero);
+    let y0c = b.carried(zero);
+    let busy0 = b.carried(zero);
+    let _ticket = b.read(tickets);
+    let idle = b.ieq(busy0, zero);
+    let idle = flag(&mut b, idle);
+    let all_idle = all_reduce(&mut b, shape.clusters, idle, KernelBuilder::and);
+    let fetch = cond(&mut b, all_idle);
+    let rec: Vec<Value> = init
+        .iter()
+        .map(|&old| b.read_if(raster, fetch, old))
+        .collect();
+    for (&c, &r) in init.iter().zip(&rec) {
+        b.set_next(c, r);
+    }
+    let (lo, hi) = (rec[0], rec[1]);
+    let bx0 = b.and(lo, low16);
+    let by0 = b.shr(lo, sixteen);
+    let bx1 = b.and(hi, low16);
+    let by1 = b.shr(hi, sixteen);
+    let x = b.select(fetch, bx0, x0c);
+    let y = b.select(fetch, by0, y0c);
+    let fresh_busy = {
+        let a = b.ile(bx0, bx1);
+        let c = b.ile(by0, by1);
+        let a = flag(&mut b, a);
+        let c = flag(&mut b, c);
+        b.and(a, c)
+    };
+    let busy = b.select(fetch, fresh_busy, busy0);
+    let fx = b.itof(x);
+    let fx = b.fadd(fx, half);
+    let fy = b.itof(y);
+    let fy = b.fadd(fy, half);
+    let tag = rec[RASTER_WORDS - 1];
+    let mut inside = busy;
+    let mut e_values = [zero_f; 3];
+    for i in 0..3 {
+        let [a, bb, c] = [rec[2 + 3 * i], rec[3 + 3 * i], rec[4 + 3 * i]];
+        let ax = b.fmul(a, fx);
+        let by = b.fmul(bb, fy);
+        let s = b.fadd(ax, by);
+        let e = b.fadd(s, c);
+        e_values[i] = e;
+        let shift = b.i32((TRI_BITS + i as u32) as i32);
+        let tl = b.shr(tag, shift);
+        let tl = b.and(tl, one);
+        let positive = b.flt(zero_f, e);
+        let on_edge = b.feq(e, zero_f);
+        let edge_ok = b.select(on_edge, tl, zero);
+        let ok = b.select(positive, one, edge_ok);
+        inside = b.and(inside, ok);
+    }
+    let covered = cond(&mut b, inside);
+    let row = b.imul(y, width);
+    let addr = b.iadd(row, x);
+    let tri = b.and(tag, tri_mask);
+    b.write_if(addr_out, covered, addr);
+    b.write_if(tri_out, covered, tri);
+    for (s, e) in e_out.iter().zip(e_values) {
+        b.write_if(*s, covered, e);
+    }
+    // Next pixel of the box.
+    let xn = b.iadd(x, one);
+    let wrap = b.ilt(bx1, xn);
+    let x_next = b.select(wrap, bx0, xn);
+    let yn = b.iadd(y, one);
+    let y_next = b.select(wrap, yn, y);
+    let past = b.ilt(by1, y_next);
+    let wrap_f = flag(&mut b, wrap);
+    let past_f = flag(&mut b, past);
+    let finished = b.and(wrap_f, past_f);
+    let finished = cond(&mut b, finished);
+    let busy_next = b.select(finished, zero, busy);
+    b.set_next(x0c, x_next);
+    b.set_next(y0c, y_next);
+    b.set_next(busy0, busy_next);
+    b.end_loop();
+    let mut nulls = vec![(addr_out, shape.trash()), (tri_out, 0)];
+    nulls.extend(e_out.iter().map(|&s| (s, 0)));
+    null_row(&mut b, &nulls);
+    finish(b)
+}
+
+/// `irast`: a fragment's perspective-correct colour (packed RGBA8, alpha 255) and window
+/// depth from its edge values and its triangle's interpolation record (gathered from
+/// memory by triangle index), and the triangle's primitive number.
+pub fn irast(_desc: &MachineDesc) -> Kernel {
+    let mut b = KernelBuilder::new("irast");
+    let e_in: [StreamId; 3] = ["e0", "e1", "e2"].map(|n| b.input(n));
+    let interp = b.input("interp");
+    let z_out = b.output("z");
+    let colour_out = b.output("colour");
+    let prim_out = b.output("prim");
+    let (zero_f, half, one_f) = (b.f32(0.0), b.f32(0.5), b.f32(1.0));
+    let scale = b.f32(255.0);
+    let alpha = b.word(0xFF00_0000);
+    b.begin_loop(LoopSpec::OverStream(e_in[0]));
+    let e: Vec<Value> = e_in.iter().map(|&s| b.read_f32(s)).collect();
+    let rec: Vec<Value> = (0..INTERP_WORDS).map(|_| b.read_f32(interp)).collect();
+    let sum = b.fadd(e[0], e[1]);
+    let sum = b.fadd(sum, e[2]);
+    let inv = b.fdiv(one_f, sum);
+    let lambda: Vec<Value> = e.iter().map(|&x| b.fmul(x, inv)).collect();
+    let weighted = |b: &mut KernelBuilder, w: &[Value], v: [Value; 3]| {
+        let a = b.fmul(w[0], v[0]);
+        let c = b.fmul(w[1], v[1]);
+        let s = b.fadd(a, c);
+        let d = b.fmul(w[2], v[2]);
+        b.fadd(s, d)
+    };
+    let z_ndc = weighted(&mut b, &e, [rec[0], rec[1], rec[2]]);
+    let z = b.fmul(z_ndc, half);
+    let z = b.fadd(z, half);
+    let mut colour = alpha;
+    for ch in 0..3 {
+        let c = weighted(&mut b, &lambda, [rec[3 + ch], rec[6 + ch], rec[9 + ch]]);
+        let c = b.fmax(c, zero_f);
+        let c = b.fmin(c, one_f);
+        let c = b.fmul(c, scale);
+        let c = b.fadd(c, half);
+        let byte = b.ftoi_trunc(c);
+        let shift = b.i32(8 * ch as i32);
+        let byte = b.shl(byte, shift);
+        colour = b.or(colour, byte);
+    }
+    b.write(z_out, z);
+    b.write(colour_out, colour);
+    b.write(prim_out, rec[12]);
+    b.end_loop();
+    finish(b)
+}
+
+/// `zcompare`: the depth test LESS of a fragment against its pixel (colour, depth,
+/// primitive, owner), gathered from the framebuffer. Only the fragment whose primitive
+/// number the owner word holds (the one that won this round's scatter) may write; it
+/// passes if its depth is in [0, 1] and less than the pixel's, or equal to it with an
+/// earlier primitive (OpenGL's ordering: the later of two equal depths fails LESS).
+/// Outputs, unconditional: the pixel to write back (3 words) and where (`newaddr`: the
+/// fragment's pixel if it passed, else the trash pixel), and `loser`: 1 for a fragment with
+/// a valid depth that did not own its pixel this round (it tries again).
+pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
+    let mut b = KernelBuilder::new("zcompare");
+    let z_in = b.input("z");
+    let colour_in = b.input("colour");
+    let addr_in = b.input("addr");
+    let prim_in = b.input("prim");
+    let pixel_in = b.input("pixel");
+    let pixel_out = b.output("new_pixel");
+    let newaddr_out = b.output("newaddr");
+    let loser_out = b.output("loser");
+    let (zero_f, one_f) = (b.f32(0.0), b.f32(1.0));
+    let (zero, one) = (b.i32(0), b.i32(1));
+    let trash = b.i32(shape.trash() as i32);
+    b.begin_loop(LoopSpec::OverStream(z_in));
+    let z = b.read_f32(z_in);
+    let colour = b.read(colour_in);
+    let addr = b.read_i32(addr_in);
+    let prim = b.read_i32(prim_in);
+    let old: Vec<Value> = (0..PIXEL_WORDS).map(|_| b.read(pixel_in)).collect();
+    let (old_colour, old_z, old_prim, owner) = (
+        old[0],
+        b.cast(old[1], Ty::F32),
+        b.cast(old[2], Ty::I32),
+        b.cast(old[3], Ty::I32),
+    );
+    let owns = b.ieq(owner, prim);
+    let owns = flag(&mut b, owns);
+    let above = b.fle(zero_f, z);
+    let below = b.fle(z, one_f);
+    let valid = {
+        let a = flag(&mut b, above);
+        let c = flag(&mut b, below);
+        b.and(a, c)
+    };
+    let less = b.flt(z, old_z);
+    let equal = b.feq(z, old_z);
+    let earlier = b.iltu(prim, old_prim);
+    let drawn = b.ine(old_prim, zero);
+    let tie = {
+        let e = flag(&mut b, equal);
+        let r = flag(&mut b, earlier);
+        let d = flag(&mut b, drawn);
+        let t = b.and(e, r);
+        b.and(t, d)
+    };
+    let less = flag(&mut b, less);
+    let wins = b.or(less, tie);
+    let pass = b.and(wins, owns);
+    let pass = b.and(pass, valid);
+    let pass = cond(&mut b, pass);
+    let new = [
+        b.select(pass, colour, old_colour),
+        {
+            let zw = b.cast(z, Ty::Word);
+            let ow = b.cast(old_z, Ty::Word);
+            b.select(pass, zw, ow)
+        },
+        b.select(pass, prim, old_prim),
+    ];
+    for w in new {
+        b.write(pixel_out, w);
+    }
+    let where_ = b.select(pass, addr, trash);
+    b.write(newaddr_out, where_);
+    let lost = b.xor(owns, one);
+    let loser = b.and(lost, valid);
+    b.write(loser_out, loser);
+    b.end_loop();
+    finish(b)
+}
+
+/// `compact_recycle`: keeps the words of streams `a` and `b` whose `loser` flag is set, in
+/// order, then a row of nulls (`nulls`).
+pub fn compact_recycle(_desc: &MachineDesc, nulls: [u32; 2]) -> Kernel {
+    let mut b = KernelBuilder::new("compact_recycle");
+    let loser_in = b.input("loser");
+    let a_in = b.input("a");
+    let b_in = b.input("b");
+    let a_out = b.output("a_kept");
+    let b_out = b.output("b_kept");
+    b.begin_loop(LoopSpec::OverStream(loser_in));
+    let loser = b.read_i32(loser_in);
+    let a = b.read(a_in);
+    let c = b.read(b_in);
+    let keep = cond(&mut b, loser);
+    b.write_if(a_out, keep, a);
+    b.write_if(b_out, keep, c);
+    b.end_loop();
+    null_row(&mut b, &[(a_out, nulls[0]), (b_out, nulls[1])]);
+    finish(b)
+}

@@ -1,0 +1,5 @@
+//! The OpenGL-like pipeline (ARCHITECTURE §5, §7): kernels compiled to microcode and a
+//! host that drives the stream processor batch by batch.
+
+pub mod kernels;
+pub mod render;

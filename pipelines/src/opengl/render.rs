@@ -1,0 +1,839 @@
+//! The host of the OpenGL-like pipeline: it drives the stream processor (stream
+//! controller, address generators, clusters, SRF and SDRAM, all clocked) through a frame,
+//! batch by batch (ARCHITECTURE §5, §7).
+//!
+//! Per batch of `B` triangles (`B` a multiple of the cluster count): load the vertices
+//! (records laid out in cluster rows), run the vertex program, then for each scissor tile
+//! (the whole window unless the batch overflows) run `setup`, store its interpolation
+//! records to memory and run `xyrast` for as many iterations as `setup` counted. Fragments
+//! then go through in chunks: gather their interpolation records by triangle index, run
+//! `irast`, and composite in rounds — scatter each fragment's primitive number to its
+//! pixel's owner word, gather the pixels, run `zcompare`, scatter the pixels that passed,
+//! and recycle the fragments that lost the owner race (`compact_recycle`) until none is
+//! left. The framebuffer (colour, depth, primitive, owner per pixel) lives in DRAM.
+//!
+//! **Spilling.** When a batch's fragments would overflow their SRF region, the host splits
+//! the scissor tile in two and runs `setup` and `xyrast` once per half, recursively: a
+//! triangle larger than the SRF is drawn tile by tile, never dropped.
+//!
+//! The host waits for the processor where it needs a number the machine computed (the
+//! iteration count from `setup`, the length of a conditional output stream); everything
+//! else is queued and ordered by the stream controller's scoreboard. Kernel parameters are
+//! written into the SRF by the host between cycles (the microcontroller's scalar registers
+//! on Imagine).
+
+use std::time::Instant;
+
+use imagine_hdl::Sim;
+use imagine_units::desc::MachineDesc;
+use imagine_units::dram::ReplayReport;
+use imagine_units::machine::{KernelStats, StreamBinding};
+use imagine_units::memory::{MemOp, MemOpKind, Pattern};
+use imagine_units::processor::{self, ProcessorOptions, StreamProgram};
+use imagine_units::stream_controller::StreamInstr;
+use serde::Serialize;
+
+use super::kernels::{
+    self, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS, PIXEL_WRITE_WORDS, RASTER_WORDS,
+};
+use crate::compile::{Compiled, compile};
+use crate::kernel::Kernel;
+use crate::scene::{Scene, Shading};
+
+/// Words per vertex record in memory: position and normal (lit) or colour (unlit).
+const VERTEX_WORDS: usize = 6;
+/// Words per shaded vertex.
+const SHADED_WORDS: usize = 7;
+/// The longest a frame may run, in core cycles, before the host gives up.
+const MAX_FRAME_CYCLES: u64 = 20_000_000_000;
+
+/// A rendered frame.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    /// Packed RGBA8 (red in the low byte), row 0 at the bottom.
+    pub pixels: Vec<u32>,
+    pub stats: FrameStats,
+}
+
+/// One kernel's share of the frame.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct KernelShare {
+    pub kernel: String,
+    pub calls: u64,
+    pub cycles: u64,
+    pub stall_cycles: u64,
+    pub ops: u64,
+}
+
+/// Statistics of a frame (ARCHITECTURE §7).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct FrameStats {
+    pub scene: String,
+    pub machine: String,
+    pub width: u32,
+    pub height: u32,
+    pub core_mhz: f64,
+    pub cycles: u64,
+    pub frames_per_second: f64,
+    pub triangles: u64,
+    pub vertices: u64,
+    pub fragments: u64,
+    pub vertices_per_second: f64,
+    pub fragments_per_second: f64,
+    /// Arithmetic ops per core cycle over the frame, all clusters.
+    pub ops_per_cycle: f64,
+    /// Share of the frame's cycles a kernel was running (with and without its stalls).
+    pub cluster_occupancy: f64,
+    pub cluster_occupancy_without_stalls: f64,
+    pub kernels: Vec<KernelShare>,
+    pub batch_triangles: usize,
+    pub batches: u64,
+    /// Scissor splits made because a batch's fragments overflowed the SRF.
+    pub spills: u64,
+    pub composite_rounds: u64,
+    pub dram_gbs: f64,
+    pub dram_row_hit_rate: f64,
+    pub dram_bytes: u64,
+    pub srf_words_per_cycle: f64,
+    pub lrf_words_per_cycle: f64,
+    pub host_seconds: f64,
+    pub simulated_cycles_per_second: f64,
+}
+
+/// A frame that could not be rendered.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RenderError(pub String);
+
+impl std::fmt::Display for RenderError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for RenderError {}
+
+/// The kernels of a frame, compiled.
+struct Kernels {
+    vertex: usize,
+    setup: usize,
+    xyrast: usize,
+    irast: usize,
+    zcompare: usize,
+    recycle_zc: usize,
+    recycle_ap: usize,
+    compiled: Vec<(Kernel, Compiled)>,
+}
+
+fn compile_all(
+    scene: &Scene,
+    desc: &MachineDesc,
+    shape: FrameShape,
+) -> Result<Kernels, RenderError> {
+    let vertex = match scene.shading {
+        Shading::Lit(_) => crate::kernels::vertex::build(desc),
+        Shading::Unlit => kernels::vertex_unlit(desc),
+    };
+    let list = vec![
+        vertex,
+        kernels::setup(desc, shape),
+        kernels::xyrast(desc, shape),
+        kernels::irast(desc),
+        kernels::zcompare(desc, shape),
+        kernels::compact_recycle(desc, [NULL_DEPTH, 0]),
+        kernels::compact_recycle(desc, [shape.trash(), 0]),
+    ];
+    let compiled = list
+        .into_iter()
+        .map(|k| {
+            compile(&k, desc)
+                .map(|c| (k, c))
+                .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Kernels {
+        vertex: 0,
+        setup: 1,
+        xyrast: 2,
+        irast: 3,
+        zcompare: 4,
+        recycle_zc: 5,
+        recycle_ap: 6,
+        compiled,
+    })
+}
+
+/// SRF regions, block-aligned, bump-allocated once per frame.
+struct SrfPlan {
+    next: usize,
+    block: usize,
+    words: usize,
+}
+
+impl SrfPlan {
+    fn take(&mut self, words: usize) -> Result<usize, RenderError> {
+        let start = self.next;
+        let words = words.div_ceil(self.block) * self.block;
+        if start + words > self.words {
+            return Err(RenderError(format!(
+                "the SRF ({} words) is too small for the pipeline's streams",
+                self.words
+            )));
+        }
+        self.next += words;
+        Ok(start)
+    }
+}
+
+struct Regions {
+    vertex_params: usize,
+    setup_params: usize,
+    vertices: usize,
+    shaded: usize,
+    raster: usize,
+    interp: usize,
+    rows: usize,
+    tickets: usize,
+    /// xyrast outputs: addr, tri, e0, e1, e2.
+    frags: [usize; 5],
+    /// Fragments xyrast may write per pass (nulls included).
+    frag_capacity: usize,
+    gathered: usize,
+    /// irast outputs, then two recycle sets: z, colour, addr, prim.
+    zcap: [[usize; 4]; 3],
+    pixel: usize,
+    new_pixel: usize,
+    newaddr: usize,
+    loser: usize,
+    /// Fragments per chunk.
+    chunk: usize,
+}
+
+/// DRAM word addresses.
+struct Memory {
+    vertices: u64,
+    interp: u64,
+    framebuffer: u64,
+}
+
+struct Host<'a> {
+    sim: Sim,
+    desc: &'a MachineDesc,
+    k: Kernels,
+    r: Regions,
+    m: Memory,
+    clusters: usize,
+    stats: FrameStats,
+}
+
+fn bind(start: usize, words: usize) -> StreamBinding {
+    StreamBinding { start, words }
+}
+
+impl Host<'_> {
+    fn push(&mut self, instr: StreamInstr) -> usize {
+        processor::processor_mut(&mut self.sim).push(instr)
+    }
+
+    fn kernel(
+        &mut self,
+        k: usize,
+        mut streams: Vec<StreamBinding>,
+        params: Option<usize>,
+    ) -> usize {
+        let (kernel, c) = &self.k.compiled[k];
+        if c.params_stream.is_some() {
+            let start = params.expect("the host passes the parameters' region");
+            streams.push(bind(start, kernel.params.len() * self.clusters));
+        }
+        self.push(StreamInstr::Kernel {
+            program: k,
+            bindings: streams,
+        })
+    }
+
+    fn mem(
+        &mut self,
+        kind: MemOpKind,
+        base: u64,
+        pattern: Pattern,
+        record_words: usize,
+        records: usize,
+        srf_start: usize,
+    ) {
+        self.push(StreamInstr::Memory(MemOp {
+            kind,
+            base,
+            pattern,
+            record_words,
+            records,
+            srf_start,
+            row_records: if record_words > 1 { self.clusters } else { 1 },
+        }));
+    }
+
+    /// Runs until every queued instruction has completed.
+    fn drain(&mut self) -> Result<(), RenderError> {
+        let done = |s: &Sim| {
+            processor::processor(s).is_done()
+                && s.modules_of::<imagine_units::dram::DramChannel>()
+                    .all(imagine_units::dram::DramChannel::is_idle)
+        };
+        let left = MAX_FRAME_CYCLES.saturating_sub(self.sim.core_cycles());
+        let finished = self
+            .sim
+            .run_until(left, done)
+            .map_err(|e| RenderError(format!("the machine stopped: {e}")))?;
+        if !finished {
+            return Err(RenderError(format!(
+                "the frame did not finish within {MAX_FRAME_CYCLES} core cycles"
+            )));
+        }
+        Ok(())
+    }
+
+    fn outputs(&self, id: usize) -> Vec<usize> {
+        processor::processor(&self.sim).controller().records()[id]
+            .outputs
+            .clone()
+    }
+
+    /// Writes parameter words (replicated per cluster) at SRF word `start`.
+    fn write_params(&mut self, start: usize, words: &[u32]) -> Result<(), RenderError> {
+        let c = self.clusters;
+        let data: Vec<u32> = words
+            .iter()
+            .flat_map(|&w| std::iter::repeat_n(w, c))
+            .collect();
+        processor::processor_mut(&mut self.sim)
+            .machine_mut()
+            .srf_mut()
+            .load(start, &data)
+            .map_err(|e| RenderError(e.to_string()))
+    }
+
+    fn read_srf(&self, start: usize, len: usize) -> Result<Vec<u32>, RenderError> {
+        processor::processor(&self.sim)
+            .machine()
+            .srf()
+            .read_back(start, len)
+            .map_err(|e| RenderError(e.to_string()))
+    }
+
+    fn batch(
+        &mut self,
+        first_triangle: usize,
+        triangles: usize,
+        width: u32,
+        height: u32,
+    ) -> Result<(), RenderError> {
+        let c = self.clusters;
+        let verts = 3 * triangles;
+        let r = &self.r;
+        let (vin, shaded, vparams) = (r.vertices, r.shaded, r.vertex_params);
+        self.mem(
+            MemOpKind::Load,
+            self.m.vertices + (3 * first_triangle * VERTEX_WORDS) as u64,
+            Pattern::Strided {
+                stride: VERTEX_WORDS as u64,
+            },
+            VERTEX_WORDS,
+            verts,
+            vin,
+        );
+        self.kernel(
+            self.k.vertex,
+            vec![
+                bind(vin, verts * VERTEX_WORDS),
+                bind(shaded, verts * SHADED_WORDS),
+            ],
+            Some(vparams),
+        );
+        let mut tiles = vec![[0, 0, width as i32 - 1, height as i32 - 1]];
+        while let Some(tile) = tiles.pop() {
+            self.drain()?;
+            let mut params = tile.map(|v| v as u32).to_vec();
+            params.push(first_triangle as u32);
+            let sparams = self.r.setup_params;
+            self.write_params(sparams, &params)?;
+            let r = &self.r;
+            let streams = vec![
+                bind(r.shaded, verts * SHADED_WORDS),
+                bind(r.raster, triangles * RASTER_WORDS),
+                bind(r.interp, triangles * INTERP_WORDS),
+                bind(r.rows, c),
+            ];
+            self.kernel(self.k.setup, streams, Some(sparams));
+            self.drain()?;
+            let rows = self.read_srf(self.r.rows, c)?[0] as usize;
+            if rows * c + c > self.r.frag_capacity {
+                let [x0, y0, x1, y1] = tile;
+                if x1 > x0 || y1 > y0 {
+                    self.stats.spills += 1;
+                    if x1 - x0 >= y1 - y0 {
+                        let mid = (x0 + x1) / 2;
+                        tiles.push([mid + 1, y0, x1, y1]);
+                        tiles.push([x0, y0, mid, y1]);
+                    } else {
+                        let mid = (y0 + y1) / 2;
+                        tiles.push([x0, mid + 1, x1, y1]);
+                        tiles.push([x0, y0, x1, mid]);
+                    }
+                    continue;
+                }
+                return Err(RenderError(format!(
+                    "a one-pixel tile needs {rows} rasterizer iterations; the SRF holds {}",
+                    self.r.frag_capacity / c
+                )));
+            }
+            self.rasterize(triangles, rows)?;
+        }
+        Ok(())
+    }
+
+    fn rasterize(&mut self, triangles: usize, rows: usize) -> Result<(), RenderError> {
+        let c = self.clusters;
+        let r = &self.r;
+        let (interp, raster, tickets, frags, cap) =
+            (r.interp, r.raster, r.tickets, r.frags, r.frag_capacity);
+        self.mem(
+            MemOpKind::Store,
+            self.m.interp,
+            Pattern::Strided {
+                stride: INTERP_WORDS as u64,
+            },
+            INTERP_WORDS,
+            triangles,
+            interp,
+        );
+        let mut streams = vec![
+            bind(raster, triangles * RASTER_WORDS),
+            bind(tickets, rows * c),
+        ];
+        streams.extend(frags.iter().map(|&f| bind(f, cap)));
+        let id = self.kernel(self.k.xyrast, streams, None);
+        self.drain()?;
+        let written = self.outputs(id)[2];
+        // Whole rows: every real fragment and some of the nulls after them.
+        let total = written / c * c;
+        self.stats.fragments += (written - c) as u64;
+        let chunk = self.r.chunk;
+        let mut start = 0;
+        while start < total {
+            let len = chunk.min(total - start);
+            self.fragments(start, len)?;
+            start += len;
+        }
+        Ok(())
+    }
+
+    /// Interpolates and composites fragments `start..start + len` of the xyrast output.
+    fn fragments(&mut self, start: usize, len: usize) -> Result<(), RenderError> {
+        let r = &self.r;
+        let [addr, tri, e0, e1, e2] = r.frags.map(|f| f + start);
+        let gathered = r.gathered;
+        let [z, colour, _, prim] = r.zcap[0];
+        self.mem(
+            MemOpKind::Load,
+            self.m.interp,
+            Pattern::Indexed {
+                index_start: tri,
+                scale: INTERP_WORDS as u64,
+            },
+            INTERP_WORDS,
+            len,
+            gathered,
+        );
+        self.kernel(
+            self.k.irast,
+            vec![
+                bind(e0, len),
+                bind(e1, len),
+                bind(e2, len),
+                bind(gathered, len * INTERP_WORDS),
+                bind(z, len),
+                bind(colour, len),
+                bind(prim, len),
+            ],
+            None,
+        );
+        let mut current = [z, colour, addr, prim];
+        let mut len = len;
+        let mut set = 1;
+        loop {
+            self.stats.composite_rounds += 1;
+            let r = &self.r;
+            let (pixel, new_pixel, newaddr, loser) = (r.pixel, r.new_pixel, r.newaddr, r.loser);
+            let next = r.zcap[set];
+            let fb = self.m.framebuffer;
+            let [z, colour, addr, prim] = current;
+            // Owner race: the last scatter to a pixel wins it for this round.
+            self.push(StreamInstr::Memory(MemOp {
+                kind: MemOpKind::Store,
+                base: fb + 3,
+                pattern: Pattern::Indexed {
+                    index_start: addr,
+                    scale: PIXEL_WORDS as u64,
+                },
+                record_words: 1,
+                records: len,
+                srf_start: prim,
+                row_records: 1,
+            }));
+            self.mem(
+                MemOpKind::Load,
+                fb,
+                Pattern::Indexed {
+                    index_start: addr,
+                    scale: PIXEL_WORDS as u64,
+                },
+                PIXEL_WORDS,
+                len,
+                pixel,
+            );
+            self.kernel(
+                self.k.zcompare,
+                vec![
+                    bind(z, len),
+                    bind(colour, len),
+                    bind(addr, len),
+                    bind(prim, len),
+                    bind(pixel, len * PIXEL_WORDS),
+                    bind(new_pixel, len * PIXEL_WRITE_WORDS),
+                    bind(newaddr, len),
+                    bind(loser, len),
+                ],
+                None,
+            );
+            self.mem(
+                MemOpKind::Store,
+                fb,
+                Pattern::Indexed {
+                    index_start: newaddr,
+                    scale: PIXEL_WORDS as u64,
+                },
+                PIXEL_WRITE_WORDS,
+                len,
+                new_pixel,
+            );
+            let cap = self.r.chunk + self.clusters;
+            let a = self.kernel(
+                self.k.recycle_zc,
+                vec![
+                    bind(loser, len),
+                    bind(z, len),
+                    bind(colour, len),
+                    bind(next[0], cap),
+                    bind(next[1], cap),
+                ],
+                None,
+            );
+            self.kernel(
+                self.k.recycle_ap,
+                vec![
+                    bind(loser, len),
+                    bind(addr, len),
+                    bind(prim, len),
+                    bind(next[2], cap),
+                    bind(next[3], cap),
+                ],
+                None,
+            );
+            self.drain()?;
+            let kept = self.outputs(a)[3];
+            let c = self.clusters;
+            if kept <= c {
+                return Ok(());
+            }
+            len = kept / c * c;
+            current = next;
+            set = if set == 1 { 2 } else { 1 };
+        }
+    }
+}
+
+/// Chooses the batch size: the largest multiple of the cluster count up to 64 triangles
+/// (fewer for tiny scenes).
+fn batch_size(triangles: usize, clusters: usize) -> usize {
+    let want = 64usize.max(clusters).div_ceil(clusters) * clusters;
+    want.min(triangles.div_ceil(clusters) * clusters)
+        .max(clusters)
+}
+
+fn plan(
+    desc: &MachineDesc,
+    batch: usize,
+    shape: FrameShape,
+    params: usize,
+) -> Result<Regions, RenderError> {
+    let c = desc.cluster.count;
+    let mut p = SrfPlan {
+        next: 0,
+        block: desc.srf.block_words,
+        words: desc.srf.words,
+    };
+    let chunk = (512usize.div_ceil(c) * c).max(c);
+    let vertex_params = p.take(params * c)?;
+    let setup_params = p.take(5 * c)?;
+    let vertices = p.take(3 * batch * VERTEX_WORDS)?;
+    let shaded = p.take(3 * batch * SHADED_WORDS)?;
+    let raster = p.take(batch * RASTER_WORDS)?;
+    let interp = p.take(batch * INTERP_WORDS)?;
+    let rows = p.take(c)?;
+    let gathered = p.take(chunk * INTERP_WORDS)?;
+    let mut zcap = [[0; 4]; 3];
+    for set in &mut zcap {
+        for s in set.iter_mut() {
+            *s = p.take(chunk + c)?;
+        }
+    }
+    let pixel = p.take(chunk * PIXEL_WORDS)?;
+    let new_pixel = p.take(chunk * PIXEL_WRITE_WORDS)?;
+    let newaddr = p.take(chunk)?;
+    let loser = p.take(chunk)?;
+    // What is left: tickets and the five xyrast outputs, equal shares.
+    let left = p.words.saturating_sub(p.next);
+    let share = (left / 6) / p.block * p.block;
+    let frag_capacity = share / c * c;
+    if frag_capacity < 4 * c {
+        return Err(RenderError(format!(
+            "machine `{}`: the SRF ({} words) leaves no room for fragments",
+            desc.name, desc.srf.words
+        )));
+    }
+    let tickets = p.take(share)?;
+    let frags = [(); 5].map(|_| p.take(share).expect("shares fit"));
+    let _ = shape;
+    Ok(Regions {
+        vertex_params,
+        setup_params,
+        vertices,
+        shaded,
+        raster,
+        interp,
+        rows,
+        tickets,
+        frags,
+        frag_capacity,
+        gathered,
+        zcap,
+        pixel,
+        new_pixel,
+        newaddr,
+        loser,
+        chunk,
+    })
+}
+
+/// Vertex records of `scene` in the order `setup` reads them: within each batch, triangle
+/// `t`'s corner `k` at vertex `(3·⌊t/C⌋ + k)·C + t mod C`; the scene is padded with
+/// degenerate triangles to whole batches.
+fn vertex_words(scene: &Scene, batch: usize, clusters: usize) -> Vec<u32> {
+    let tris = scene.triangles();
+    let batches = tris.div_ceil(batch);
+    let mut out = vec![0u32; batches * batch * 3 * VERTEX_WORDS];
+    for t in 0..batches * batch {
+        let (b, local) = (t / batch, t % batch);
+        let src = t.min(tris.saturating_sub(1));
+        for k in 0..3 {
+            // Padding repeats one vertex three times: a degenerate triangle.
+            let v = if t < tris { 3 * src + k } else { 3 * src };
+            let p = scene.positions[v];
+            let q = match scene.shading {
+                Shading::Lit(_) => scene.normals[v],
+                Shading::Unlit => scene.colours[v],
+            };
+            let slot = b * batch * 3 + (3 * (local / clusters) + k) * clusters + local % clusters;
+            let words = p.iter().chain(&q).map(|x| x.to_bits());
+            for (j, w) in words.enumerate() {
+                out[slot * VERTEX_WORDS + j] = w;
+            }
+        }
+    }
+    out
+}
+
+fn vertex_params(scene: &Scene) -> Vec<u32> {
+    let mut p: Vec<f32> = scene.mvp.to_vec();
+    if let Shading::Lit(l) = &scene.shading {
+        p.extend(l.eye);
+        for (pos, colour) in &l.lights {
+            p.extend(pos);
+            p.extend(colour);
+        }
+        p.extend(l.diffuse);
+        p.extend(l.specular);
+        p.extend(l.ambient);
+    }
+    p.iter().map(|x| x.to_bits()).collect()
+}
+
+/// Renders `scene` on a processor built from `desc`; `progress(done, total)` is called
+/// after each batch.
+pub fn render(
+    scene: &Scene,
+    desc: &MachineDesc,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Frame, RenderError> {
+    scene.validate().map_err(|e| RenderError(e.to_string()))?;
+    let host_start = Instant::now();
+    let clusters = desc.cluster.count;
+    let shape = FrameShape {
+        width: scene.width,
+        height: scene.height,
+        clusters,
+        cull_back: scene.cull_back,
+    };
+    let k = compile_all(scene, desc, shape)?;
+    let batch = batch_size(scene.triangles(), clusters);
+    let vparams = vertex_params(scene);
+    let regions = plan(desc, batch, shape, vparams.len())?;
+    let verts = vertex_words(scene, batch, clusters);
+    let pixels = (scene.width * scene.height) as usize + 1;
+    let mut fb = Vec::with_capacity(pixels * PIXEL_WORDS);
+    for _ in 0..pixels {
+        fb.extend([0xFF00_0000, 1.0f32.to_bits(), 0, 0]);
+    }
+    let align = |x: u64| x.div_ceil(1024) * 1024;
+    let interp = align(verts.len() as u64);
+    let memory = Memory {
+        vertices: 0,
+        interp,
+        framebuffer: align(interp + (batch * INTERP_WORDS) as u64),
+    };
+    let capacity_words = imagine_units::dram::DramParams::of(desc).capacity_bytes() / 4;
+    if memory.framebuffer + fb.len() as u64 > capacity_words {
+        return Err(RenderError(format!(
+            "the scene needs {} words of DRAM; machine `{}` has {capacity_words}",
+            memory.framebuffer + fb.len() as u64,
+            desc.name
+        )));
+    }
+    let program = StreamProgram {
+        kernels: k.compiled.iter().map(|(_, c)| c.program.clone()).collect(),
+        instrs: (0..k.compiled.len())
+            .map(|p| StreamInstr::LoadMicrocode { program: p })
+            .collect(),
+    };
+    let param_words: Vec<u32> = vparams
+        .iter()
+        .flat_map(|&w| std::iter::repeat_n(w, clusters))
+        .collect();
+    let opts = ProcessorOptions {
+        dram_init: vec![(memory.vertices, verts), (memory.framebuffer, fb)],
+        srf_init: vec![(regions.vertex_params, param_words)],
+        ..ProcessorOptions::default()
+    };
+    let sim = processor::build(desc, program, opts).map_err(|e| RenderError(e.to_string()))?;
+    let triangles = scene.triangles();
+    let mut host = Host {
+        sim,
+        desc,
+        k,
+        r: regions,
+        m: memory,
+        clusters,
+        stats: FrameStats {
+            scene: scene.name.clone(),
+            machine: desc.name.clone(),
+            width: scene.width,
+            height: scene.height,
+            triangles: triangles as u64,
+            vertices: 3 * triangles as u64,
+            batch_triangles: batch,
+            ..FrameStats::default()
+        },
+    };
+    let batches = triangles.div_ceil(batch);
+    for b in 0..batches {
+        host.batch(b * batch, batch, scene.width, scene.height)?;
+        host.stats.batches += 1;
+        progress(b + 1, batches);
+    }
+    host.drain()?;
+    let fb_words = processor::read_dram(
+        &host.sim,
+        desc,
+        host.m.framebuffer,
+        (pixels - 1) * PIXEL_WORDS,
+    );
+    let pixels_out: Vec<u32> = fb_words.chunks(PIXEL_WORDS).map(|p| p[0]).collect();
+    let mut stats = host.stats;
+    finish_stats(&mut stats, &host.sim, desc, &host.k, host_start);
+    let _ = host.desc;
+    Ok(Frame {
+        width: scene.width,
+        height: scene.height,
+        pixels: pixels_out,
+        stats,
+    })
+}
+
+fn finish_stats(s: &mut FrameStats, sim: &Sim, desc: &MachineDesc, k: &Kernels, start: Instant) {
+    let p = processor::processor(sim);
+    let cycles = sim.core_cycles();
+    let mhz = desc.clocks.core_mhz as f64;
+    let seconds = cycles as f64 / (mhz * 1e6);
+    s.core_mhz = mhz;
+    s.cycles = cycles;
+    s.frames_per_second = 1.0 / seconds.max(1e-12);
+    s.vertices_per_second = s.vertices as f64 / seconds.max(1e-12);
+    s.fragments_per_second = s.fragments as f64 / seconds.max(1e-12);
+    let mut shares: Vec<KernelShare> = k
+        .compiled
+        .iter()
+        .map(|(kernel, _)| KernelShare {
+            kernel: kernel.name.clone(),
+            ..KernelShare::default()
+        })
+        .collect();
+    let mut busy = 0;
+    let mut stalls = 0;
+    let mut ops = 0;
+    for r in p.controller().records() {
+        if let (StreamInstr::Kernel { program, .. }, Some(st)) = (&r.instr, &r.kernel_stats) {
+            let share = &mut shares[*program];
+            let st: &KernelStats = st;
+            share.calls += 1;
+            share.cycles += st.cycles;
+            share.stall_cycles += st.stall_cycles;
+            let o: u64 = st.fu_ops.iter().sum::<u64>() * desc.cluster.count as u64;
+            share.ops += o;
+            busy += st.cycles;
+            stalls += st.stall_cycles;
+            ops += o;
+        }
+    }
+    // The two recycle kernels share a name: merge them.
+    let mut merged: Vec<KernelShare> = Vec::new();
+    for sh in shares {
+        match merged.iter_mut().find(|m| m.kernel == sh.kernel) {
+            Some(m) => {
+                m.calls += sh.calls;
+                m.cycles += sh.cycles;
+                m.stall_cycles += sh.stall_cycles;
+                m.ops += sh.ops;
+            }
+            None => merged.push(sh),
+        }
+    }
+    s.kernels = merged;
+    s.ops_per_cycle = ops as f64 / cycles.max(1) as f64;
+    s.cluster_occupancy = busy as f64 / cycles.max(1) as f64;
+    s.cluster_occupancy_without_stalls = busy.saturating_sub(stalls) as f64 / cycles.max(1) as f64;
+    let dram: ReplayReport = imagine_units::dram::replay::report_of(
+        sim,
+        imagine_units::dram::Policy::parse(&desc.memory.policy)
+            .unwrap_or(imagine_units::dram::Policy::FirstReady),
+        &imagine_units::dram::DramParams::of(desc),
+    );
+    s.dram_bytes = dram.bytes;
+    s.dram_gbs = dram.bytes as f64 / seconds.max(1e-12) / 1e9;
+    s.dram_row_hit_rate = dram.row_hit_rate;
+    let srf = p.machine().srf().stats();
+    s.srf_words_per_cycle = srf.words_per_cycle();
+    s.lrf_words_per_cycle = 0.0;
+    s.host_seconds = start.elapsed().as_secs_f64();
+    s.simulated_cycles_per_second = cycles as f64 / s.host_seconds.max(1e-9);
+}
