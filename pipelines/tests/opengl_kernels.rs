@@ -37,44 +37,146 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
 #[test]
 fn xyrast_machine_matches_interpreter() {
     use imagine_pipelines::kernel::KernelInputs;
-    let desc = MachineDesc::gold8();
-    let shape = FrameShape {
-        width: 32,
-        height: 32,
-        clusters: 8,
-        cull_back: false,
-    };
-    let k = kernels::xyrast(&desc, shape);
-    let c = compile(&k, &desc).unwrap();
-    println!("{}", c.report.text());
-    let raster: Vec<u32> = vec![
-        65537, 196611, 65537, 65537, 65537, 65537, 65537, 65537, 983055, 983055, 0, 0, 0, 0, 0, 0,
-        3252682752, 3250585600, 2147483648, 2147483648, 2147483648, 2147483648, 2147483648,
-        2147483648, 3252682752, 3242196992, 2147483648, 2147483648, 2147483648, 2147483648,
-        2147483648, 2147483648, 1147142144, 1144258560, 2147483648, 2147483648, 2147483648,
-        2147483648, 2147483648, 2147483648, 1105199104, 1103101952, 2147483648, 2147483648,
-        2147483648, 2147483648, 2147483648, 2147483648, 0, 3242196992, 2147483648, 2147483648,
-        2147483648, 2147483648, 2147483648, 2147483648, 3261071360, 3258974208, 2147483648,
-        2147483648, 2147483648, 2147483648, 2147483648, 2147483648, 0, 0, 2147483648, 2147483648,
-        2147483648, 2147483648, 2147483648, 2147483648, 1105199104, 1103101952, 2147483648,
-        2147483648, 2147483648, 2147483648, 2147483648, 2147483648, 3261071360, 3267362816,
-        2147483648, 2147483648, 2147483648, 2147483648, 2147483648, 2147483648, 1073741824,
-        1073741825, 2, 3, 4, 5, 6, 7,
-    ];
-    let inputs = KernelInputs {
-        streams: vec![
-            raster,
-            vec![0; 225 * 8],
-            vec![],
-            vec![],
-            vec![],
-            vec![],
-            vec![],
-        ],
-        params: vec![],
-    };
-    let golden = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
-    println!("interp fragments {}", golden[2].len());
-    let r = imagine_pipelines::run::check(&k, &c, &desc, &inputs).unwrap();
-    assert!(r.mismatch.is_none(), "{:?}", r.mismatch);
+    for name in ["gold1", "gold8"] {
+        let desc = MachineDesc::resolve(name).unwrap();
+        let c = desc.cluster.count;
+        let shape = FrameShape {
+            width: 32,
+            height: 32,
+            clusters: c,
+            cull_back: false,
+        };
+        let k = kernels::xyrast(&desc, shape);
+        let compiled = compile(&k, &desc).unwrap();
+        // Three rows of triangles whose boxes differ in size; zero edge functions with
+        // every top-left flag set cover every candidate.
+        let rows = 3;
+        let mut records = Vec::new();
+        let mut iterations = 0;
+        for r in 0..rows {
+            let boxes: Vec<(u32, u32)> = (0..c)
+                .map(|t| ((t as u32 * 7 + r) % 5, (t as u32 * 3 + r) % 4))
+                .collect();
+            let row_max = boxes.iter().map(|(w, h)| w * h).max().unwrap().max(1);
+            iterations += row_max as usize;
+            for (t, (w, h)) in boxes.iter().enumerate() {
+                let (x0, y0) = (t as u32 * 2, r * 3);
+                let (lo, hi) = if w * h == 0 {
+                    (1 | 1 << 16, 0)
+                } else {
+                    (x0 | y0 << 16, (x0 + w - 1) | (y0 + h - 1) << 16)
+                };
+                let mut rec = vec![lo, hi];
+                rec.extend([0u32; 9]);
+                rec.push(t as u32 | 7 << 29);
+                rec.push(row_max);
+                records.push(rec);
+            }
+        }
+        let raster = {
+            let k = records[0].len();
+            let mut out = vec![0; records.len() * k];
+            for (e, rec) in records.iter().enumerate() {
+                for (j, &w) in rec.iter().enumerate() {
+                    out[(e / c) * k * c + j * c + e % c] = w;
+                }
+            }
+            out
+        };
+        let inputs = KernelInputs {
+            streams: vec![
+                raster,
+                vec![0; iterations * c],
+                vec![],
+                vec![],
+                vec![],
+                vec![],
+                vec![],
+            ],
+            params: vec![],
+        };
+        let golden = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
+        let want: u32 = records
+            .iter()
+            .map(|r| {
+                if r[1] == 0 {
+                    0
+                } else {
+                    ((r[1] & 0xFFFF) - (r[0] & 0xFFFF) + 1) * ((r[1] >> 16) - (r[0] >> 16) + 1)
+                }
+            })
+            .sum();
+        assert_eq!(
+            golden[2].len(),
+            want as usize + c,
+            "{name}: every candidate and a null row"
+        );
+        let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
+        assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
+    }
+}
+
+#[test]
+fn setup_machine_matches_interpreter_on_sphere_triangles() {
+    use imagine_pipelines::kernel::KernelInputs;
+    for name in ["gold1", "gold8"] {
+        let desc = MachineDesc::resolve(name).unwrap();
+        let c = desc.cluster.count;
+        let scene = imagine_pipelines::scene::sphere(3, 128);
+        let shape = FrameShape {
+            width: 128,
+            height: 128,
+            clusters: c,
+            cull_back: true,
+        };
+        let k = kernels::setup(&desc, shape);
+        let compiled = compile(&k, &desc).unwrap();
+        let tris = 8 * c;
+        let mut records = Vec::new();
+        for t in 0..tris {
+            let mut rec = Vec::new();
+            for kk in 0..3 {
+                let p = scene.positions[3 * t + kk];
+                let m = scene.mvp;
+                for r in 0..4 {
+                    rec.push(
+                        (m[4 * r] * p[0]
+                            + m[4 * r + 1] * p[1]
+                            + m[4 * r + 2] * p[2]
+                            + m[4 * r + 3])
+                            .to_bits(),
+                    );
+                }
+                rec.extend([0.5f32; 3].map(f32::to_bits));
+            }
+            records.push(rec);
+        }
+        let stream = {
+            let k = records[0].len();
+            let mut out = vec![0; records.len() * k];
+            for (e, rec) in records.iter().enumerate() {
+                for (j, &w) in rec.iter().enumerate() {
+                    out[(e / c) * k * c + j * c + e % c] = w;
+                }
+            }
+            out
+        };
+        let inputs = KernelInputs {
+            streams: vec![stream, vec![], vec![], vec![]],
+            params: vec![0, 0, 127, 127, 0],
+        };
+        let golden = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
+        assert_eq!(
+            golden[1].len(),
+            tris * kernels::RASTER_WORDS,
+            "raster records"
+        );
+        assert_eq!(
+            golden[2].len(),
+            tris * kernels::INTERP_WORDS,
+            "interp records"
+        );
+        let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
+        assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
+    }
 }

@@ -14,7 +14,7 @@ fn two_overlapping_triangles() {
     )
     .unwrap();
     let desc = MachineDesc::gold8();
-    let f = render(&scene, &desc, |_, _| {}).unwrap();
+    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
     println!("{:#?}", f.stats);
     for y in (0..32).rev() {
         let row: String = (0..32)

@@ -28,18 +28,20 @@
 //! of null records (`C` of them) so that the host can read them back in whole rows.
 //!
 //! **xyrast** gives each cluster one triangle of a row and walks its bounding box one pixel
-//! per iteration; when every cluster of the row is done (an AND across the clusters by
-//! butterfly exchanges), all read the next row together, so the records stay whole. The
-//! loop runs over a `tickets` stream whose length the host takes from `setup`'s count:
+//! per iteration; after as many iterations as the row's largest box (`setup` finds it with
+//! a maximum across the clusters by butterfly exchanges and puts it in every record of the
+//! row), all read the next row together, so the records stay whole. The loop runs over a
+//! `tickets` stream whose length the host takes from `setup`'s count:
 //! `Σ_rows max(1, max_c candidates)` iterations, exactly what the rows need.
 
 use imagine_units::desc::MachineDesc;
 
 use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, StreamId, Ty, Value};
 
-/// Words of a `setup` raster record: packed bbox low and high, nine edge coefficients, and
-/// the triangle's index in the batch with its three top-left flags.
-pub const RASTER_WORDS: usize = 12;
+/// Words of a `setup` raster record: packed bbox low and high, nine edge coefficients, the
+/// triangle's index in the batch with its three top-left flags, and the iterations its row
+/// takes in `xyrast` (the same in every cluster).
+pub const RASTER_WORDS: usize = 13;
 /// Words of an interpolation record: z_k / |det| (3), r, g, b per corner (9), primitive.
 pub const INTERP_WORDS: usize = 13;
 /// Words of a framebuffer pixel in DRAM: colour, depth, primitive, owner tag.
@@ -269,14 +271,19 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
             let m = b.fmax(p[0], p[1]);
             b.fmax(m, p[2])
         };
-        for (slot, value, widen) in [(axis, lo, -1), (axis + 2, hi, 1)] {
-            // Clamped before conversion (NaN and huge values included), widened by a
-            // pixel: the box only has to be conservative.
-            let c = b.fmax(value, lo_clamp);
+        for (slot, value) in [(axis, lo), (axis + 2, hi)] {
+            // Pixel centres at +0.5: the first and last candidate are near
+            // trunc(v - 0.5); a 1/64-pixel margin keeps the box conservative against
+            // rounding. Clamped before conversion (NaN and huge values included).
+            let margin = b.f32(if slot < 2 {
+                -0.5 - 1.0 / 64.0
+            } else {
+                -0.5 + 1.0 / 64.0
+            });
+            let c = b.fadd(value, margin);
+            let c = b.fmax(c, lo_clamp);
             let c = b.fmin(c, hi_clamp);
             let i = b.ftoi_trunc(c);
-            let widen = b.i32(widen);
-            let i = b.iadd(i, widen);
             let projected = if slot < 2 {
                 b.imax(i, scissor[slot])
             } else {
@@ -334,11 +341,8 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
         let t = b.shl(t, shift);
         tag = b.or(tag, t);
     }
-    for w in [lo, hi]
-        .into_iter()
-        .chain(edges.iter().flatten().copied())
-        .chain([tag])
-    {
+    let words = [lo, hi].into_iter().chain(edges.iter().flatten().copied());
+    for w in words.chain([tag, row_iterations]) {
         b.write(raster, w);
     }
     // Interpolation record.
@@ -381,18 +385,18 @@ pub fn xyrast(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let low16 = b.i32(0xFFFF);
     let sixteen = b.i32(16);
     let tri_mask = b.i32((1 << TRI_BITS) - 1);
+    let zero_word = b.word(0);
 
     b.begin_loop(LoopSpec::OverStream(tickets));
-    let zero_word = b.word(0);
     let init: Vec<Value> = (0..RASTER_WORDS).map(|_| b.carried(zero_word)).collect();
     let x0c = b.carried(zero);
     let y0c = b.carried(zero);
     let busy0 = b.carried(zero);
+    let left0 = b.carried(zero);
     let _ticket = b.read(tickets);
-    let idle = b.ieq(busy0, zero);
-    let idle = flag(&mut b, idle);
-    let all_idle = all_reduce(&mut b, shape.clusters, idle, KernelBuilder::and);
-    let fetch = cond(&mut b, all_idle);
+    // A row is fetched when its predecessor's iterations are used up: the same
+    // decision in every cluster, so the conditional reads take whole rows.
+    let fetch = b.ieq(left0, zero);
     let rec: Vec<Value> = init
         .iter()
         .map(|&old| b.read_if(raster, fetch, old))
@@ -400,6 +404,9 @@ pub fn xyrast(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     for (&c, &r) in init.iter().zip(&rec) {
         b.set_next(c, r);
     }
+    let row_left = b.select(fetch, rec[RASTER_WORDS - 1], left0);
+    let left = b.isub(row_left, one);
+    b.set_next(left0, left);
     let (lo, hi) = (rec[0], rec[1]);
     let bx0 = b.and(lo, low16);
     let by0 = b.shr(lo, sixteen);
@@ -419,7 +426,7 @@ pub fn xyrast(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let fx = b.fadd(fx, half);
     let fy = b.itof(y);
     let fy = b.fadd(fy, half);
-    let tag = rec[RASTER_WORDS - 1];
+    let tag = rec[RASTER_WORDS - 2];
     let mut inside = busy;
     let mut e_values = [zero_f; 3];
     for i in 0..3 {

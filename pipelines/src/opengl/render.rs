@@ -195,6 +195,7 @@ struct Regions {
     interp: usize,
     rows: usize,
     tickets: usize,
+    tickets_words: usize,
     /// xyrast outputs: addr, tri, e0, e1, e2.
     frags: [usize; 5],
     /// Fragments xyrast may write per pass (nulls included).
@@ -367,7 +368,7 @@ impl Host<'_> {
             self.kernel(self.k.setup, streams, Some(sparams));
             self.drain()?;
             let rows = self.read_srf(self.r.rows, c)?[0] as usize;
-            if rows * c + c > self.r.frag_capacity {
+            if rows * c + c > self.r.frag_capacity || rows * c > self.r.tickets_words {
                 let [x0, y0, x1, y1] = tile;
                 if x1 > x0 || y1 > y0 {
                     self.stats.spills += 1;
@@ -573,7 +574,7 @@ fn plan(
         block: desc.srf.block_words,
         words: desc.srf.words,
     };
-    let chunk = (512usize.div_ceil(c) * c).max(c);
+    let chunk = (256usize.div_ceil(c) * c).max(c);
     let vertex_params = p.take(params * c)?;
     let setup_params = p.take(5 * c)?;
     let vertices = p.take(3 * batch * VERTEX_WORDS)?;
@@ -581,7 +582,10 @@ fn plan(
     let raster = p.take(batch * RASTER_WORDS)?;
     let interp = p.take(batch * INTERP_WORDS)?;
     let rows = p.take(c)?;
+    // The fragment chunk's streams; xyrast, which runs alone, reads its tickets (whose
+    // contents do not matter) from the same words.
     let gathered = p.take(chunk * INTERP_WORDS)?;
+    let tickets = gathered;
     let mut zcap = [[0; 4]; 3];
     for set in &mut zcap {
         for s in set.iter_mut() {
@@ -592,9 +596,10 @@ fn plan(
     let new_pixel = p.take(chunk * PIXEL_WRITE_WORDS)?;
     let newaddr = p.take(chunk)?;
     let loser = p.take(chunk)?;
-    // What is left: tickets and the five xyrast outputs, equal shares.
+    let tickets_words = p.next - tickets;
+    // What is left: the five xyrast outputs, equal shares.
     let left = p.words.saturating_sub(p.next);
-    let share = (left / 6) / p.block * p.block;
+    let share = (left / 5) / p.block * p.block;
     let frag_capacity = share / c * c;
     if frag_capacity < 4 * c {
         return Err(RenderError(format!(
@@ -602,7 +607,6 @@ fn plan(
             desc.name, desc.srf.words
         )));
     }
-    let tickets = p.take(share)?;
     let frags = [(); 5].map(|_| p.take(share).expect("shares fit"));
     let _ = shape;
     Ok(Regions {
@@ -614,6 +618,7 @@ fn plan(
         interp,
         rows,
         tickets,
+        tickets_words,
         frags,
         frag_capacity,
         gathered,
@@ -670,10 +675,12 @@ fn vertex_params(scene: &Scene) -> Vec<u32> {
 }
 
 /// Renders `scene` on a processor built from `desc`; `progress(done, total)` is called
-/// after each batch.
+/// after each batch; `on_start` sees the simulation before the first cycle (to attach a
+/// waveform tracer).
 pub fn render(
     scene: &Scene,
     desc: &MachineDesc,
+    on_start: Option<imagine_units::runner::OnStart>,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Frame, RenderError> {
     scene.validate().map_err(|e| RenderError(e.to_string()))?;
@@ -723,6 +730,7 @@ pub fn render(
     let opts = ProcessorOptions {
         dram_init: vec![(memory.vertices, verts), (memory.framebuffer, fb)],
         srf_init: vec![(regions.vertex_params, param_words)],
+        on_start,
         ..ProcessorOptions::default()
     };
     let sim = processor::build(desc, program, opts).map_err(|e| RenderError(e.to_string()))?;
@@ -752,6 +760,9 @@ pub fn render(
         progress(b + 1, batches);
     }
     host.drain()?;
+    host.sim
+        .finish()
+        .map_err(|e| RenderError(format!("cannot finish the waveform: {e}")))?;
     let fb_words = processor::read_dram(
         &host.sim,
         desc,
