@@ -48,7 +48,6 @@ fn bad_arguments_are_errors_not_panics() {
         &["demo", "--core-mhz", "0"],
         &["demo", "--core-mhz", "99999999999999"],
         &["demo", "--crossing-capacity", "0"],
-        &["render"],
         &["machine", "show", "gold9"],
         &["machine", "show", "/nonexistent/m.toml"],
     ] {
@@ -496,4 +495,40 @@ fn kernel_library_list_show_check() {
     let o = imagine(&["kernel", "show", "nope"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("no kernel `nope`"), "{}", stderr(&o));
+}
+
+#[test]
+fn render_rejects_bad_scenes_with_a_clear_error() {
+    let dir = std::env::temp_dir().join(format!("imagine-render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad.tri");
+    std::fs::write(&bad, "8 8\n0 0 0.5 1 1 1  8 0 nan 1 1 1  0 8 0.5 1 1 1\n").unwrap();
+    for (args, want) in [
+        (vec!["render", bad.to_str().unwrap()], "line 2"),
+        (vec!["render", "TEAPOT-9"], "unknown scene"),
+        (vec!["render", "RATE-3"], "power of two"),
+        (vec!["render", "SPHERE", "--size", "0"], "--size"),
+    ] {
+        assert_clear_error(&args);
+        let err = stderr(&imagine(&args));
+        assert!(err.contains(want), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn render_writes_png_and_stats() {
+    let dir = std::env::temp_dir().join(format!("imagine-render-ok-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("f.png");
+    let stats = dir.join("f.json");
+    let (png_s, stats_s) = (png.to_str().unwrap(), stats.to_str().unwrap());
+    let out = imagine(&[
+        "render", "RATE-8", "--size", "32", "--png", png_s, "--stats", stats_s,
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(std::fs::metadata(&png).unwrap().len() > 0);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(json["frame"]["fragments"], 32 * 32);
+    assert_eq!(json["reference_error"]["coverage_mismatch_share"], 0.0);
 }

@@ -366,7 +366,7 @@ pub fn rate(n: u32, size: u32) -> Result<Scene, SceneError> {
         ));
     }
     let (w, h) = rate_cell(n);
-    if size == 0 || size > MAX_WINDOW || size % w != 0 || size % h != 0 {
+    if size == 0 || size > MAX_WINDOW || !size.is_multiple_of(w) || !size.is_multiple_of(h) {
         return Err(SceneError::new(
             &name,
             None,

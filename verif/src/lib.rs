@@ -1,4 +1,9 @@
 //! imagine-verif: golden models, testbenches, reference renderer and image metrics
 //! (ARCHITECTURE §6).
 
+pub mod image;
+#[cfg(feature = "osmesa")]
+pub mod osmesa;
+pub mod reference;
+pub mod stress;
 pub mod testfloat;

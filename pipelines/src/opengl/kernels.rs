@@ -262,7 +262,11 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let all_in_front = b.flt(zero_f, w_min);
     let mut bounds = [zero; 4];
     for axis in 0..2 {
-        let p: Vec<Value> = (0..3).map(|k| b.fmul(hv[k][axis], inv_w[k])).collect();
+        let p: Vec<Value> = hv
+            .iter()
+            .zip(inv_w)
+            .map(|(h, i)| b.fmul(h[axis], i))
+            .collect();
         let lo = {
             let m = b.fmin(p[0], p[1]);
             b.fmin(m, p[2])
@@ -352,8 +356,8 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
         b.write(interp, q);
     }
     for c in &v {
-        for ch in 4..7 {
-            b.write(interp, c[ch]);
+        for &channel in &c[4..7] {
+            b.write(interp, channel);
         }
     }
     let prim = {

@@ -274,13 +274,11 @@ impl AddressGenerator {
                         self.indices.clear();
                         self.indices_row = Some(row);
                     }
-                    if j == 0 {
-                        if self.indices.len() == in_row {
-                            if srf.available(self.isb) == 0 {
-                                break;
-                            }
-                            self.indices.push(srf.memory_read(self.isb, 1)?[0] as u64);
+                    if j == 0 && self.indices.len() == in_row {
+                        if srf.available(self.isb) == 0 {
+                            break;
                         }
+                        self.indices.push(srf.memory_read(self.isb, 1)?[0] as u64);
                     }
                     op.base + self.indices[in_row] * scale
                 }
