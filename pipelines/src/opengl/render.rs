@@ -218,9 +218,8 @@ struct Memory {
     framebuffer: u64,
 }
 
-struct Host<'a> {
+struct Host {
     sim: Sim,
-    desc: &'a MachineDesc,
     k: Kernels,
     r: Regions,
     m: Memory,
@@ -232,7 +231,7 @@ fn bind(start: usize, words: usize) -> StreamBinding {
     StreamBinding { start, words }
 }
 
-impl Host<'_> {
+impl Host {
     fn push(&mut self, instr: StreamInstr) -> usize {
         processor::processor_mut(&mut self.sim).push(instr)
     }
@@ -562,12 +561,7 @@ fn batch_size(triangles: usize, clusters: usize) -> usize {
         .max(clusters)
 }
 
-fn plan(
-    desc: &MachineDesc,
-    batch: usize,
-    shape: FrameShape,
-    params: usize,
-) -> Result<Regions, RenderError> {
+fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, RenderError> {
     let c = desc.cluster.count;
     let mut p = SrfPlan {
         next: 0,
@@ -608,7 +602,6 @@ fn plan(
         )));
     }
     let frags = [(); 5].map(|_| p.take(share).expect("shares fit"));
-    let _ = shape;
     Ok(Regions {
         vertex_params,
         setup_params,
@@ -695,7 +688,7 @@ pub fn render(
     let k = compile_all(scene, desc, shape)?;
     let batch = batch_size(scene.triangles(), clusters);
     let vparams = vertex_params(scene);
-    let regions = plan(desc, batch, shape, vparams.len())?;
+    let regions = plan(desc, batch, vparams.len())?;
     let verts = vertex_words(scene, batch, clusters);
     let pixels = (scene.width * scene.height) as usize + 1;
     let mut fb = Vec::with_capacity(pixels * PIXEL_WORDS);
@@ -737,7 +730,6 @@ pub fn render(
     let triangles = scene.triangles();
     let mut host = Host {
         sim,
-        desc,
         k,
         r: regions,
         m: memory,
@@ -772,7 +764,6 @@ pub fn render(
     let pixels_out: Vec<u32> = fb_words.chunks(PIXEL_WORDS).map(|p| p[0]).collect();
     let mut stats = host.stats;
     finish_stats(&mut stats, &host.sim, desc, &host.k, host_start);
-    let _ = host.desc;
     Ok(Frame {
         width: scene.width,
         height: scene.height,
