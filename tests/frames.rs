@@ -9,11 +9,7 @@ use imagine_verif::image::{Image, Metrics, compare};
 use imagine_verif::{reference, stress};
 
 fn image_of(f: &Frame) -> Image {
-    let mut img = Image::new(f.width, f.height);
-    for (dst, &p) in img.pixels.iter_mut().zip(&f.pixels) {
-        *dst = p.to_le_bytes();
-    }
-    img
+    Image::from_rgba8_words(f.width, f.height, &f.pixels)
 }
 
 fn draw(scene: &Scene, machine: &str) -> (Frame, Metrics) {

@@ -1,6 +1,7 @@
 //! The OpenGL pipeline's kernels compile on every machine shape.
 
 use imagine_pipelines::compile::compile;
+use imagine_pipelines::kernels::records_to_stream;
 use imagine_pipelines::opengl::kernels::{self, FrameShape};
 use imagine_units::desc::MachineDesc;
 
@@ -73,16 +74,7 @@ fn xyrast_machine_matches_interpreter() {
                 records.push(rec);
             }
         }
-        let raster = {
-            let k = records[0].len();
-            let mut out = vec![0; records.len() * k];
-            for (e, rec) in records.iter().enumerate() {
-                for (j, &w) in rec.iter().enumerate() {
-                    out[(e / c) * k * c + j * c + e % c] = w;
-                }
-            }
-            out
-        };
+        let raster = records_to_stream(&records, c);
         let inputs = KernelInputs {
             streams: vec![
                 raster,
@@ -151,16 +143,7 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
             }
             records.push(rec);
         }
-        let stream = {
-            let k = records[0].len();
-            let mut out = vec![0; records.len() * k];
-            for (e, rec) in records.iter().enumerate() {
-                for (j, &w) in rec.iter().enumerate() {
-                    out[(e / c) * k * c + j * c + e % c] = w;
-                }
-            }
-            out
-        };
+        let stream = records_to_stream(&records, c);
         let inputs = KernelInputs {
             streams: vec![stream, vec![], vec![], vec![]],
             params: vec![0, 0, 127, 127, 0],

@@ -65,11 +65,7 @@ fn load_scene(a: &RenderArgs) -> Result<Scene> {
 
 /// The machine's frame as an image.
 fn image_of(f: &Frame) -> Image {
-    let mut img = Image::new(f.width, f.height);
-    for (dst, &p) in img.pixels.iter_mut().zip(&f.pixels) {
-        *dst = p.to_le_bytes();
-    }
-    img
+    Image::from_rgba8_words(f.width, f.height, &f.pixels)
 }
 
 pub fn run(a: RenderArgs) -> Result<ExitCode> {

@@ -37,6 +37,16 @@ impl Image {
         }
     }
 
+    /// An image from packed RGBA8 words (red in the low byte), row 0 at the bottom: the
+    /// framebuffer's colour words.
+    pub fn from_rgba8_words(width: u32, height: u32, words: &[u32]) -> Image {
+        let mut img = Image::new(width, height);
+        for (dst, &w) in img.pixels.iter_mut().zip(words) {
+            *dst = w.to_le_bytes();
+        }
+        img
+    }
+
     fn index(&self, x: u32, y: u32) -> usize {
         assert!(
             x < self.width && y < self.height,

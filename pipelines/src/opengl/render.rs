@@ -97,7 +97,6 @@ pub struct FrameStats {
     pub dram_row_hit_rate: f64,
     pub dram_bytes: u64,
     pub srf_words_per_cycle: f64,
-    pub lrf_words_per_cycle: f64,
     pub host_seconds: f64,
     pub simulated_cycles_per_second: f64,
 }
@@ -835,7 +834,6 @@ fn finish_stats(s: &mut FrameStats, sim: &Sim, desc: &MachineDesc, k: &Kernels, 
     s.dram_row_hit_rate = dram.row_hit_rate;
     let srf = p.machine().srf().stats();
     s.srf_words_per_cycle = srf.words_per_cycle();
-    s.lrf_words_per_cycle = 0.0;
     s.host_seconds = start.elapsed().as_secs_f64();
     s.simulated_cycles_per_second = cycles as f64 / s.host_seconds.max(1e-9);
 }
