@@ -1,7 +1,8 @@
-//! Scheduling with unit binding: the main loop by modulo scheduling (Rau, "Iterative modulo
-//! scheduling", MICRO 1994: a modulo reservation table, operations placed in height order
-//! within `[Estart, Estart + II)`, II raised until the body fits), straight-line code by
-//! list scheduling on the same table with an unbounded modulus.
+//! Scheduling with unit binding: the main loop by iterative modulo scheduling (Rau,
+//! "Iterative modulo scheduling", MICRO 1994: a modulo reservation table, operations placed
+//! in height order within `[Estart, Estart + II)`, an op that finds no free cycle forced in
+//! and the ops in its way evicted and scheduled again, II raised until the body fits),
+//! straight-line code by list scheduling on the same table with an unbounded modulus.
 //!
 //! Placing an op also binds it to a slot, and so decides which LRFs its operands are read
 //! from — the distributed register files make register allocation part of scheduling, as in
@@ -225,12 +226,20 @@ pub fn schedule_region(
     slots: &Slots,
     desc: &MachineDesc,
 ) -> Result<(), Failure> {
-    let budget = g.in_region(region).len() + 64;
+    // A loop that needs more copies than this at one interval is tried at the next.
+    let budget = match ii {
+        Some(_) => MAX_LOOP_COPIES,
+        None => g.in_region(region).len() + 64,
+    };
     for _ in 0..budget {
         sched.grow(g.ops.len());
         super::bind::bind(g, sched, region, ii, slots);
         sched.grow(g.ops.len());
-        match attempt(g, sched, region, ii, slots, desc) {
+        let attempted = match ii {
+            Some(ii) => attempt_modulo(g, sched, region, ii, slots, desc),
+            None => attempt(g, sched, region, None, slots, desc),
+        };
+        match attempted {
             Ok(()) => return Ok(()),
             Err(Attempt::Copy { user, arg, wanted }) => {
                 let deadline = wanted - i64::from(desc.latency.int) - 1;
@@ -487,6 +496,379 @@ fn attempt(
     Ok(())
 }
 
+/// Lifetime copies one attempt at an initiation interval may ask for.
+const MAX_LOOP_COPIES: usize = 64;
+
+/// Ops Rau's scheduler may place per op of the loop before it gives up at this interval.
+const BUDGET_RATIO: usize = 8;
+
+/// Iterative modulo scheduling of the loop body at interval `ii` (Rau, MICRO 1994): ops go
+/// in height order to the first free cycle of `[Estart, Estart + II)`; when none is free,
+/// the op is forced in (at Estart, or one cycle after where it last went) and evicts the
+/// ops holding the resources it needs and the placed ops whose dependences it breaks,
+/// which are scheduled again. A rematerialised constant is placed once every reader is,
+/// just in time for them, and leaves with any of them.
+///
+/// The loop's values must also be read within one interval of landing: that bounds a
+/// reader's latest cycle by its placed producers and a producer's earliest by its placed
+/// readers. A reader whose producers leave it no cycle at all asks for a copy.
+fn attempt_modulo(
+    g: &Graph,
+    sched: &mut Schedule,
+    region: Region,
+    ii: i64,
+    slots: &Slots,
+    desc: &MachineDesc,
+) -> Result<(), Attempt> {
+    let ops = g.in_region(region);
+    let n = g.ops.len();
+    let edges = g.edges(region, desc);
+    let order = topo(n, &ops, &edges);
+    debug_assert_eq!(order.len(), ops.len(), "distance-0 dependences form a DAG");
+    let height = heights(n, &edges, &order);
+    let mut table = Table::new(ii, slots);
+    for o in 0..n {
+        if g.ops[o].region == region {
+            sched.place[o] = None;
+        }
+    }
+    let mut preds: Vec<Vec<Edge>> = vec![Vec::new(); n];
+    let mut succs: Vec<Vec<Edge>> = vec![Vec::new(); n];
+    for e in &edges {
+        preds[e.to].push(*e);
+        succs[e.from].push(*e);
+    }
+    // Local readers of each value: (reader, operand).
+    let mut readers: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+    for &u in &ops {
+        for (i, a) in g.ops[u].args.iter().enumerate() {
+            if let Source::Local(p) = a.src {
+                readers[p].push((u, i));
+            }
+        }
+    }
+    let jit = |o: usize| g.ops[o].just_in_time;
+    let latency: Vec<i64> = (0..n).map(|o| g.latency(o, desc)).collect();
+    let mut queue: std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)> = ops
+        .iter()
+        .filter(|&&o| !jit(o) || succs[o].is_empty())
+        .map(|&o| (height[o], std::cmp::Reverse(o)))
+        .collect();
+    let mut previous: Vec<Option<i64>> = vec![None; n];
+    let mut moved_for_lifetime = vec![false; n];
+    let mut budget = ops.len() * BUDGET_RATIO + 64;
+    // Takes `v` out of the schedule (with the constants made just for it) and queues it.
+    let evict =
+        |v: usize,
+         sched: &mut Schedule,
+         table: &mut Table,
+         queue: &mut std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)>| {
+            unplace(g, sched, table, v, slots, desc);
+            for e in &preds[v] {
+                if e.distance == 0 && jit(e.from) && sched.place[e.from].is_some() {
+                    unplace(g, sched, table, e.from, slots, desc);
+                }
+            }
+            // (A constant waiting for a reader is queued again when the reader is placed.)
+            queue.push((height[v], std::cmp::Reverse(v)));
+        };
+    while let Some((_, std::cmp::Reverse(u))) = queue.pop() {
+        if sched.place[u].is_some()
+            || (jit(u) && succs[u].iter().any(|e| sched.place[e.to].is_none()))
+        {
+            continue;
+        }
+        if budget == 0 {
+            return Err(Attempt::Fail(Failure::NoSlot {
+                op: u,
+                why: format!("no schedule within {BUDGET_RATIO} placements per op"),
+            }));
+        }
+        budget -= 1;
+        let placed_at = |o: usize, sched: &Schedule| sched.place[o].map(|p| p.time);
+        let mut estart = i64::MIN;
+        for e in &preds[u] {
+            if let Some(t) = placed_at(e.from, sched) {
+                estart = estart.max(t + e.latency - ii * i64::from(e.distance));
+            }
+        }
+        // Placed readers must still find the value in its entry.
+        for &(r, _) in &readers[u] {
+            if let Some(t) = placed_at(r, sched) {
+                estart = estart.max(t - latency[u] - ii);
+            }
+        }
+        let mut lstart = i64::MAX;
+        for e in &succs[u] {
+            if let Some(t) = placed_at(e.to, sched) {
+                lstart = lstart.min(t - e.latency + ii * i64::from(e.distance));
+            }
+        }
+        if estart == i64::MIN {
+            estart = if jit(u) { lstart.min(0) } else { 0 };
+        }
+        let mut last = estart + ii - 1;
+        let mut lifetime: Option<(usize, i64)> = None;
+        for (i, a) in g.ops[u].args.iter().enumerate() {
+            if let Source::Local(p) = a.src
+                && let Some(t) = placed_at(p, sched)
+            {
+                let limit = t + latency[p] + ii;
+                if limit < last {
+                    last = limit;
+                    lifetime = Some((i, limit));
+                }
+            }
+        }
+        let late = g.ops[u].copy_kind == Some(CopyKind::Lifetime);
+        if let Some((arg, limit)) = lifetime
+            && limit < estart
+            && !late
+        {
+            // The producer landed too early for `u`. The first time, it moves later (it is
+            // evicted once `u` is placed); if it is too early again, the value gets a copy.
+            // (Letting it move more often makes schedules drift later and need more copies.)
+            let Source::Local(p) = g.ops[u].args[arg].src else {
+                unreachable!("lifetimes are of local values")
+            };
+            if moved_for_lifetime[p] {
+                return Err(Attempt::Copy {
+                    user: u,
+                    arg,
+                    wanted: estart,
+                });
+            }
+            moved_for_lifetime[p] = true;
+            last = estart + ii - 1;
+            lifetime = None;
+        }
+        let times: Vec<i64> = if jit(u) {
+            // Backwards from just before its reader, no further than its value may live.
+            let reader = succs[u]
+                .iter()
+                .filter_map(|e| placed_at(e.to, sched))
+                .max()
+                .unwrap_or(0);
+            (reader - ii - latency[u]..=lstart).rev().collect()
+        } else if late {
+            // A lifetime copy goes as late as it may, to carry its value furthest.
+            let d = g.ops[u]
+                .deadline
+                .unwrap_or(last)
+                .clamp(estart, last.max(estart));
+            (estart..=d).rev().chain(d + 1..=last).collect()
+        } else {
+            (estart..=last).collect()
+        };
+        let dsq_align = match g.ops[u].kind {
+            Kind::Fu(o) if o.unit() == UnitClass::DivSqrt => {
+                let k = slots.dsq_interval as i64;
+                (k > 1 && ii % k == 0).then_some(k)
+            }
+            _ => None,
+        };
+        let aligned = |t: i64| dsq_align.is_none_or(|k| t.rem_euclid(ii) % k == 0);
+        let free = times
+            .iter()
+            .copied()
+            .filter(|&t| aligned(t))
+            .find(|&t| try_place(g, sched, &mut table, u, t, slots, desc).is_ok());
+        let t = match free {
+            Some(t) => t,
+            None => {
+                // Forced: at Estart, or just after its last place so that it makes progress.
+                let mut t = if jit(u) && lstart != i64::MAX {
+                    lstart
+                } else {
+                    match previous[u] {
+                        Some(p) if p >= estart => p + 1,
+                        _ => estart,
+                    }
+                };
+                while !aligned(t) {
+                    t += 1;
+                }
+                if let Some((arg, limit)) = lifetime
+                    && t > limit
+                    && !late
+                {
+                    return Err(Attempt::Copy {
+                        user: u,
+                        arg,
+                        wanted: estart.max(last),
+                    });
+                }
+                loop {
+                    match try_place(g, sched, &mut table, u, t, slots, desc) {
+                        Ok(()) => break,
+                        Err(why) => {
+                            let holders = blockers(g, sched, &table, &ops, u, t, slots, desc);
+                            if holders.is_empty() {
+                                return Err(Attempt::Fail(Failure::NoSlot { op: u, why }));
+                            }
+                            for v in holders {
+                                evict(v, sched, &mut table, &mut queue);
+                            }
+                        }
+                    }
+                }
+                t
+            }
+        };
+        previous[u] = Some(t);
+        // Placed ops whose dependences on `u` now fail leave again.
+        let mut broken: Vec<usize> = Vec::new();
+        for e in &succs[u] {
+            if let Some(s) = placed_at(e.to, sched)
+                && s < t + e.latency - ii * i64::from(e.distance)
+            {
+                broken.push(e.to);
+            }
+        }
+        for e in &preds[u] {
+            if let Some(p) = placed_at(e.from, sched)
+                && t < p + e.latency - ii * i64::from(e.distance)
+            {
+                broken.push(e.from);
+            }
+        }
+        for &(r, _) in &readers[u] {
+            if placed_at(r, sched).is_some_and(|s| s > t + latency[u] + ii) {
+                broken.push(r);
+            }
+        }
+        for a in &g.ops[u].args {
+            if let Source::Local(p) = a.src
+                && placed_at(p, sched).is_some_and(|s| s + latency[p] + ii < t)
+            {
+                broken.push(p);
+            }
+        }
+        for v in broken {
+            if sched.place[v].is_some() {
+                evict(v, sched, &mut table, &mut queue);
+            }
+        }
+        // Its constants can go now.
+        for e in &preds[u] {
+            if e.distance == 0 && jit(e.from) && sched.place[u].is_some() {
+                queue.push((height[e.from], std::cmp::Reverse(e.from)));
+            }
+        }
+    }
+    // Ops placed before the first cycle shift the whole body by whole intervals (rows
+    // stay, stages grow).
+    let first = ops
+        .iter()
+        .filter_map(|&o| sched.place[o].map(|p| p.time))
+        .min()
+        .unwrap_or(0);
+    if first < 0 {
+        let shift = (-first + ii - 1) / ii * ii;
+        for &o in &ops {
+            if let Some(p) = &mut sched.place[o] {
+                p.time += shift;
+            }
+        }
+    }
+    if let Some(&u) = ops.iter().find(|&&o| sched.place[o].is_none()) {
+        return Err(Attempt::Fail(Failure::NoSlot {
+            op: u,
+            why: "it was never placed (internal error)".into(),
+        }));
+    }
+    Ok(())
+}
+
+/// The placed ops holding a resource op `u` needs at cycle `t` (see [`try_place`]).
+#[allow(clippy::too_many_arguments)]
+fn blockers(
+    g: &Graph,
+    sched: &Schedule,
+    table: &Table,
+    ops: &[usize],
+    u: usize,
+    t: i64,
+    slots: &Slots,
+    desc: &MachineDesc,
+) -> Vec<usize> {
+    let op = &g.ops[u];
+    let slot = op.slot;
+    let row = table.row(t);
+    let write = t + g.latency(u, desc);
+    let mut held: Vec<u32> = Vec::new();
+    // Stream ops issuing in `row`, conditional ones only if asked.
+    let streams_in_row = |conditional_only: bool| -> Vec<u32> {
+        ops.iter()
+            .copied()
+            .filter(|&o| {
+                sched.place[o].is_some_and(|p| table.row(p.time) == row)
+                    && match g.ops[o].kind {
+                        Kind::StreamIn { cond, .. } | Kind::StreamOut { cond, .. } => {
+                            cond || !conditional_only
+                        }
+                        _ => false,
+                    }
+            })
+            .map(|o| o as u32)
+            .collect()
+    };
+    match op.kind {
+        Kind::Fu(o) => {
+            let span = if o.unit() == UnitClass::DivSqrt {
+                slots.dsq_interval as i64
+            } else {
+                1
+            };
+            for k in 0..span.min(table.modulus) {
+                held.push(table.fu[table.row(t + k) * table.nfu + slot]);
+            }
+            held.push(table.fu_result[table.row(write) * table.nfu + slot]);
+        }
+        Kind::SpRead { .. } | Kind::SpWrite { .. } => {
+            held.push(table.sp[row * table.nsp + slot]);
+            if table.conditional[row] > 0 {
+                held.extend(streams_in_row(true));
+            }
+        }
+        Kind::Comm(_) => {
+            held.push(table.comm[row * table.ncomm + slot]);
+            if slot == 0 && table.conditional[row] > 0 {
+                held.extend(streams_in_row(true));
+            }
+        }
+        Kind::StreamIn { cond, .. } | Kind::StreamOut { cond, .. } => {
+            if table.stream_words[row] as usize >= slots.stream_words {
+                held.extend(streams_in_row(false).first());
+            }
+            if matches!(op.kind, Kind::StreamOut { .. }) {
+                held.push(table.sout[row]);
+            }
+            if cond {
+                if table.conditional[row] as usize >= slots.conditional_words {
+                    held.extend(streams_in_row(true).first());
+                }
+                held.push(table.comm[row * table.ncomm]);
+                held.push(table.sp[row * table.nsp]);
+            }
+        }
+        Kind::Imm(_) => held.push(table.imm[row]),
+    }
+    for l in &sched.dests[u] {
+        if let Loc::Lrf(x) = *l {
+            held.push(table.port(x, write));
+        }
+    }
+    let mut held: Vec<usize> = held
+        .into_iter()
+        .filter(|&h| h != FREE)
+        .map(|h| h as usize)
+        .collect();
+    held.sort_unstable();
+    held.dedup();
+    held
+}
+
 /// Moves ops of straight-line code as late as their readers allow (last first), so values
 /// are made when they are needed rather than waiting in the small LRFs.
 fn sink(
@@ -559,10 +941,17 @@ fn unplace(
             table.fu_result[r * table.nfu + p.slot] = FREE;
         }
         Kind::Imm(_) => table.imm[row] = FREE,
-        Kind::SpRead { .. } => table.sp[row * table.nsp + p.slot] = FREE,
+        Kind::SpRead { .. } | Kind::SpWrite { .. } => table.sp[row * table.nsp + p.slot] = FREE,
         Kind::Comm(_) => table.comm[row * table.ncomm + p.slot] = FREE,
-        Kind::StreamIn { cond: false, .. } => table.stream_words[row] -= 1,
-        _ => unreachable!("writes and conditional streams do not move"),
+        Kind::StreamIn { cond, .. } | Kind::StreamOut { cond, .. } => {
+            table.stream_words[row] -= 1;
+            if matches!(op.kind, Kind::StreamOut { .. }) {
+                table.sout[row] = FREE;
+            }
+            if cond {
+                table.conditional[row] -= 1;
+            }
+        }
     }
     for l in &sched.dests[u] {
         if let Loc::Lrf(x) = *l {
