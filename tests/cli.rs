@@ -531,4 +531,9 @@ fn render_writes_png_and_stats() {
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
     assert_eq!(json["frame"]["fragments"], 32 * 32);
     assert_eq!(json["reference_error"]["coverage_mismatch_share"], 0.0);
+    // gold8 has 17 LRFs of one read and one write port in each of 8 clusters.
+    for field in ["lrf_reads_per_cycle", "lrf_writes_per_cycle"] {
+        let words = json["frame"][field].as_f64().unwrap();
+        assert!(words > 0.0 && words <= 17.0 * 8.0, "{field} = {words}");
+    }
 }

@@ -1,7 +1,7 @@
 //! `imagine render`: a scene through the OpenGL-like pipeline on the machine, with its
 //! statistics and its error against the independent reference renderer.
 
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -78,9 +78,17 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
         }) as imagine_units::runner::OnStart
     });
     let mut stderr = std::io::stderr();
+    // The bar is redrawn at each whole percent, and only on a terminal (a log gets no bar).
+    let terminal = stderr.is_terminal();
+    let mut drawn = None;
     let frame = render(&scene, &desc, on_start, |done, total| {
         let width = 40;
         let filled = done * width / total.max(1);
+        let percent = done * 100 / total.max(1);
+        if !terminal || drawn == Some(percent) {
+            return;
+        }
+        drawn = Some(percent);
         let _ = write!(
             stderr,
             "\r{} [{}{}] batch {done}/{total}",
@@ -143,6 +151,14 @@ fn print_stats(f: &Frame, m: &Metrics) {
     println!(
         "SRF                {:.2} words/cycle",
         s.srf_words_per_cycle
+    );
+    let lrf_words = s.lrf_reads_per_cycle + s.lrf_writes_per_cycle;
+    println!(
+        "LRF                {:.1} words/cycle ({:.1} read, {:.1} written), {:.1} GB/s",
+        lrf_words,
+        s.lrf_reads_per_cycle,
+        s.lrf_writes_per_cycle,
+        lrf_words * 4.0 * s.core_mhz * 1e6 / 1e9
     );
     println!("kernel breakdown   (share of frame cycles)");
     for k in &s.kernels {

@@ -25,6 +25,9 @@ pub struct Lrf {
     write_mask: Vec<bool>,
     /// The pending write goes only to the clusters `write_mask` selects.
     write_masked: bool,
+    /// Words read and written so far, over all clusters (for bandwidth statistics).
+    words_read: u64,
+    words_written: u64,
     probes: LrfProbes,
 }
 
@@ -86,6 +89,8 @@ impl Lrf {
             write_values: vec![0; lanes],
             write_mask: vec![true; lanes],
             write_masked: false,
+            words_read: 0,
+            words_written: 0,
             probes,
         }
     }
@@ -96,6 +101,11 @@ impl Lrf {
 
     pub fn path(&self) -> &str {
         &self.path
+    }
+
+    /// Words read and written so far over all clusters: `(read, written)`.
+    pub fn words_moved(&self) -> (u64, u64) {
+        (self.words_read, self.words_written)
     }
 
     /// The error for a bad use of `port`; kept out of line so the ports stay small.
@@ -160,7 +170,15 @@ impl Lrf {
         let p = &mut self.probes;
         p.last_read = self.read_entry.take();
         p.last_write = self.write_entry.take();
+        if p.last_read.is_some() {
+            self.words_read += self.lanes as u64;
+        }
         if let Some(e) = p.last_write {
+            self.words_written += if self.write_masked {
+                self.write_mask.iter().filter(|&&m| m).count() as u64
+            } else {
+                self.lanes as u64
+            };
             let start = e as usize * self.lanes;
             let row = &mut self.data[start..start + self.lanes];
             if self.write_masked {
@@ -220,6 +238,19 @@ mod tests {
             .unwrap();
         f.commit();
         assert_eq!(f.peek(3), &[9, 2, 3, 9]);
+    }
+
+    #[test]
+    fn words_moved_count_clusters_and_write_masks() {
+        let mut f = lrf(16);
+        f.read(0).unwrap();
+        f.write(1, &[1, 2, 3, 4], None).unwrap();
+        f.commit();
+        f.write(2, &[5, 6, 7, 8], Some(&[false, true, false, true]))
+            .unwrap();
+        f.commit();
+        f.commit();
+        assert_eq!(f.words_moved(), (4, 6));
     }
 
     #[test]

@@ -389,6 +389,14 @@ impl Machine {
         &mut self.srf
     }
 
+    /// Words all LRFs have read and written so far, over all clusters: `(read, written)`.
+    pub fn lrf_words_moved(&self) -> (u64, u64) {
+        self.lrfs
+            .iter()
+            .map(Lrf::words_moved)
+            .fold((0, 0), |(r, w), (a, b)| (r + a, w + b))
+    }
+
     pub fn lrf(&self, name: &str) -> Option<&Lrf> {
         self.desc
             .lrf_names()

@@ -97,6 +97,9 @@ pub struct FrameStats {
     pub dram_row_hit_rate: f64,
     pub dram_bytes: u64,
     pub srf_words_per_cycle: f64,
+    /// LRF words read and written per core cycle, all clusters.
+    pub lrf_reads_per_cycle: f64,
+    pub lrf_writes_per_cycle: f64,
     pub host_seconds: f64,
     pub simulated_cycles_per_second: f64,
 }
@@ -834,6 +837,9 @@ fn finish_stats(s: &mut FrameStats, sim: &Sim, desc: &MachineDesc, k: &Kernels, 
     s.dram_row_hit_rate = dram.row_hit_rate;
     let srf = p.machine().srf().stats();
     s.srf_words_per_cycle = srf.words_per_cycle();
+    let (lrf_read, lrf_written) = p.machine().lrf_words_moved();
+    s.lrf_reads_per_cycle = lrf_read as f64 / cycles.max(1) as f64;
+    s.lrf_writes_per_cycle = lrf_written as f64 / cycles.max(1) as f64;
     s.host_seconds = start.elapsed().as_secs_f64();
     s.simulated_cycles_per_second = cycles as f64 / s.host_seconds.max(1e-9);
 }
