@@ -226,18 +226,14 @@ pub fn schedule_region(
     slots: &Slots,
     desc: &MachineDesc,
 ) -> Result<(), Failure> {
-    // A loop that needs more copies than this at one interval is tried at the next.
-    let budget = match ii {
-        Some(_) => MAX_LOOP_COPIES,
-        None => g.in_region(region).len() + 64,
-    };
-    for _ in 0..budget {
+    // (Only a loop asks for copies; one that needs too many is tried at the next interval.)
+    for _ in 0..MAX_LOOP_COPIES {
         sched.grow(g.ops.len());
         super::bind::bind(g, sched, region, ii, slots);
         sched.grow(g.ops.len());
         let attempted = match ii {
             Some(ii) => attempt_modulo(g, sched, region, ii, slots, desc),
-            None => attempt(g, sched, region, None, slots, desc),
+            None => attempt_line(g, sched, region, slots, desc),
         };
         match attempted {
             Ok(()) => return Ok(()),
@@ -303,29 +299,25 @@ fn topo(n: usize, ops: &[usize], edges: &[Edge]) -> Vec<usize> {
     order
 }
 
-fn attempt(
+/// List scheduling of straight-line code (or of a loop body run one iteration at a time,
+/// whose interval is its length, so dependences on earlier iterations hold by themselves).
+fn attempt_line(
     g: &Graph,
     sched: &mut Schedule,
     region: Region,
-    ii: Option<i64>,
     slots: &Slots,
     desc: &MachineDesc,
 ) -> Result<(), Attempt> {
     let ops = g.in_region(region);
     let n = g.ops.len();
     let mut edges = g.edges(region, desc);
-    if ii.is_none() {
-        // Straight line (or a loop body run one iteration at a time, whose interval is
-        // its length): dependences on earlier iterations hold by themselves.
-        edges.retain(|e| e.distance == 0);
-    }
+    edges.retain(|e| e.distance == 0);
     let order = topo(n, &ops, &edges);
     debug_assert_eq!(order.len(), ops.len(), "distance-0 dependences form a DAG");
     let height = heights(n, &edges, &order);
-    // Straight-line code uses a table longer than any region can be.
+    // A table longer than any region can be.
     const LINE: i64 = 1 << 14;
-    let span = ii.unwrap_or(LINE);
-    let mut table = Table::new(span, slots);
+    let mut table = Table::new(LINE, slots);
     // (Copies a rebinding removed lose their places too.)
     for o in 0..n {
         if g.ops[o].region == region {
@@ -340,97 +332,53 @@ fn attempt(
     for e in &edges {
         preds[e.to].push(*e);
         succs[e.from].push(*e);
-        if e.distance == 0 {
-            if just_in_time(e.from) {
-                indeg[e.from] += 1;
-            } else {
-                indeg[e.to] += 1;
-            }
+        if just_in_time(e.from) {
+            indeg[e.from] += 1;
+        } else {
+            indeg[e.to] += 1;
         }
     }
-    // Straight-line code goes mostly in program order (it keeps values short-lived, which
-    // the small LRFs need), leaning towards the critical path; loops by height.
-    let height: Vec<i64> = if ii.is_none() {
-        (0..n)
-            .map(|o| height[o] * 10 - i64::from(g.ops[o].ir.map_or(0, |v| v.0)))
-            .collect()
-    } else {
-        height
-    };
+    // Mostly in program order (it keeps values short-lived, which the small LRFs need),
+    // leaning towards the critical path.
+    let priority: Vec<i64> = (0..n)
+        .map(|o| height[o] * 10 - i64::from(g.ops[o].ir.map_or(0, |v| v.0)))
+        .collect();
     let mut ready: std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)> = ops
         .iter()
         .filter(|&&o| indeg[o] == 0)
-        .map(|&o| (height[o], std::cmp::Reverse(o)))
+        .map(|&o| (priority[o], std::cmp::Reverse(o)))
         .collect();
     while let Some((_, std::cmp::Reverse(u))) = ready.pop() {
-        let shift = |e: &Edge| ii.unwrap_or(0) * i64::from(e.distance);
         let mut estart = 0;
         for e in &preds[u] {
             if let Some(p) = sched.place[e.from] {
-                estart = estart.max(p.time + e.latency - shift(e));
+                estart = estart.max(p.time + e.latency);
             }
         }
         let mut lstart = i64::MAX;
         for e in &succs[u] {
             if let Some(p) = sched.place[e.to] {
-                lstart = lstart.min(p.time - e.latency + shift(e));
+                lstart = lstart.min(p.time - e.latency);
             }
         }
-        let mut last = lstart.min(estart + span - 1);
-        // Values must be read within one interval of landing (the next iteration rewrites
-        // their entries).
-        let mut lifetime: Option<(usize, i64)> = None;
-        if let Some(ii) = ii {
-            for (i, a) in g.ops[u].args.iter().enumerate() {
-                if let Source::Local(p) = a.src
-                    && let Some(pp) = sched.place[p]
-                {
-                    let limit = pp.time + g.latency(p, desc) + ii;
-                    if limit < last {
-                        last = limit;
-                        lifetime = Some((i, limit));
-                    }
-                }
-            }
-        }
-        // A lifetime copy goes as late as it may, to carry its value furthest.
-        let late = g.ops[u].copy_kind == Some(CopyKind::Lifetime) && ii.is_some();
+        let last = lstart.min(estart + LINE - 1);
         let times: Box<dyn Iterator<Item = i64>> = if just_in_time(u) {
-            // Backwards from just before its reader, no further than its value may live.
-            // (A loop run one iteration at a time keeps them as close as a short interval.)
-            let ii = ii.unwrap_or(64);
+            // Backwards from just before its reader, at most a short interval away. (It
+            // may go before the first cycle: times are shifted afterwards.)
+            const NEAR: i64 = 64;
             let reader = succs[u]
                 .iter()
                 .filter_map(|e| sched.place[e.to].map(|p| p.time))
                 .max()
                 .unwrap_or(0);
-            // (It may go before the body's first cycle: times are shifted afterwards.)
-            let lowest = reader - ii - g.latency(u, desc);
+            let lowest = reader - NEAR - g.latency(u, desc);
             Box::new((lowest..=lstart).rev())
-        } else if late {
-            let d = g.ops[u]
-                .deadline
-                .unwrap_or(last)
-                .clamp(estart, last.max(estart));
-            Box::new((estart..=d).rev().chain(d + 1..=last))
         } else {
             Box::new(estart..=last)
-        };
-        // Divide/sqrt ops hold their unit for `interval` cycles: issuing them on multiples
-        // of the interval packs them without gaps when the II allows it.
-        let dsq_align = match (g.ops[u].kind, ii) {
-            (Kind::Fu(o), Some(ii)) if o.unit() == UnitClass::DivSqrt => {
-                let k = slots.dsq_interval as i64;
-                (k > 1 && ii % k == 0).then_some(k)
-            }
-            _ => None,
         };
         let mut why = String::new();
         let mut placed = false;
         for t in times {
-            if dsq_align.is_some_and(|k| t.rem_euclid(span) % k != 0) {
-                continue;
-            }
             match try_place(g, sched, &mut table, u, t, slots, desc) {
                 Ok(()) => {
                     placed = true;
@@ -440,56 +388,39 @@ fn attempt(
             }
         }
         if !placed {
-            if let Some((arg, _)) = lifetime.filter(|_| !late) {
-                return Err(Attempt::Copy {
-                    user: u,
-                    arg,
-                    wanted: estart.max(last),
-                });
-            }
             if why.is_empty() {
-                why = format!(
-                    "its dependences leave no cycle (earliest {estart}, latest {})",
-                    last
-                );
+                why = format!("its dependences leave no cycle (earliest {estart}, latest {last})");
             }
             return Err(Attempt::Fail(Failure::NoSlot { op: u, why }));
         }
         for e in &succs[u] {
-            if e.distance == 0 && !just_in_time(u) {
+            if !just_in_time(u) {
                 indeg[e.to] -= 1;
                 if indeg[e.to] == 0 {
-                    ready.push((height[e.to], std::cmp::Reverse(e.to)));
+                    ready.push((priority[e.to], std::cmp::Reverse(e.to)));
                 }
             }
         }
         for e in &preds[u] {
-            if e.distance == 0 && just_in_time(e.from) {
+            if just_in_time(e.from) {
                 indeg[e.from] -= 1;
                 if indeg[e.from] == 0 {
-                    ready.push((height[e.from], std::cmp::Reverse(e.from)));
+                    ready.push((priority[e.from], std::cmp::Reverse(e.from)));
                 }
             }
         }
     }
-    if ii.is_none() {
-        sink(g, sched, &mut table, &order, &succs, slots, desc);
-    }
-    // Ops placed before the first cycle (just-in-time constants) shift the whole body (in a
-    // loop by whole intervals: rows stay, stages grow).
+    sink(g, sched, &mut table, &order, &succs, slots, desc);
+    // Ops placed before the first cycle (just-in-time constants) shift the whole body.
     let first = ops
         .iter()
         .filter_map(|&o| sched.place[o].map(|p| p.time))
         .min()
         .unwrap_or(0);
     if first < 0 {
-        let shift = match ii {
-            Some(_) => (-first + span - 1) / span * span,
-            None => -first,
-        };
         for &o in &ops {
             if let Some(p) = &mut sched.place[o] {
-                p.time += shift;
+                p.time -= first;
             }
         }
     }
@@ -538,12 +469,12 @@ fn attempt_modulo(
         preds[e.to].push(*e);
         succs[e.from].push(*e);
     }
-    // Local readers of each value: (reader, operand).
-    let mut readers: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
+    // Local readers of each value.
+    let mut readers: Vec<Vec<usize>> = vec![Vec::new(); n];
     for &u in &ops {
-        for (i, a) in g.ops[u].args.iter().enumerate() {
+        for a in &g.ops[u].args {
             if let Source::Local(p) = a.src {
-                readers[p].push((u, i));
+                readers[p].push(u);
             }
         }
     }
@@ -593,7 +524,7 @@ fn attempt_modulo(
             }
         }
         // Placed readers must still find the value in its entry.
-        for &(r, _) in &readers[u] {
+        for &r in &readers[u] {
             if let Some(t) = placed_at(r, sched) {
                 estart = estart.max(t - latency[u] - ii);
             }
@@ -732,7 +663,7 @@ fn attempt_modulo(
                 broken.push(e.from);
             }
         }
-        for &(r, _) in &readers[u] {
+        for &r in &readers[u] {
             if placed_at(r, sched).is_some_and(|s| s > t + latency[u] + ii) {
                 broken.push(r);
             }
