@@ -410,7 +410,7 @@ fn attempt_line(
             }
         }
     }
-    sink(g, sched, &mut table, &order, &succs, slots, desc);
+    sink(g, sched, &mut table, &order, &succs, None, slots, desc);
     // Ops placed before the first cycle (just-in-time constants) shift the whole body.
     let first = ops
         .iter()
@@ -687,6 +687,7 @@ fn attempt_modulo(
             }
         }
     }
+    sink(g, sched, &mut table, &order, &succs, Some(ii), slots, desc);
     // Ops placed before the first cycle shift the whole body by whole intervals (rows
     // stay, stages grow).
     let first = ops
@@ -800,14 +801,17 @@ fn blockers(
     held
 }
 
-/// Moves ops of straight-line code as late as their readers allow (last first), so values
-/// are made when they are needed rather than waiting in the small LRFs.
+/// Moves ops as late as their readers allow (last first), so values are made when they
+/// are needed rather than waiting in the small LRFs. In a loop at interval `ii`, an op also
+/// stays within one interval of its operands' landing (see [`attempt_modulo`]).
+#[allow(clippy::too_many_arguments)]
 fn sink(
     g: &Graph,
     sched: &mut Schedule,
     table: &mut Table,
     order: &[usize],
     succs: &[Vec<Edge>],
+    ii: Option<i64>,
     slots: &Slots,
     desc: &MachineDesc,
 ) {
@@ -823,12 +827,28 @@ fn sink(
         ) {
             continue;
         }
+        // (A divider's place in a loop is aligned to its issue interval; it stays.)
+        if ii.is_some() && matches!(g.ops[u].kind, Kind::Fu(o) if o.unit() == UnitClass::DivSqrt) {
+            continue;
+        }
+        let interval = ii.unwrap_or(0);
         let latest = succs[u]
             .iter()
-            .filter(|e| e.distance == 0)
-            .filter_map(|e| sched.place[e.to].map(|q| q.time - e.latency))
+            .filter(|e| ii.is_some() || e.distance == 0)
+            .filter_map(|e| {
+                sched.place[e.to].map(|q| q.time - e.latency + interval * i64::from(e.distance))
+            })
             .min();
-        let Some(latest) = latest else { continue };
+        let Some(mut latest) = latest else { continue };
+        if let Some(ii) = ii {
+            for a in &g.ops[u].args {
+                if let Source::Local(p) = a.src
+                    && let Some(q) = sched.place[p]
+                {
+                    latest = latest.min(q.time + g.latency(p, desc) + ii);
+                }
+            }
+        }
         if latest <= p.time {
             continue;
         }
