@@ -159,6 +159,27 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
             tris * kernels::INTERP_WORDS,
             "interp records"
         );
+        // The counts: the iterations in every cluster, then candidates whose sum is the
+        // boxes' total area (the host's bound on xyrast's fragments).
+        let raster = &golden[1];
+        let box_area: u64 = (0..tris)
+            .map(|t| {
+                let at = |j: usize| raster[(t / c) * kernels::RASTER_WORDS * c + j * c + t % c];
+                let (lo, hi) = (at(0), at(1));
+                let span = |a: u32, b: u32| u64::from(b.saturating_sub(a) + 1);
+                if hi == 0 {
+                    0
+                } else {
+                    span(lo & 0xFFFF, hi & 0xFFFF) * span(lo >> 16, hi >> 16)
+                }
+            })
+            .sum();
+        let counts = &golden[3];
+        assert_eq!(counts.len(), 2 * c, "{name}: two rows of counts");
+        assert!(counts[..c].iter().all(|&w| w == counts[0]), "{name}");
+        let candidates: u64 = counts[c..].iter().map(|&w| u64::from(w)).sum();
+        assert!(box_area > 0, "{name}: some triangles are kept");
+        assert_eq!(candidates, box_area, "{name}: candidate pixels");
         let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
         assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
     }

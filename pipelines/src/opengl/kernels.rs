@@ -140,7 +140,9 @@ pub fn vertex_unlit(_desc: &MachineDesc) -> Kernel {
 ///
 /// Outputs: `raster` (12 words per triangle, every triangle: a rejected one gets an empty
 /// box), `interp` (13 words per triangle; its primitive number is `prim_base + index + 1`)
-/// and, after the loop, `rows`: one word per cluster, the iterations `xyrast` needs.
+/// and, after the loop, `rows`: a row of the iterations `xyrast` needs (the same word in
+/// every cluster), then a row of each cluster's candidate pixels, whose sum bounds the
+/// fragments `xyrast` writes.
 pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let mut b = KernelBuilder::new("setup");
     let tris = b.input("triangles");
@@ -161,6 +163,7 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     b.begin_loop(LoopSpec::OverStream(tris));
     let index0 = b.carried(cluster);
     let iterations0 = b.carried(zero);
+    let candidates0 = b.carried(zero);
     let v: Vec<[Value; 7]> = (0..3)
         .map(|_| std::array::from_fn(|_| b.read_f32(tris)))
         .collect();
@@ -331,6 +334,8 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let row_iterations = b.imax(row_max, one);
     let iterations = b.iadd(iterations0, row_iterations);
     b.set_next(iterations0, iterations);
+    let candidates_total = b.iadd(candidates0, candidates);
+    b.set_next(candidates0, candidates_total);
     // Top-left flags: A > 0, or A = 0 and B < 0.
     let mut tag = index0;
     for (i, e) in edges.iter().enumerate() {
@@ -369,6 +374,7 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     b.set_next(index0, next_index);
     b.end_loop();
     b.write(rows_out, iterations0);
+    b.write(rows_out, candidates0);
     finish(b)
 }
 

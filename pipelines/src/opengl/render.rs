@@ -12,9 +12,15 @@
 //! and recycle the fragments that lost the owner race (`compact_recycle`) until none is
 //! left. The framebuffer (colour, depth, primitive, owner per pixel) lives in DRAM.
 //!
-//! **Spilling.** When a batch's fragments would overflow their SRF region, the host splits
-//! the scissor tile in two and runs `setup` and `xyrast` once per half, recursively: a
-//! triangle larger than the SRF is drawn tile by tile, never dropped.
+//! **Two batches in flight.** The next batch's vertices are loaded while this one is set
+//! up, and its vertex program is queued just before this batch's first composite round, so
+//! that it runs while the round's pixels are scattered and gathered (the clusters would
+//! otherwise wait for the memory system). The shaded vertices have two SRF sets.
+//!
+//! **Spilling.** `setup` also counts each cluster's candidate pixels (its boxes' areas),
+//! which bound the fragments `xyrast` can write. When they would overflow their SRF region,
+//! the host splits the scissor tile in two and runs `setup` and `xyrast` once per half,
+//! recursively: a triangle larger than the SRF is drawn tile by tile, never dropped.
 //!
 //! The host waits for the processor where it needs a number the machine computed (the
 //! iteration count from `setup`, the length of a conditional output stream); everything
@@ -191,8 +197,12 @@ impl SrfPlan {
 struct Regions {
     vertex_params: usize,
     setup_params: usize,
+    /// One batch's vertices as loaded: the next batch's load waits (by the scoreboard)
+    /// only until the vertex program has read them.
     vertices: usize,
-    shaded: usize,
+    /// Two sets of shaded vertices, so that one batch is shaded while the previous one is
+    /// still being set up.
+    shaded: [usize; 2],
     raster: usize,
     interp: usize,
     rows: usize,
@@ -227,6 +237,8 @@ struct Host {
     m: Memory,
     clusters: usize,
     stats: FrameStats,
+    /// The vertex set whose vertex program is still to be queued, with its triangles.
+    pending_vertex: Option<(usize, usize)>,
 }
 
 fn bind(start: usize, words: usize) -> StreamBinding {
@@ -323,17 +335,11 @@ impl Host {
             .map_err(|e| RenderError(e.to_string()))
     }
 
-    fn batch(
-        &mut self,
-        first_triangle: usize,
-        triangles: usize,
-        width: u32,
-        height: u32,
-    ) -> Result<(), RenderError> {
-        let c = self.clusters;
+    /// Queues the load of a batch's vertices, to be shaded into set `set`; its vertex
+    /// program is queued later by [`Host::shade_pending`], where the clusters would
+    /// otherwise wait.
+    fn load_batch(&mut self, first_triangle: usize, triangles: usize, set: usize) {
         let verts = 3 * triangles;
-        let r = &self.r;
-        let (vin, shaded, vparams) = (r.vertices, r.shaded, r.vertex_params);
         self.mem(
             MemOpKind::Load,
             self.m.vertices + (3 * first_triangle * VERTEX_WORDS) as u64,
@@ -342,16 +348,37 @@ impl Host {
             },
             VERTEX_WORDS,
             verts,
-            vin,
+            self.r.vertices,
         );
-        self.kernel(
-            self.k.vertex,
-            vec![
-                bind(vin, verts * VERTEX_WORDS),
-                bind(shaded, verts * SHADED_WORDS),
-            ],
-            Some(vparams),
-        );
+        self.pending_vertex = Some((set, triangles));
+    }
+
+    /// Queues the vertex program of the loaded batch, if it is not queued yet.
+    fn shade_pending(&mut self) {
+        let Some((set, triangles)) = self.pending_vertex.take() else {
+            return;
+        };
+        let verts = 3 * triangles;
+        let r = &self.r;
+        let streams = vec![
+            bind(r.vertices, verts * VERTEX_WORDS),
+            bind(r.shaded[set], verts * SHADED_WORDS),
+        ];
+        let vparams = r.vertex_params;
+        self.kernel(self.k.vertex, streams, Some(vparams));
+    }
+
+    /// Rasterizes and composites a batch whose vertices are shaded into vertex set `set`.
+    fn batch(
+        &mut self,
+        first_triangle: usize,
+        triangles: usize,
+        set: usize,
+        width: u32,
+        height: u32,
+    ) -> Result<(), RenderError> {
+        let c = self.clusters;
+        let verts = 3 * triangles;
         let mut tiles = vec![[0, 0, width as i32 - 1, height as i32 - 1]];
         while let Some(tile) = tiles.pop() {
             self.drain()?;
@@ -361,15 +388,18 @@ impl Host {
             self.write_params(sparams, &params)?;
             let r = &self.r;
             let streams = vec![
-                bind(r.shaded, verts * SHADED_WORDS),
+                bind(r.shaded[set], verts * SHADED_WORDS),
                 bind(r.raster, triangles * RASTER_WORDS),
                 bind(r.interp, triangles * INTERP_WORDS),
-                bind(r.rows, c),
+                bind(r.rows, 2 * c),
             ];
             self.kernel(self.k.setup, streams, Some(sparams));
             self.drain()?;
-            let rows = self.read_srf(self.r.rows, c)?[0] as usize;
-            if rows * c + c > self.r.frag_capacity || rows * c > self.r.tickets_words {
+            let counts = self.read_srf(self.r.rows, 2 * c)?;
+            let rows = counts[0] as usize;
+            // Each candidate pixel gives at most one fragment; then a row of nulls.
+            let candidates: usize = counts[c..].iter().map(|&n| n as usize).sum();
+            if candidates + c > self.r.frag_capacity || rows * c > self.r.tickets_words {
                 let [x0, y0, x1, y1] = tile;
                 if x1 > x0 || y1 > y0 {
                     self.stats.spills += 1;
@@ -460,6 +490,9 @@ impl Host {
             ],
             None,
         );
+        // The next batch's vertex program runs while this round's pixels are scattered
+        // and gathered.
+        self.shade_pending();
         let mut current = [z, colour, addr, prim];
         let mut len = len;
         let mut set = 1;
@@ -574,10 +607,13 @@ fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, Rend
     let vertex_params = p.take(params * c)?;
     let setup_params = p.take(5 * c)?;
     let vertices = p.take(3 * batch * VERTEX_WORDS)?;
-    let shaded = p.take(3 * batch * SHADED_WORDS)?;
+    let shaded = [
+        p.take(3 * batch * SHADED_WORDS)?,
+        p.take(3 * batch * SHADED_WORDS)?,
+    ];
     let raster = p.take(batch * RASTER_WORDS)?;
     let interp = p.take(batch * INTERP_WORDS)?;
-    let rows = p.take(c)?;
+    let rows = p.take(2 * c)?;
     // The fragment chunk's streams; xyrast, which runs alone, reads its tickets (whose
     // contents do not matter) from the same words.
     let gathered = p.take(chunk * INTERP_WORDS)?;
@@ -736,6 +772,7 @@ pub fn render(
         r: regions,
         m: memory,
         clusters,
+        pending_vertex: None,
         stats: FrameStats {
             scene: scene.name.clone(),
             machine: desc.name.clone(),
@@ -748,8 +785,17 @@ pub fn render(
         },
     };
     let batches = triangles.div_ceil(batch);
+    // Two batches in flight: batch b+1's vertices are loaded while batch b is set up and
+    // shaded while its first fragments are composited.
+    host.load_batch(0, batch, 0);
+    host.shade_pending();
     for b in 0..batches {
-        host.batch(b * batch, batch, scene.width, scene.height)?;
+        let set = b % 2;
+        if b + 1 < batches {
+            host.load_batch((b + 1) * batch, batch, 1 - set);
+        }
+        host.batch(b * batch, batch, set, scene.width, scene.height)?;
+        host.shade_pending();
         host.stats.batches += 1;
         progress(b + 1, batches);
     }
