@@ -1,7 +1,7 @@
 //! The OpenGL pipeline's kernels compile on every machine shape.
 
 use imagine_pipelines::compile::compile;
-use imagine_pipelines::kernels::records_to_stream;
+use imagine_pipelines::kernels::{records_to_stream, stream_to_records};
 use imagine_pipelines::opengl::kernels::{self, FrameShape};
 use imagine_units::desc::MachineDesc;
 
@@ -161,11 +161,10 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
         );
         // The counts: the iterations in every cluster, then candidates whose sum is the
         // boxes' total area (the host's bound on xyrast's fragments).
-        let raster = &golden[1];
-        let box_area: u64 = (0..tris)
-            .map(|t| {
-                let at = |j: usize| raster[(t / c) * kernels::RASTER_WORDS * c + j * c + t % c];
-                let (lo, hi) = (at(0), at(1));
+        let box_area: u64 = stream_to_records(&golden[1], kernels::RASTER_WORDS, c)
+            .iter()
+            .map(|rec| {
+                let (lo, hi) = (rec[0], rec[1]);
                 let span = |a: u32, b: u32| u64::from(b.saturating_sub(a) + 1);
                 if hi == 0 {
                     0

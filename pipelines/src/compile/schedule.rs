@@ -16,7 +16,7 @@
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::check::Shape;
-use imagine_units::ops::UnitClass;
+use imagine_units::ops::{Op, UnitClass};
 
 use super::graph::{Arg, CopyKind, Edge, Graph, Input, Kind, Loc, Source};
 use crate::kernel::Region;
@@ -80,6 +80,16 @@ impl Slots {
     }
 
     /// FU slots of a unit class.
+    /// Cycles an op holds its unit's issue slot: the divide/sqrt unit's issue interval,
+    /// one for every other unit.
+    fn issue_cycles(&self, op: Op) -> i64 {
+        if op.unit() == UnitClass::DivSqrt {
+            self.dsq_interval as i64
+        } else {
+            1
+        }
+    }
+
     pub fn fu_slots(&self, class: UnitClass) -> std::ops::Range<usize> {
         let s = &self.shape;
         match class {
@@ -299,6 +309,46 @@ fn topo(n: usize, ops: &[usize], edges: &[Edge]) -> Vec<usize> {
     order
 }
 
+/// A region's ops and dependences, as both schedulers start from them.
+struct Dag {
+    ops: Vec<usize>,
+    /// A topological order of the distance-0 edges.
+    order: Vec<usize>,
+    height: Vec<i64>,
+    preds: Vec<Vec<Edge>>,
+    succs: Vec<Vec<Edge>>,
+}
+
+impl Dag {
+    /// The ops of `region` with `edges` among them; their places in `sched` are cleared
+    /// (copies a rebinding removed lose their places too).
+    fn new(g: &Graph, sched: &mut Schedule, region: Region, edges: &[Edge]) -> Dag {
+        let ops = g.in_region(region);
+        let n = g.ops.len();
+        let order = topo(n, &ops, edges);
+        debug_assert_eq!(order.len(), ops.len(), "distance-0 dependences form a DAG");
+        let height = heights(n, edges, &order);
+        for o in 0..n {
+            if g.ops[o].region == region {
+                sched.place[o] = None;
+            }
+        }
+        let mut preds: Vec<Vec<Edge>> = vec![Vec::new(); n];
+        let mut succs: Vec<Vec<Edge>> = vec![Vec::new(); n];
+        for e in edges {
+            preds[e.to].push(*e);
+            succs[e.from].push(*e);
+        }
+        Dag {
+            ops,
+            order,
+            height,
+            preds,
+            succs,
+        }
+    }
+}
+
 /// List scheduling of straight-line code (or of a loop body run one iteration at a time,
 /// whose interval is its length, so dependences on earlier iterations hold by themselves).
 fn attempt_line(
@@ -308,30 +358,23 @@ fn attempt_line(
     slots: &Slots,
     desc: &MachineDesc,
 ) -> Result<(), Attempt> {
-    let ops = g.in_region(region);
     let n = g.ops.len();
     let mut edges = g.edges(region, desc);
     edges.retain(|e| e.distance == 0);
-    let order = topo(n, &ops, &edges);
-    debug_assert_eq!(order.len(), ops.len(), "distance-0 dependences form a DAG");
-    let height = heights(n, &edges, &order);
+    let Dag {
+        ops,
+        order,
+        height,
+        preds,
+        succs,
+    } = Dag::new(g, sched, region, &edges);
     // A table longer than any region can be.
     const LINE: i64 = 1 << 14;
     let mut table = Table::new(LINE, slots);
-    // (Copies a rebinding removed lose their places too.)
-    for o in 0..n {
-        if g.ops[o].region == region {
-            sched.place[o] = None;
-        }
-    }
-    let mut preds: Vec<Vec<Edge>> = vec![Vec::new(); n];
-    let mut succs: Vec<Vec<Edge>> = vec![Vec::new(); n];
     // A rematerialised constant is placed after its reader, just in time for it.
     let just_in_time = |o: usize| g.ops[o].just_in_time;
     let mut indeg = vec![0usize; n];
     for e in &edges {
-        preds[e.to].push(*e);
-        succs[e.from].push(*e);
         if just_in_time(e.from) {
             indeg[e.from] += 1;
         } else {
@@ -451,24 +494,16 @@ fn attempt_modulo(
     slots: &Slots,
     desc: &MachineDesc,
 ) -> Result<(), Attempt> {
-    let ops = g.in_region(region);
     let n = g.ops.len();
     let edges = g.edges(region, desc);
-    let order = topo(n, &ops, &edges);
-    debug_assert_eq!(order.len(), ops.len(), "distance-0 dependences form a DAG");
-    let height = heights(n, &edges, &order);
+    let Dag {
+        ops,
+        order,
+        height,
+        preds,
+        succs,
+    } = Dag::new(g, sched, region, &edges);
     let mut table = Table::new(ii, slots);
-    for o in 0..n {
-        if g.ops[o].region == region {
-            sched.place[o] = None;
-        }
-    }
-    let mut preds: Vec<Vec<Edge>> = vec![Vec::new(); n];
-    let mut succs: Vec<Vec<Edge>> = vec![Vec::new(); n];
-    for e in &edges {
-        preds[e.to].push(*e);
-        succs[e.from].push(*e);
-    }
     // Local readers of each value.
     let mut readers: Vec<Vec<usize>> = vec![Vec::new(); n];
     for &u in &ops {
@@ -747,12 +782,7 @@ fn blockers(
     };
     match op.kind {
         Kind::Fu(o) => {
-            let span = if o.unit() == UnitClass::DivSqrt {
-                slots.dsq_interval as i64
-            } else {
-                1
-            };
-            for k in 0..span.min(table.modulus) {
+            for k in 0..slots.issue_cycles(o).min(table.modulus) {
                 held.push(table.fu[table.row(t + k) * table.nfu + slot]);
             }
             held.push(table.fu_result[table.row(write) * table.nfu + slot]);
@@ -879,12 +909,7 @@ fn unplace(
     let write = p.time + g.latency(u, desc);
     match op.kind {
         Kind::Fu(o) => {
-            let span = if o.unit() == UnitClass::DivSqrt {
-                slots.dsq_interval as i64
-            } else {
-                1
-            };
-            for k in 0..span.min(table.modulus) {
+            for k in 0..slots.issue_cycles(o).min(table.modulus) {
                 let r = table.row(p.time + k);
                 table.fu[r * table.nfu + p.slot] = FREE;
             }
@@ -937,13 +962,9 @@ fn try_place(
     let slot = op.slot;
     let row = table.row(t);
     let write = t + g.latency(u, desc);
-    let span = match op.kind {
-        Kind::Fu(o) if o.unit() == UnitClass::DivSqrt => slots.dsq_interval as i64,
-        _ => 1,
-    };
     match op.kind {
-        Kind::Fu(_) => {
-            for k in 0..span.min(table.modulus) {
+        Kind::Fu(o) => {
+            for k in 0..slots.issue_cycles(o).min(table.modulus) {
                 if table.fu[table.row(t + k) * table.nfu + slot] != FREE {
                     return Err(format!("{} is busy", slots.shape.fu_name(slot)));
                 }
@@ -1000,8 +1021,8 @@ fn try_place(
     // Commit.
     let id = u as u32;
     match op.kind {
-        Kind::Fu(_) => {
-            for k in 0..span.min(table.modulus) {
+        Kind::Fu(o) => {
+            for k in 0..slots.issue_cycles(o).min(table.modulus) {
                 let r = table.row(t + k);
                 table.fu[r * table.nfu + slot] = id;
             }
