@@ -10,7 +10,8 @@
 //!   free. Two instructions conflict when one writes what the other reads or writes: SRF
 //!   words (a load writes its SRF stream, a store reads it, a kernel reads its inputs and
 //!   writes its outputs, an indexed stream also reads its index stream), DRAM words (a
-//!   store writes its range, a load reads it; an indexed stream may touch any word), or a
+//!   store writes its range, a load reads it; an indexed stream may touch any word unless
+//!   it has a bound, and then only the records below it), or a
 //!   kernel's microcode (a microcode load writes it, a kernel reads it). Of the entries
 //!   that may issue, the oldest issues, one per cycle; an entry leaves the scoreboard when
 //!   its operation completes.

@@ -187,6 +187,7 @@ fn gather_record_and_scatter(row_records: usize) {
     let indexed = Pattern::Indexed {
         index_start: 0,
         scale: 2,
+        bound: None,
     };
     let program = StreamProgram {
         kernels: vec![],
@@ -232,4 +233,71 @@ fn gather_record_and_scatter(row_records: usize) {
     // The three operations depend on each other (SRF, then DRAM via the indexed range).
     let (a, b, c) = (&r.records[0], &r.records[1], &r.records[2]);
     assert!(b.issued > a.completed && c.issued > b.completed);
+}
+
+/// A bounds register tells the scoreboard where an indexed stream may go: a gather from a
+/// table with a bound overlaps a store elsewhere in memory, one without a bound waits for
+/// it, and an index past the bound stops the gather with an error.
+#[test]
+fn a_bounded_gather_overlaps_a_store_elsewhere() {
+    let desc = MachineDesc::gold8();
+    const T: u64 = 0x4_0000; // table
+    const D: u64 = 0x5_0000; // store target
+    let k = 64usize;
+    let index: Vec<u32> = (0..k as u32).map(|i| (i * 37 + 5) % k as u32).collect();
+    let run = |bound: Option<u64>| {
+        let op = |kind, base, pattern, records, srf_start| {
+            StreamInstr::Memory(MemOp {
+                kind,
+                base,
+                pattern,
+                record_words: 1,
+                records,
+                srf_start,
+                row_records: 1,
+            })
+        };
+        let gather = Pattern::Indexed {
+            index_start: 0,
+            scale: 1,
+            bound,
+        };
+        let program = StreamProgram {
+            kernels: vec![],
+            instrs: vec![
+                op(
+                    MemOpKind::Store,
+                    D,
+                    Pattern::Strided { stride: 1 },
+                    4096,
+                    8192,
+                ),
+                op(MemOpKind::Load, T, gather, k, 1024),
+            ],
+        };
+        let opts = ProcessorOptions {
+            srf_init: vec![(0, index.clone())],
+            ..ProcessorOptions::default()
+        };
+        let mut sim = processor::build(&desc, program, opts).expect("builds");
+        processor::run(&mut sim, &desc, 1_000_000).map(|r| {
+            (
+                r.records[0].completed.unwrap(),
+                r.records[1].issued.unwrap(),
+            )
+        })
+    };
+    let (store_done, gather_issued) = run(None).expect("runs");
+    assert!(
+        gather_issued > store_done,
+        "without a bound the gather waits"
+    );
+    let (store_done, gather_issued) = run(Some(k as u64)).expect("runs");
+    assert!(
+        gather_issued < store_done,
+        "with a bound the gather overlaps"
+    );
+    // The permutation holds index k − 1.
+    let err = run(Some(k as u64 - 1)).expect_err("an index past the bound");
+    assert!(err.to_string().contains("past its bound"), "{err}");
 }

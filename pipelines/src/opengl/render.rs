@@ -13,9 +13,12 @@
 //! left. The framebuffer (colour, depth, primitive, owner per pixel) lives in DRAM.
 //!
 //! **Two batches in flight.** The next batch's vertices are loaded while this one is set
-//! up, and its vertex program is queued just before this batch's first composite round, so
-//! that it runs while the round's pixels are scattered and gathered (the clusters would
-//! otherwise wait for the memory system). The shaded vertices have two SRF sets.
+//! up, and its vertex program is queued right after this batch's `xyrast`, so that it runs
+//! while the first chunk's interpolation records are gathered (the clusters would
+//! otherwise wait for the memory system). The shaded vertices have two SRF sets. Within a
+//! batch, the next chunk's records are gathered while the current chunk is composited
+//! (two SRF buffers); the gathers and the framebuffer's scatters carry bounds, so the
+//! scoreboard knows they touch different memory and lets them overlap.
 //!
 //! **Spilling.** `setup` also counts each cluster's candidate pixels (its boxes' areas),
 //! which bound the fragments `xyrast` can write. When they would overflow their SRF region,
@@ -23,8 +26,10 @@
 //! recursively: a triangle larger than the SRF is drawn tile by tile, never dropped.
 //!
 //! The host waits for the processor where it needs a number the machine computed (the
-//! iteration count from `setup`, the length of a conditional output stream); everything
-//! else is queued and ordered by the stream controller's scoreboard. Kernel parameters are
+//! iteration count from `setup`, the length of a conditional output stream), and then only
+//! for the instruction that computes it: the memory operations queued before it (such as a
+//! round's pixel scatter) go on while the host queues more work. Everything else is
+//! queued and ordered by the stream controller's scoreboard. Kernel parameters are
 //! written into the SRF by the host between cycles (the microcontroller's scalar registers
 //! on Imagine).
 
@@ -212,7 +217,9 @@ struct Regions {
     frags: [usize; 5],
     /// Fragments xyrast may write per pass (nulls included).
     frag_capacity: usize,
-    gathered: usize,
+    /// Two buffers of gathered interpolation records: the next chunk's are gathered while
+    /// this one is composited.
+    gathered: [usize; 2],
     /// irast outputs, then two recycle sets: z, colour, addr, prim.
     zcap: [[usize; 4]; 3],
     pixel: usize,
@@ -227,7 +234,11 @@ struct Regions {
 struct Memory {
     vertices: u64,
     interp: u64,
+    /// Interpolation records (a batch's triangles): the bound of gathers by triangle.
+    interp_records: u64,
     framebuffer: u64,
+    /// Framebuffer pixels with the trash pixel: the bound of gathers and scatters by pixel.
+    pixels: u64,
 }
 
 struct Host {
@@ -289,11 +300,14 @@ impl Host {
 
     /// Runs until every queued instruction has completed.
     fn drain(&mut self) -> Result<(), RenderError> {
-        let done = |s: &Sim| {
+        self.run_until(|s| {
             processor::processor(s).is_done()
                 && s.modules_of::<imagine_units::dram::DramChannel>()
                     .all(imagine_units::dram::DramChannel::is_idle)
-        };
+        })
+    }
+
+    fn run_until(&mut self, done: impl Fn(&Sim) -> bool) -> Result<(), RenderError> {
         let left = MAX_FRAME_CYCLES.saturating_sub(self.sim.core_cycles());
         let finished = self
             .sim
@@ -305,6 +319,15 @@ impl Host {
             )));
         }
         Ok(())
+    }
+
+    /// Runs until instruction `id` has completed; later ones may still be in flight.
+    fn wait_for(&mut self, id: usize) -> Result<(), RenderError> {
+        self.run_until(|s| {
+            processor::processor(s).controller().records()[id]
+                .completed
+                .is_some()
+        })
     }
 
     fn outputs(&self, id: usize) -> Vec<usize> {
@@ -381,7 +404,6 @@ impl Host {
         let verts = 3 * triangles;
         let mut tiles = vec![[0, 0, width as i32 - 1, height as i32 - 1]];
         while let Some(tile) = tiles.pop() {
-            self.drain()?;
             let mut params = tile.map(|v| v as u32).to_vec();
             params.push(first_triangle as u32);
             let sparams = self.r.setup_params;
@@ -393,8 +415,8 @@ impl Host {
                 bind(r.interp, triangles * INTERP_WORDS),
                 bind(r.rows, 2 * c),
             ];
-            self.kernel(self.k.setup, streams, Some(sparams));
-            self.drain()?;
+            let id = self.kernel(self.k.setup, streams, Some(sparams));
+            self.wait_for(id)?;
             let counts = self.read_srf(self.r.rows, 2 * c)?;
             let rows = counts[0] as usize;
             // Each candidate pixel gives at most one fragment; then a row of nulls.
@@ -445,38 +467,55 @@ impl Host {
         ];
         streams.extend(frags.iter().map(|&f| bind(f, cap)));
         let id = self.kernel(self.k.xyrast, streams, None);
-        self.drain()?;
+        self.shade_pending();
+        self.wait_for(id)?;
         let written = self.outputs(id)[2];
         // Whole rows: every real fragment and some of the nulls after them.
         let total = written / c * c;
         self.stats.fragments += (written - c) as u64;
         let chunk = self.r.chunk;
-        let mut start = 0;
-        while start < total {
-            let len = chunk.min(total - start);
-            self.fragments(start, len)?;
-            start += len;
+        let chunks: Vec<(usize, usize)> = (0..total)
+            .step_by(chunk)
+            .map(|start| (start, chunk.min(total - start)))
+            .collect();
+        if let Some(&(start, len)) = chunks.first() {
+            self.gather_interp(start, len, 0);
+        }
+        for (i, &(start, len)) in chunks.iter().enumerate() {
+            // The next chunk's records are gathered while this one is composited.
+            if let Some(&(next, next_len)) = chunks.get(i + 1) {
+                self.gather_interp(next, next_len, (i + 1) % 2);
+            }
+            self.fragments(start, len, i % 2)?;
         }
         Ok(())
     }
 
-    /// Interpolates and composites fragments `start..start + len` of the xyrast output.
-    fn fragments(&mut self, start: usize, len: usize) -> Result<(), RenderError> {
-        let r = &self.r;
-        let [addr, tri, e0, e1, e2] = r.frags.map(|f| f + start);
-        let gathered = r.gathered;
-        let [z, colour, _, prim] = r.zcap[0];
+    /// Queues the gather of the interpolation records of fragments `start..start + len`
+    /// (by triangle index) into buffer `buffer`.
+    fn gather_interp(&mut self, start: usize, len: usize, buffer: usize) {
+        let tri = self.r.frags[1] + start;
         self.mem(
             MemOpKind::Load,
             self.m.interp,
             Pattern::Indexed {
                 index_start: tri,
                 scale: INTERP_WORDS as u64,
+                bound: Some(self.m.interp_records),
             },
             INTERP_WORDS,
             len,
-            gathered,
+            self.r.gathered[buffer],
         );
+    }
+
+    /// Interpolates and composites fragments `start..start + len` of the xyrast output,
+    /// their interpolation records gathered into buffer `buffer`.
+    fn fragments(&mut self, start: usize, len: usize, buffer: usize) -> Result<(), RenderError> {
+        let r = &self.r;
+        let [addr, _, e0, e1, e2] = r.frags.map(|f| f + start);
+        let gathered = r.gathered[buffer];
+        let [z, colour, _, prim] = r.zcap[0];
         self.kernel(
             self.k.irast,
             vec![
@@ -490,9 +529,6 @@ impl Host {
             ],
             None,
         );
-        // The next batch's vertex program runs while this round's pixels are scattered
-        // and gathered.
-        self.shade_pending();
         let mut current = [z, colour, addr, prim];
         let mut len = len;
         let mut set = 1;
@@ -501,7 +537,7 @@ impl Host {
             let r = &self.r;
             let (pixel, new_pixel, newaddr, loser) = (r.pixel, r.new_pixel, r.newaddr, r.loser);
             let next = r.zcap[set];
-            let fb = self.m.framebuffer;
+            let (fb, pixels) = (self.m.framebuffer, self.m.pixels);
             let [z, colour, addr, prim] = current;
             // Owner race: the last scatter to a pixel wins it for this round.
             self.push(StreamInstr::Memory(MemOp {
@@ -510,6 +546,7 @@ impl Host {
                 pattern: Pattern::Indexed {
                     index_start: addr,
                     scale: PIXEL_WORDS as u64,
+                    bound: Some(pixels),
                 },
                 record_words: 1,
                 records: len,
@@ -522,6 +559,7 @@ impl Host {
                 Pattern::Indexed {
                     index_start: addr,
                     scale: PIXEL_WORDS as u64,
+                    bound: Some(pixels),
                 },
                 PIXEL_WORDS,
                 len,
@@ -547,6 +585,7 @@ impl Host {
                 Pattern::Indexed {
                     index_start: newaddr,
                     scale: PIXEL_WORDS as u64,
+                    bound: Some(pixels),
                 },
                 PIXEL_WRITE_WORDS,
                 len,
@@ -575,7 +614,7 @@ impl Host {
                 ],
                 None,
             );
-            self.drain()?;
+            self.wait_for(a)?;
             let kept = self.outputs(a)[3];
             let c = self.clusters;
             if kept <= c {
@@ -603,7 +642,10 @@ fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, Rend
         block: desc.srf.block_words,
         words: desc.srf.words,
     };
-    let chunk = (256usize.div_ceil(c) * c).max(c);
+    // Fragments per chunk. Its buffers also hold xyrast's tickets, so smaller chunks split
+    // more tiles, and larger ones leave fewer words for fragments; 96 was the fastest on
+    // SPHERE (gold8) of the sizes 64 to 256 tried.
+    let chunk = (96usize.div_ceil(c) * c).max(c);
     let vertex_params = p.take(params * c)?;
     let setup_params = p.take(5 * c)?;
     let vertices = p.take(3 * batch * VERTEX_WORDS)?;
@@ -616,8 +658,8 @@ fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, Rend
     let rows = p.take(2 * c)?;
     // The fragment chunk's streams; xyrast, which runs alone, reads its tickets (whose
     // contents do not matter) from the same words.
-    let gathered = p.take(chunk * INTERP_WORDS)?;
-    let tickets = gathered;
+    let gathered = [p.take(chunk * INTERP_WORDS)?, p.take(chunk * INTERP_WORDS)?];
+    let tickets = gathered[0];
     let mut zcap = [[0; 4]; 3];
     for set in &mut zcap {
         for s in set.iter_mut() {
@@ -738,7 +780,9 @@ pub fn render(
     let memory = Memory {
         vertices: 0,
         interp,
+        interp_records: batch as u64,
         framebuffer: align(interp + (batch * INTERP_WORDS) as u64),
+        pixels: pixels as u64,
     };
     let capacity_words = imagine_units::dram::DramParams::of(desc).capacity_bytes() / 4;
     if memory.framebuffer + fb.len() as u64 > capacity_words {

@@ -43,8 +43,15 @@ pub enum Pattern {
     /// Record `i` starts at `base + i·stride` words.
     Strided { stride: u64 },
     /// Record `i` starts at `base + index[i]·scale` words; the `records` indices are a
-    /// stream at SRF word `index_start`.
-    Indexed { index_start: usize, scale: u64 },
+    /// stream at SRF word `index_start`. With a `bound` (a bounds register), every index
+    /// must be below it — one at or past it stops the operation with an error — and the
+    /// stream touches only the records below it, which the stream controller's scoreboard
+    /// then tells apart from streams elsewhere in memory; without one it may touch any word.
+    Indexed {
+        index_start: usize,
+        scale: u64,
+        bound: Option<u64>,
+    },
 }
 
 /// A stream memory operation.
@@ -73,7 +80,8 @@ impl MemOp {
         self.records * self.record_words
     }
 
-    /// The DRAM words it may touch, `[lo, hi)`; `None` for an indexed stream (anywhere).
+    /// The DRAM words it may touch, `[lo, hi)`; `None` for an indexed stream without a
+    /// bound (anywhere).
     pub fn mem_range(&self) -> Option<(u64, u64)> {
         match self.pattern {
             Pattern::Strided { stride } if self.records > 0 => Some((
@@ -81,7 +89,16 @@ impl MemOp {
                 self.base + (self.records as u64 - 1) * stride + self.record_words as u64,
             )),
             Pattern::Strided { .. } => Some((self.base, self.base)),
-            Pattern::Indexed { .. } => None,
+            Pattern::Indexed {
+                scale,
+                bound: Some(bound),
+                ..
+            } if self.records > 0 && bound > 0 => Some((
+                self.base,
+                self.base + (bound - 1) * scale + self.record_words as u64,
+            )),
+            Pattern::Indexed { bound: Some(_), .. } => Some((self.base, self.base)),
+            Pattern::Indexed { bound: None, .. } => None,
         }
     }
 
@@ -266,7 +283,7 @@ impl AddressGenerator {
             let (rec, j) = op.reference(self.issued);
             let start = match op.pattern {
                 Pattern::Strided { stride } => op.base + rec as u64 * stride,
-                Pattern::Indexed { scale, .. } => {
+                Pattern::Indexed { scale, bound, .. } => {
                     // A row's indices arrive in its first word's pass, one per record.
                     let rows = op.row_records.max(1);
                     let (row, in_row) = (rec / rows, rec % rows);
@@ -278,7 +295,19 @@ impl AddressGenerator {
                         if srf.available(self.isb) == 0 {
                             break;
                         }
-                        self.indices.push(srf.memory_read(self.isb, 1)?[0] as u64);
+                        let index = srf.memory_read(self.isb, 1)?[0] as u64;
+                        if let Some(bound) = bound
+                            && index >= bound
+                        {
+                            return Err(self.error(
+                                "index",
+                                format!(
+                                    "record {rec} of the stream has index {index}, past its \
+                                     bound {bound}"
+                                ),
+                            ));
+                        }
+                        self.indices.push(index);
                     }
                     op.base + self.indices[in_row] * scale
                 }
