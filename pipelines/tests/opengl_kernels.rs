@@ -9,11 +9,16 @@ use imagine_units::desc::MachineDesc;
 fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
     for name in ["gold1", "gold8", "gold32"] {
         let desc = MachineDesc::resolve(name).unwrap();
+        let c = desc.cluster.count;
+        // The largest batch xyrast's scratchpad holds.
+        let rows = kernels::xyrast_rows(&desc);
+        assert!(rows >= 2, "{name}: {rows} raster records per cluster");
         let shape = FrameShape {
             width: 64,
             height: 48,
-            clusters: desc.cluster.count,
+            clusters: c,
             cull_back: true,
+            batch: rows * c,
         };
         for k in [
             kernels::vertex_unlit(&desc),
@@ -35,49 +40,133 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
     }
 }
 
+/// A raster record as `setup` writes it: box `w × h` at `(x0, y0)` (empty if `w` or `h` is
+/// 0), triangle `t` with top-left flags `top_left` (bit i: edge i), edge coefficients
+/// `edges[i] = [A, B, C]`.
+fn raster_record(
+    (x0, y0, w, h): (u32, u32, u32, u32),
+    t: u32,
+    top_left: u32,
+    edges: [[f32; 3]; 3],
+) -> Vec<u32> {
+    let (lo, hi) = if w * h == 0 {
+        (1 | 1 << 16, 0)
+    } else {
+        (x0 | y0 << 16, (x0 + w - 1) | (y0 + h - 1) << 16)
+    };
+    let mut rec = vec![lo, hi, t | top_left << kernels::TRI_BITS];
+    rec.extend(edges.iter().flatten().map(|x| x.to_bits()));
+    assert_eq!(rec.len(), kernels::RASTER_WORDS);
+    rec
+}
+
+/// The fragments xyrast must write for `records`: (address, triangle, E0, E1, E2) of
+/// every box pixel whose centre every edge covers (E > 0, or E = 0 on a top-left edge).
+fn covered_pixels(records: &[Vec<u32>], width: u32) -> Vec<[u32; 5]> {
+    let mut out = Vec::new();
+    for r in records {
+        let (lo, hi) = (r[0], r[1]);
+        if lo > hi {
+            continue;
+        }
+        for y in lo >> 16..=hi >> 16 {
+            for x in lo & 0xFFFF..=hi & 0xFFFF {
+                let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
+                let e: Vec<f32> = (0..3)
+                    .map(|i| {
+                        let c = |k: usize| f32::from_bits(r[3 + 3 * i + k]);
+                        (c(0) * fx + c(1) * fy) + c(2)
+                    })
+                    .collect();
+                let covered = (0..3).all(|i| {
+                    let top_left = r[2] >> (kernels::TRI_BITS + i as u32) & 1 == 1;
+                    e[i] > 0.0 || (e[i] == 0.0 && top_left)
+                });
+                if covered {
+                    let tri = r[2] & ((1 << kernels::TRI_BITS) - 1);
+                    out.push([
+                        y * width + x,
+                        tri,
+                        e[0].to_bits(),
+                        e[1].to_bits(),
+                        e[2].to_bits(),
+                    ]);
+                }
+            }
+        }
+    }
+    out.sort_unstable();
+    out
+}
+
 #[test]
-fn xyrast_machine_matches_interpreter() {
+fn xyrast_covers_exactly_the_pixels_the_edges_cover() {
     use imagine_pipelines::kernel::KernelInputs;
-    for name in ["gold1", "gold8"] {
-        let desc = MachineDesc::resolve(name).unwrap();
+    let mut flushing = MachineDesc::resolve("gold8").unwrap();
+    flushing.name = "gold8 with flush-to-zero".into();
+    flushing.arithmetic.flush_to_zero = true;
+    let machines = ["gold1", "gold8", "gold8+F"].map(|n| MachineDesc::resolve(n).unwrap());
+    for desc in machines.into_iter().chain([flushing]) {
+        let name = &desc.name;
         let c = desc.cluster.count;
+        let width = 40;
+        let rows = kernels::xyrast_rows(&desc).min(8);
         let shape = FrameShape {
-            width: 32,
+            width,
             height: 32,
             clusters: c,
             cull_back: false,
+            batch: rows * c,
         };
         let k = kernels::xyrast(&desc, shape);
         let compiled = compile(&k, &desc).unwrap();
-        // Three rows of triangles whose boxes differ in size; zero edge functions with
-        // every top-left flag set cover every candidate.
-        let rows = 3;
+        // Boxes of many widths (runs that end inside and past the box) and heights, empty
+        // ones among them; four kinds of edges.
         let mut records = Vec::new();
-        let mut iterations = 0;
-        for r in 0..rows {
-            let boxes: Vec<(u32, u32)> = (0..c)
-                .map(|t| ((t as u32 * 7 + r) % 5, (t as u32 * 3 + r) % 4))
-                .collect();
-            let row_max = boxes.iter().map(|(w, h)| w * h).max().unwrap().max(1);
-            iterations += row_max as usize;
-            for (t, (w, h)) in boxes.iter().enumerate() {
-                let (x0, y0) = (t as u32 * 2, r * 3);
-                let (lo, hi) = if w * h == 0 {
-                    (1 | 1 << 16, 0)
-                } else {
-                    (x0 | y0 << 16, (x0 + w - 1) | (y0 + h - 1) << 16)
+        for r in 0..rows as u32 {
+            for t in 0..c as u32 {
+                let n = r * c as u32 + t;
+                let (w, h) = ((n * 7 + 3) % 10, (n * 5 + r) % 4);
+                let (x0, y0) = ((n * 5) % 30, (n * 11) % 28);
+                let (fx0, fy0) = (x0 as f32, y0 as f32);
+                let edges = match n % 4 {
+                    // Everything: E = 0 on top-left edges.
+                    0 => [[0.0; 3]; 3],
+                    // A column boundary through pixel centres: x = x0 + 2.5 is covered only
+                    // when edge 0 is a top-left edge.
+                    1 => [[1.0, 0.0, -(fx0 + 2.5)], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]],
+                    // A triangle with its corners near the box.
+                    2 => [
+                        [-0.75, 1.25, fx0 * 0.75 - fy0 * 1.25 + 0.3],
+                        [0.5, -1.0, fy0 - fx0 * 0.5 + 1.7],
+                        [0.25, -0.25, 2.0 + (fy0 - fx0) * 0.25],
+                    ],
+                    // Nothing.
+                    _ => [[0.0, 0.0, -1.0], [0.0; 3], [0.0; 3]],
                 };
-                let mut rec = vec![lo, hi];
-                rec.extend([0u32; 9]);
-                rec.push(t as u32 | 7 << 29);
-                rec.push(row_max);
-                records.push(rec);
+                records.push(raster_record((x0, y0, w, h), n, (n * 5) % 8, edges));
             }
         }
-        let raster = records_to_stream(&records, c);
+        // Each cluster walks its own boxes: the iterations are the most runs of any cluster.
+        let runs = |rec: &Vec<u32>| -> usize {
+            let (lo, hi) = (rec[0], rec[1]);
+            if lo > hi {
+                return 0;
+            }
+            let (w, h) = (
+                (hi & 0xFFFF) - (lo & 0xFFFF) + 1,
+                (hi >> 16) - (lo >> 16) + 1,
+            );
+            (w as usize).div_ceil(kernels::XYRAST_RUN) * h as usize
+        };
+        let iterations = (0..c)
+            .map(|t| records.iter().skip(t).step_by(c).map(runs).sum::<usize>())
+            .max()
+            .unwrap()
+            .max(1);
         let inputs = KernelInputs {
             streams: vec![
-                raster,
+                records_to_stream(&records, c),
                 vec![0; iterations * c],
                 vec![],
                 vec![],
@@ -88,21 +177,27 @@ fn xyrast_machine_matches_interpreter() {
             params: vec![],
         };
         let golden = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
-        let want: u32 = records
+        let fragments = golden[2].len() - c;
+        assert!(golden[2][fragments..].iter().all(|&a| a == shape.trash()));
+        let mut got: Vec<[u32; 5]> = (0..fragments)
+            .map(|i| std::array::from_fn(|s| golden[2 + s][i]))
+            .collect();
+        got.sort_unstable();
+        let want = covered_pixels(&records, width);
+        let candidates: usize = records
             .iter()
-            .map(|r| {
-                if r[1] == 0 {
-                    0
-                } else {
-                    ((r[1] & 0xFFFF) - (r[0] & 0xFFFF) + 1) * ((r[1] >> 16) - (r[0] >> 16) + 1)
-                }
+            .filter(|rec| rec[0] <= rec[1])
+            .map(|rec| {
+                let w = (rec[1] & 0xFFFF) - (rec[0] & 0xFFFF) + 1;
+                (w * ((rec[1] >> 16) - (rec[0] >> 16) + 1)) as usize
             })
             .sum();
-        assert_eq!(
-            golden[2].len(),
-            want as usize + c,
-            "{name}: every candidate and a null row"
+        assert!(
+            want.len() > 8 && want.len() < candidates,
+            "{name}: {} of {candidates} candidates covered",
+            want.len()
         );
+        assert_eq!(got, want, "{name}: the covered pixels");
         let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
         assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
     }
@@ -120,6 +215,7 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
             height: 128,
             clusters: c,
             cull_back: true,
+            batch: 8 * c,
         };
         let k = kernels::setup(&desc, shape);
         let compiled = compile(&k, &desc).unwrap();
@@ -176,6 +272,25 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
         let counts = &golden[3];
         assert_eq!(counts.len(), 2 * c, "{name}: two rows of counts");
         assert!(counts[..c].iter().all(|&w| w == counts[0]), "{name}");
+        // xyrast's iterations: the most runs of box pixels any cluster has.
+        let records = stream_to_records(&golden[1], kernels::RASTER_WORDS, c);
+        let runs = (0..c)
+            .map(|t| {
+                records
+                    .iter()
+                    .skip(t)
+                    .step_by(c)
+                    .filter(|rec| rec[0] <= rec[1])
+                    .map(|rec| {
+                        let w = (rec[1] & 0xFFFF) - (rec[0] & 0xFFFF) + 1;
+                        let h = (rec[1] >> 16) - (rec[0] >> 16) + 1;
+                        (w as usize).div_ceil(kernels::XYRAST_RUN) * h as usize
+                    })
+                    .sum::<usize>()
+            })
+            .max()
+            .unwrap();
+        assert_eq!(counts[0] as usize, runs.max(1), "{name}: xyrast iterations");
         let candidates: u64 = counts[c..].iter().map(|&w| u64::from(w)).sum();
         assert!(box_area > 0, "{name}: some triangles are kept");
         assert_eq!(candidates, box_area, "{name}: candidate pixels");

@@ -4,8 +4,8 @@
 //! | kernel | per element | streams |
 //! |---|---|---|
 //! | `vertex` / [`vertex_unlit`] | vertex: clip position and colour | 6 words → 7 words |
-//! | [`setup`] | triangle: assemble, clip (trivial reject), viewport, cull, xyprep, baryprep | 21 words → raster (12), interp (13), row counts |
-//! | [`xyrast`] | candidate pixel: coverage by three edge functions | raster → addr, tri, E0, E1, E2 (conditional) |
+//! | [`setup`] | triangle: assemble, clip (trivial reject), viewport, cull, xyprep, baryprep | 21 words → raster (12), interp (13), counts |
+//! | [`xyrast`] | run of 4 candidate pixels: coverage by three edge functions | raster → addr, tri, E0, E1, E2 (conditional) |
 //! | [`irast`] | fragment: perspective-correct colour and depth | E0..E2, interp → z, colour, prim |
 //! | [`zcompare`] | fragment: depth test LESS with primitive-order ties | z, colour, addr, prim, pixel → new pixel, its address, loser |
 //! | [`compact_recycle`] | fragment: keeps the losers of the owner race for the next round | loser, a, b → a', b' (conditional) |
@@ -27,29 +27,42 @@
 //! corner `k` is vertex `(3·⌊t/C⌋ + k)·C + t mod C`. Conditional outputs end with one row
 //! of null records (`C` of them) so that the host can read them back in whole rows.
 //!
-//! **xyrast** gives each cluster one triangle of a row and walks its bounding box one pixel
-//! per iteration; after as many iterations as the row's largest box (`setup` finds it with
-//! a maximum across the clusters by butterfly exchanges and puts it in every record of the
-//! row), all read the next row together, so the records stay whole. The loop runs over a
-//! `tickets` stream whose length the host takes from `setup`'s count:
-//! `Σ_rows max(1, max_c candidates)` iterations, exactly what the rows need.
+//! **xyrast** keeps a batch's raster records in the scratchpads: cluster `c` copies its own
+//! (triangles `c`, `c + C`, …; empty boxes left out) before the loop, then walks their
+//! bounding boxes one after another, [`XYRAST_RUN`] pixels of a box row per iteration. The
+//! clusters need not agree on when to move to the next triangle, so there are no
+//! conditional reads and no loop-carried decision that waits for the data it fetches (the
+//! recurrences are the position's and the record pointer's, a few integer ops each); the
+//! loop's interval is set by the scratchpad port, which the twelve record words and the
+//! conditional writes share. The loop runs over a `tickets` stream whose length the host
+//! takes from `setup`'s count: the most runs any cluster has, exactly what the busiest
+//! cluster needs. The scratchpad bounds the batch: [`xyrast_rows`] triangles per cluster.
 
 use imagine_units::desc::MachineDesc;
+use imagine_units::ops::Op;
 
 use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, StreamId, Ty, Value};
 
-/// Words of a `setup` raster record: packed bbox low and high, nine edge coefficients, the
-/// triangle's index in the batch with its three top-left flags, and the iterations its row
-/// takes in `xyrast` (the same in every cluster).
-pub const RASTER_WORDS: usize = 13;
+/// Words of a `setup` raster record: the bounding box's first and last pixel (`lo`, `hi`,
+/// packed `y·2^16 + x`), the tag (the triangle's index in the batch and its three top-left
+/// flags) and the nine edge coefficients.
+pub const RASTER_WORDS: usize = 12;
+/// Where the words of a raster record are (the edge coefficients follow the tag).
+const LO: u16 = 0;
+const HI: u16 = 1;
+const TAG: u16 = 2;
 /// Words of an interpolation record: z_k / |det| (3), r, g, b per corner (9), primitive.
 pub const INTERP_WORDS: usize = 13;
 /// Words of a framebuffer pixel in DRAM: colour, depth, primitive, owner tag.
 pub const PIXEL_WORDS: usize = 4;
 /// Words `zcompare` writes back per pixel (colour, depth, primitive).
 pub const PIXEL_WRITE_WORDS: usize = 3;
-/// Bits of a triangle index in a raster record (the top three hold the top-left flags).
+/// Bits of the triangle's index in a raster record's tag (the top three hold the top-left
+/// flags).
 pub const TRI_BITS: u32 = 29;
+/// Pixels of one box row `xyrast` tests per iteration (a power of two).
+pub const XYRAST_RUN: usize = 4;
+const _: () = assert!(XYRAST_RUN.is_power_of_two());
 /// A null fragment's depth: NaN fails every depth test.
 pub const NULL_DEPTH: u32 = 0x7FC0_0000;
 
@@ -60,6 +73,9 @@ pub struct FrameShape {
     pub height: u32,
     pub clusters: usize,
     pub cull_back: bool,
+    /// Triangles per batch (a multiple of `clusters`): `xyrast` keeps a batch's raster
+    /// records in the scratchpad.
+    pub batch: usize,
 }
 
 impl FrameShape {
@@ -67,6 +83,14 @@ impl FrameShape {
     pub fn trash(&self) -> u32 {
         self.width * self.height
     }
+}
+
+/// The most triangles per cluster `xyrast` can hold in `desc`'s scratchpad: its raster
+/// records, a sentinel and the word read past it, below the words conditional streams keep.
+pub fn xyrast_rows(desc: &MachineDesc) -> usize {
+    let reserved = 2 * desc.srf.conditional_words_per_cycle;
+    let words = desc.scratchpad.words.saturating_sub(reserved);
+    words.saturating_sub(RASTER_WORDS + 1) / RASTER_WORDS
 }
 
 fn finish(b: KernelBuilder) -> Kernel {
@@ -138,11 +162,12 @@ pub fn vertex_unlit(_desc: &MachineDesc) -> Kernel {
 /// scissor rectangle given as parameters `sx0, sy0, sx1, sy1`, inclusive), the edge
 /// functions and top-left flags (xyprep) and the interpolation record (baryprep).
 ///
-/// Outputs: `raster` (12 words per triangle, every triangle: a rejected one gets an empty
-/// box), `interp` (13 words per triangle; its primitive number is `prim_base + index + 1`)
-/// and, after the loop, `rows`: a row of the iterations `xyrast` needs (the same word in
-/// every cluster), then a row of each cluster's candidate pixels, whose sum bounds the
-/// fragments `xyrast` writes.
+/// Outputs: `raster` ([`RASTER_WORDS`] per triangle, every triangle: a rejected one gets an
+/// empty box), `interp` (13 words per triangle; its primitive number is
+/// `prim_base + index + 1`) and, after the loop, `rows`: a row of the iterations `xyrast`
+/// needs (the most runs of [`XYRAST_RUN`] box pixels of any cluster, at least one; the
+/// same word in every cluster), then a row of each cluster's candidate pixels, whose sum
+/// bounds the fragments `xyrast` writes.
 pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let mut b = KernelBuilder::new("setup");
     let tris = b.input("triangles");
@@ -162,8 +187,8 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
 
     b.begin_loop(LoopSpec::OverStream(tris));
     let index0 = b.carried(cluster);
-    let iterations0 = b.carried(zero);
     let candidates0 = b.carried(zero);
+    let runs0 = b.carried(zero);
     let v: Vec<[Value; 7]> = (0..3)
         .map(|_| std::array::from_fn(|_| b.read_f32(tris)))
         .collect();
@@ -330,12 +355,19 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     };
     let area = b.imul(width, height);
     let candidates = b.select(kept, area, zero);
-    let row_max = all_reduce(&mut b, clusters, candidates, KernelBuilder::imax);
-    let row_iterations = b.imax(row_max, one);
-    let iterations = b.iadd(iterations0, row_iterations);
-    b.set_next(iterations0, iterations);
     let candidates_total = b.iadd(candidates0, candidates);
     b.set_next(candidates0, candidates_total);
+    // xyrast's iterations: runs of XYRAST_RUN pixels, ⌈width / RUN⌉ per box row.
+    let runs = {
+        let r = b.i32(XYRAST_RUN as i32 - 1);
+        let w = b.iadd(width, r);
+        let shift = b.i32(XYRAST_RUN.trailing_zeros() as i32);
+        let per_row = b.shr(w, shift);
+        let n = b.imul(per_row, height);
+        b.select(kept, n, zero)
+    };
+    let runs_total = b.iadd(runs0, runs);
+    b.set_next(runs0, runs_total);
     // Top-left flags: A > 0, or A = 0 and B < 0.
     let mut tag = index0;
     for (i, e) in edges.iter().enumerate() {
@@ -350,8 +382,10 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
         let t = b.shl(t, shift);
         tag = b.or(tag, t);
     }
-    let words = [lo, hi].into_iter().chain(edges.iter().flatten().copied());
-    for w in words.chain([tag, row_iterations]) {
+    let words = [lo, hi, tag]
+        .into_iter()
+        .chain(edges.iter().flatten().copied());
+    for w in words {
         b.write(raster, w);
     }
     // Interpolation record.
@@ -373,112 +407,185 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let next_index = b.iadd(index0, row_c);
     b.set_next(index0, next_index);
     b.end_loop();
-    b.write(rows_out, iterations0);
+    // Each cluster walks its own boxes in `xyrast`: the busiest one sets the iterations.
+    let most = all_reduce(&mut b, clusters, runs0, KernelBuilder::imax);
+    let iterations = b.imax(most, one);
+    b.write(rows_out, iterations);
     b.write(rows_out, candidates0);
     finish(b)
 }
 
-/// `xyrast`: walks each cluster's triangle's bounding box one pixel per iteration and
-/// writes the covered ones: `addr` (`y·W + x`), `tri` (the triangle's index in the batch)
-/// and its edge values `e0`, `e1`, `e2`, then a row of nulls (address one past the window).
-pub fn xyrast(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
+/// `xyrast`: walks each cluster's triangles' bounding boxes, [`XYRAST_RUN`] pixels of a box
+/// row per iteration, and writes the covered ones: `addr` (`y·W + x`), `tri` (the
+/// triangle's index in the batch) and its edge values `e0`, `e1`, `e2`, then a row of nulls
+/// (address one past the window).
+///
+/// Before the loop each cluster copies its own raster records (triangles `c`, `c + C`, …
+/// of the batch) into its scratchpad, leaving out empty boxes, and ends them with a
+/// sentinel; the loop reads the current record from there. So every cluster walks its own
+/// boxes at its own pace: no conditional reads, and no cluster waits for the largest box
+/// of a row. The loop runs for as many iterations as the busiest cluster needs (`setup`
+/// counts them); a cluster that is done sits on the sentinel, which covers nothing.
+pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let mut b = KernelBuilder::new("xyrast");
     let raster = b.input("raster");
     let tickets = b.input("tickets");
     let addr_out = b.output("addr");
     let tri_out = b.output("tri");
     let e_out: [StreamId; 3] = ["e0", "e1", "e2"].map(|n| b.output(n));
-    let (zero, one) = (b.i32(0), b.i32(1));
-    let zero_f = b.f32(0.0);
-    let half = b.f32(0.5);
-    let width = b.i32(shape.width as i32);
+    let rows = shape.batch / shape.clusters;
+    assert!(
+        rows <= xyrast_rows(desc),
+        "xyrast: {rows} triangles per cluster do not fit the scratchpad"
+    );
+    let record = b.i32(RASTER_WORDS as i32);
+    let zero = b.i32(0);
+
+    // The records, compacted: an empty box (lo > hi) is overwritten by the next record.
+    let mut at = zero;
+    for _ in 0..rows {
+        let words: Vec<Value> = (0..RASTER_WORDS).map(|_| b.read(raster)).collect();
+        for (i, &w) in words.iter().enumerate() {
+            b.sp_write(i as u16, Some(at), w);
+        }
+        let nonempty = b.op(Op::ILeU, &[words[LO as usize], words[HI as usize]]);
+        let size = b.select(nonempty, record, zero);
+        at = b.iadd(at, size);
+    }
+    // The sentinel: from lo = 0 the position only creeps on (hi = 2^32 - 1 would take 2^30
+    // iterations), and C0 = -inf makes E0 -inf or NaN, which fails edge 0.
+    for (word, value) in [
+        (LO, 0),
+        (HI, u32::MAX),
+        (TAG + 3, f32::NEG_INFINITY.to_bits()),
+    ] {
+        let v = b.word(value);
+        b.sp_write(word, Some(at), v);
+    }
+    let first = b.sp_read(LO, None);
+    let first = b.cast(first, Ty::I32);
+
+    let run = b.i32(XYRAST_RUN as i32);
+    let run_end = b.i32(XYRAST_RUN as i32 - 1);
+    let down = b.i32(1 << 16);
     let low16 = b.i32(0xFFFF);
-    let sixteen = b.i32(16);
+    let up16 = b.word(1 << 16);
     let tri_mask = b.i32((1 << TRI_BITS) - 1);
+    let width = b.i32(shape.width as i32);
+    let (zero_f, half) = (b.f32(0.0), b.f32(0.5));
+    // Top-left edges pass at E >= 0, the others at E > 0: as one compare, E > -2^-149 (the
+    // negative subnormal next to -0) or E > +0. Flushing inputs to zero would turn the
+    // first into E > 0, so such machines select between two compares instead.
+    let flush = desc.arithmetic.flush_to_zero;
+    let below_zero = b.word(0x8000_0001);
     let zero_word = b.word(0);
 
     b.begin_loop(LoopSpec::OverStream(tickets));
-    let init: Vec<Value> = (0..RASTER_WORDS).map(|_| b.carried(zero_word)).collect();
-    let x0c = b.carried(zero);
-    let y0c = b.carried(zero);
-    let busy0 = b.carried(zero);
-    let left0 = b.carried(zero);
+    let at0 = b.carried(zero);
+    let pos0 = b.carried(first);
+    let row0 = b.carried(first);
     let _ticket = b.read(tickets);
-    // A row is fetched when its predecessor's iterations are used up: the same
-    // decision in every cluster, so the conditional reads take whole rows.
-    let fetch = b.ieq(left0, zero);
-    let rec: Vec<Value> = init
-        .iter()
-        .map(|&old| b.read_if(raster, fetch, old))
+    let rec: Vec<Value> = (HI..RASTER_WORDS as u16)
+        .map(|i| b.sp_read(i, Some(at0)))
         .collect();
-    for (&c, &r) in init.iter().zip(&rec) {
-        b.set_next(c, r);
-    }
-    let row_left = b.select(fetch, rec[RASTER_WORDS - 1], left0);
-    let left = b.isub(row_left, one);
-    b.set_next(left0, left);
-    let (lo, hi) = (rec[0], rec[1]);
-    let bx0 = b.and(lo, low16);
-    let by0 = b.shr(lo, sixteen);
-    let bx1 = b.and(hi, low16);
-    let by1 = b.shr(hi, sixteen);
-    let x = b.select(fetch, bx0, x0c);
-    let y = b.select(fetch, by0, y0c);
-    let fresh_busy = {
-        let a = b.ile(bx0, bx1);
-        let c = b.ile(by0, by1);
-        let a = flag(&mut b, a);
-        let c = flag(&mut b, c);
-        b.and(a, c)
-    };
-    let busy = b.select(fetch, fresh_busy, busy0);
-    let fx = b.itof(x);
-    let fx = b.fadd(fx, half);
+    let next_lo = b.sp_read(RASTER_WORDS as u16 + LO, Some(at0));
+    let (hi, tag) = (b.cast(rec[0], Ty::I32), b.cast(rec[1], Ty::I32));
+    let coefficient = |edge: usize, k: usize| rec[2 + 3 * edge + k];
+    // Positions are packed y·2^16 + x (setup clamps both to 8192). This run is pixels
+    // pos .. pos + RUN - 1, `row0` the first pixel of its box row. When the run reaches x1
+    // the next run starts the next row, or, on row y1 (hi <= end), the next record's box.
+    let end = b.iadd(pos0, run_end);
+    let hi16 = b.cast(hi, Ty::P16);
+    let end16 = b.cast(end, Ty::P16);
+    let wrap = b.op(Op::Le16x2U, &[hi16, end16]);
+    let wrap = b.cast(wrap, Ty::Cc);
+    let done = b.op(Op::ILeU, &[hi, end]);
+    let next_row = b.iadd(row0, down);
+    let right = b.iadd(pos0, run);
+    let moved = b.select(wrap, next_row, right);
+    let pos_next = b.select(done, next_lo, moved);
+    b.set_next(pos0, pos_next);
+    let row_moved = b.select(wrap, next_row, row0);
+    let row_next = b.select(done, next_lo, row_moved);
+    b.set_next(row0, row_next);
+    let at_moved = b.iadd(at0, record);
+    let at_next = b.select(done, at_moved, at0);
+    b.set_next(at0, at_next);
+
+    let thresholds: Vec<Value> = (0..3)
+        .map(|i| {
+            let shift = b.i32((TRI_BITS + i) as i32);
+            let top_left = b.shr(tag, shift);
+            let top_left = b.cast(top_left, Ty::Cc);
+            if flush {
+                top_left
+            } else {
+                let t = b.select(top_left, below_zero, zero_word);
+                b.cast(t, Ty::F32)
+            }
+        })
+        .collect();
+    let tri = b.and(tag, tri_mask);
+    // Pixel centres, exact: x + 0.5 + j and y + 0.5. The multipliers, which have room,
+    // take the shifts (`imul_hi_u` by 2^16 is a shift right by 16) off the adders.
+    let x = b.and(pos0, low16);
+    let fx0 = b.itof(x);
+    let fx0 = b.fadd(fx0, half);
+    let y = b.op(Op::IMulHiU, &[pos0, up16]);
     let fy = b.itof(y);
     let fy = b.fadd(fy, half);
-    let tag = rec[RASTER_WORDS - 2];
-    let mut inside = busy;
-    let mut e_values = [zero_f; 3];
-    for i in 0..3 {
-        let [a, bb, c] = [rec[2 + 3 * i], rec[3 + 3 * i], rec[4 + 3 * i]];
-        let ax = b.fmul(a, fx);
-        let by = b.fmul(bb, fy);
-        let s = b.fadd(ax, by);
-        let e = b.fadd(s, c);
-        e_values[i] = e;
-        let shift = b.i32((TRI_BITS + i as u32) as i32);
-        let tl = b.shr(tag, shift);
-        let tl = b.and(tl, one);
-        let positive = b.flt(zero_f, e);
-        let on_edge = b.feq(e, zero_f);
-        let edge_ok = b.select(on_edge, tl, zero);
-        let ok = b.select(positive, one, edge_ok);
-        inside = b.and(inside, ok);
+    let x1 = {
+        let h = b.imul(hi, up16);
+        b.op(Op::IMulHiU, &[h, up16])
+    };
+    let room = b.isub(x1, x);
+    let addr0 = {
+        let r = b.imul(y, width);
+        b.iadd(r, x)
+    };
+    for j in 0..XYRAST_RUN {
+        let (fx, addr, mut inside) = if j == 0 {
+            (fx0, addr0, None)
+        } else {
+            let fj = b.f32(j as f32);
+            let ij = b.i32(j as i32);
+            let fx = b.fadd(fx0, fj);
+            let addr = b.iadd(addr0, ij);
+            // Pixel j of the run is in the box while j <= x1 - x.
+            let in_box = b.ile(ij, room);
+            (fx, addr, Some(b.cast(in_box, Ty::I32)))
+        };
+        let mut e_values = [zero_f; 3];
+        for (i, e_value) in e_values.iter_mut().enumerate() {
+            // E = (A·fx + B·fy) + C, rounded as setup's edge functions were. B·fy is the
+            // same for the run's pixels but is made per pixel: one product read by all of
+            // them would have to wait in its register for the last.
+            let by = b.fmul(coefficient(i, 1), fy);
+            let ax = b.fmul(coefficient(i, 0), fx);
+            let s = b.fadd(ax, by);
+            let e = b.fadd(s, coefficient(i, 2));
+            *e_value = e;
+            let ok = if flush {
+                let positive = b.flt(zero_f, e);
+                let non_negative = b.fle(zero_f, e);
+                b.select(thresholds[i], non_negative, positive)
+            } else {
+                b.flt(thresholds[i], e)
+            };
+            // Bit 0 of a product is the AND of the factors' bits 0.
+            let ok = b.cast(ok, Ty::I32);
+            inside = Some(match inside {
+                None => ok,
+                Some(v) => b.imul(v, ok),
+            });
+        }
+        let covered = b.cast(inside.expect("three edges"), Ty::Cc);
+        b.write_if(addr_out, covered, addr);
+        b.write_if(tri_out, covered, tri);
+        for (&s, e) in e_out.iter().zip(e_values) {
+            b.write_if(s, covered, e);
+        }
     }
-    let covered = cond(&mut b, inside);
-    let row = b.imul(y, width);
-    let addr = b.iadd(row, x);
-    let tri = b.and(tag, tri_mask);
-    b.write_if(addr_out, covered, addr);
-    b.write_if(tri_out, covered, tri);
-    for (s, e) in e_out.iter().zip(e_values) {
-        b.write_if(*s, covered, e);
-    }
-    // Next pixel of the box.
-    let xn = b.iadd(x, one);
-    let wrap = b.ilt(bx1, xn);
-    let x_next = b.select(wrap, bx0, xn);
-    let yn = b.iadd(y, one);
-    let y_next = b.select(wrap, yn, y);
-    let past = b.ilt(by1, y_next);
-    let wrap_f = flag(&mut b, wrap);
-    let past_f = flag(&mut b, past);
-    let finished = b.and(wrap_f, past_f);
-    let finished = cond(&mut b, finished);
-    let busy_next = b.select(finished, zero, busy);
-    b.set_next(x0c, x_next);
-    b.set_next(y0c, y_next);
-    b.set_next(busy0, busy_next);
     b.end_loop();
     let mut nulls = vec![(addr_out, shape.trash()), (tri_out, 0)];
     nulls.extend(e_out.iter().map(|&s| (s, 0)));

@@ -2,7 +2,8 @@
 //! controller, address generators, clusters, SRF and SDRAM, all clocked) through a frame,
 //! batch by batch (ARCHITECTURE §5, §7).
 //!
-//! Per batch of `B` triangles (`B` a multiple of the cluster count): load the vertices
+//! Per batch of `B` triangles (`B` a multiple of the cluster count, 64 unless the
+//! scratchpads cannot hold that many raster records for `xyrast`): load the vertices
 //! (records laid out in cluster rows), run the vertex program, then for each scissor tile
 //! (the whole window unless the batch overflows) run `setup`, store its interpolation
 //! records to memory and run `xyrast` for as many iterations as `setup` counted. Fragments
@@ -628,10 +629,12 @@ impl Host {
 }
 
 /// Chooses the batch size: the largest multiple of the cluster count up to 64 triangles
-/// (fewer for tiny scenes).
-fn batch_size(triangles: usize, clusters: usize) -> usize {
+/// (fewer for tiny scenes, and at most `rows` triangles per cluster: `xyrast` keeps the
+/// batch's raster records in the scratchpads).
+fn batch_size(triangles: usize, clusters: usize, rows: usize) -> usize {
     let want = 64usize.max(clusters).div_ceil(clusters) * clusters;
     want.min(triangles.div_ceil(clusters) * clusters)
+        .min(rows * clusters)
         .max(clusters)
 }
 
@@ -759,14 +762,22 @@ pub fn render(
     scene.validate().map_err(|e| RenderError(e.to_string()))?;
     let host_start = Instant::now();
     let clusters = desc.cluster.count;
+    let rows = kernels::xyrast_rows(desc);
+    if rows == 0 {
+        return Err(RenderError(format!(
+            "machine `{}`: the scratchpad cannot hold a raster record",
+            desc.name
+        )));
+    }
+    let batch = batch_size(scene.triangles(), clusters, rows);
     let shape = FrameShape {
         width: scene.width,
         height: scene.height,
         clusters,
         cull_back: scene.cull_back,
+        batch,
     };
     let k = compile_all(scene, desc, shape)?;
-    let batch = batch_size(scene.triangles(), clusters);
     let vparams = vertex_params(scene);
     let regions = plan(desc, batch, vparams.len())?;
     let verts = vertex_words(scene, batch, clusters);
