@@ -455,19 +455,26 @@ fn attempt_line(
     }
     sink(g, sched, &mut table, &order, &succs, None, slots, desc);
     // Ops placed before the first cycle (just-in-time constants) shift the whole body.
+    shift_to_cycle_zero(sched, &ops, 1);
+    Ok(())
+}
+
+/// Moves the ops of a region later, by a multiple of `step`, so that none is placed before
+/// cycle 0.
+fn shift_to_cycle_zero(sched: &mut Schedule, ops: &[usize], step: i64) {
     let first = ops
         .iter()
         .filter_map(|&o| sched.place[o].map(|p| p.time))
         .min()
         .unwrap_or(0);
     if first < 0 {
-        for &o in &ops {
+        let shift = (-first + step - 1) / step * step;
+        for &o in ops {
             if let Some(p) = &mut sched.place[o] {
-                p.time -= first;
+                p.time += shift;
             }
         }
     }
-    Ok(())
 }
 
 /// Lifetime copies one attempt at an initiation interval may ask for.
@@ -725,19 +732,7 @@ fn attempt_modulo(
     sink(g, sched, &mut table, &order, &succs, Some(ii), slots, desc);
     // Ops placed before the first cycle shift the whole body by whole intervals (rows
     // stay, stages grow).
-    let first = ops
-        .iter()
-        .filter_map(|&o| sched.place[o].map(|p| p.time))
-        .min()
-        .unwrap_or(0);
-    if first < 0 {
-        let shift = (-first + ii - 1) / ii * ii;
-        for &o in &ops {
-            if let Some(p) = &mut sched.place[o] {
-                p.time += shift;
-            }
-        }
-    }
+    shift_to_cycle_zero(sched, &ops, ii);
     if let Some(&u) = ops.iter().find(|&&o| sched.place[o].is_none()) {
         return Err(Attempt::Fail(Failure::NoSlot {
             op: u,
