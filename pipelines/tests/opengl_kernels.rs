@@ -25,6 +25,7 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             kernels::setup(&desc, shape),
             kernels::xyrast(&desc, shape),
             kernels::irast(&desc),
+            kernels::hash(&desc, shape),
             kernels::zcompare(&desc, shape),
             kernels::compact_recycle(&desc, [0, 1]),
         ] {
@@ -294,6 +295,80 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
         let candidates: u64 = counts[c..].iter().map(|&w| u64::from(w)).sum();
         assert!(box_area > 0, "{name}: some triangles are kept");
         assert_eq!(candidates, box_area, "{name}: candidate pixels");
+        let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
+        assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
+    }
+}
+
+#[test]
+fn reciprocal_divides_every_pixel_address_exactly() {
+    for d in [3u32, 5, 7, 40, 100, 640, 720, 1000, 1023, 4095] {
+        let (m, s) = kernels::reciprocal(d);
+        let quotient = |n: u32| ((u64::from(n) * u64::from(m)) >> 32) as u32 >> s;
+        // Every address of a 4096 × 512 window, and the largest ones the proof covers.
+        let big = (1u32 << 31) - 4096..1 << 31;
+        for n in (0..1 << 21).chain(big) {
+            assert_eq!(quotient(n), n / d, "{n} / {d}");
+        }
+    }
+}
+
+/// Whether each fragment of `addrs` conflicts with an earlier one: the same low five bits of
+/// x and y, the trash pixel excepted.
+fn conflicts(addrs: &[u32], width: u32, trash: u32) -> Vec<u32> {
+    let mut seen = std::collections::HashSet::new();
+    addrs
+        .iter()
+        .map(|&a| {
+            let key = ((a / width) & 31, (a % width) & 31);
+            u32::from(a != trash && !seen.insert(key))
+        })
+        .collect()
+}
+
+#[test]
+fn hash_holds_back_exactly_the_fragments_an_earlier_one_shares_a_stamp_key_with() {
+    use imagine_pipelines::kernel::KernelInputs;
+    for (name, width) in [("gold1", 40), ("gold8", 40), ("gold8", 64), ("gold32", 720)] {
+        let desc = MachineDesc::resolve(name).unwrap();
+        let c = desc.cluster.count;
+        let shape = FrameShape {
+            width,
+            height: 70,
+            clusters: c,
+            cull_back: false,
+            batch: c,
+        };
+        let k = kernels::hash(&desc, shape);
+        let compiled = compile(&k, &desc).unwrap();
+        // 256 fragments in a 40 × 8 corner (x and x + 32 alias), many of them on the same
+        // pixel, some in the same row of clusters; and nulls (the trash pixel).
+        let rows = 256 / c;
+        let mut state = 0x9E37_79B9u32;
+        let addrs: Vec<u32> = (0..rows * c)
+            .map(|i| {
+                state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                let r = state >> 8;
+                match i % 11 {
+                    10 => shape.trash(),
+                    _ => (r % 8) * width + (r >> 12) % 40,
+                }
+            })
+            .collect();
+        let inputs = KernelInputs {
+            streams: vec![addrs.clone(), vec![], vec![]],
+            params: vec![],
+        };
+        let golden = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
+        let want = conflicts(&addrs, width, shape.trash());
+        let held: u32 = want.iter().sum();
+        assert!(
+            held as usize > addrs.len() / 8 && (held as usize) < addrs.len() / 2,
+            "{name}: {held} of {} conflict",
+            addrs.len()
+        );
+        assert_eq!(golden[1], want, "{name}, width {width}: conflict flags");
+        assert_eq!(golden[2], vec![held; c], "{name}: the count row");
         let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
         assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
     }

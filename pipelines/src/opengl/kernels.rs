@@ -7,8 +7,9 @@
 //! | [`setup`] | triangle: assemble, clip (trivial reject), viewport, cull, xyprep, baryprep | 21 words → raster (12), interp (13), counts |
 //! | [`xyrast`] | run of 4 candidate pixels: coverage by three edge functions | raster → addr, tri, E0, E1, E2 (conditional) |
 //! | [`irast`] | fragment: perspective-correct colour and depth | E0..E2, interp → z, colour, prim |
-//! | [`zcompare`] | fragment: depth test LESS with primitive-order ties | z, colour, addr, prim, pixel → new pixel, its address, loser |
-//! | [`compact_recycle`] | fragment: keeps the losers of the owner race for the next round | loser, a, b → a', b' (conditional) |
+//! | [`hash`] | fragment: conflict with an earlier fragment of the round (32×32 stamp) | addr → conflict |
+//! | [`zcompare`] | fragment: depth test LESS with primitive-order ties | z, colour, addr, prim, pixel, conflict → new pixel, its address |
+//! | [`compact_recycle`] | fragment: keeps the conflicting fragments for the next round | conflict, a, b → a', b' (conditional) |
 //!
 //! **Rasterization** is homogeneous (Olano and Greer, "Triangle Scan Conversion using 2D
 //! Homogeneous Coordinates", Graphics Hardware 1997): with `v_k = ((x_k + w_k)·W/2,
@@ -53,10 +54,9 @@ const HI: u16 = 1;
 const TAG: u16 = 2;
 /// Words of an interpolation record: z_k / |det| (3), r, g, b per corner (9), primitive.
 pub const INTERP_WORDS: usize = 13;
-/// Words of a framebuffer pixel in DRAM: colour, depth, primitive, owner tag.
-pub const PIXEL_WORDS: usize = 4;
-/// Words `zcompare` writes back per pixel (colour, depth, primitive).
-pub const PIXEL_WRITE_WORDS: usize = 3;
+/// Words of a framebuffer pixel in DRAM (gathered and written back whole): colour, depth,
+/// primitive.
+pub const PIXEL_WORDS: usize = 3;
 /// Bits of the triangle's index in a raster record's tag (the top three hold the top-left
 /// flags).
 pub const TRI_BITS: u32 = 29;
@@ -642,14 +642,128 @@ pub fn irast(_desc: &MachineDesc) -> Kernel {
     finish(b)
 }
 
+/// Bits of a pixel's x and y the composite's hash keeps: a 32×32 stamp.
+pub const STAMP_BITS: u32 = 5;
+/// Scratchpad words of the stamp (one per y row, a bit per x), and the row null fragments
+/// use, which no pixel shares.
+const STAMP_ROWS: u16 = 1 << STAMP_BITS;
+const NULL_KEY: i32 = (STAMP_ROWS as i32) << STAMP_BITS;
+
+/// `(m, s)` such that `⌊n / d⌋ = ⌊n·m / 2^32⌋ >> s` for every `n < 2^31`, for a divisor
+/// `d ≥ 3` that is not a power of two (Granlund and Montgomery, "Division by Invariant
+/// Integers using Multiplication", PLDI 1994): with `s = ⌊log2 d⌋` and
+/// `m = ⌈2^(32+s) / d⌉ < 2^32`, the error `n·(m·d − 2^(32+s)) / (d·2^(32+s))` is below
+/// `n / 2^(32+s) < 1/d`, too small to carry `n / d` past the next integer.
+pub fn reciprocal(d: u32) -> (u32, u32) {
+    debug_assert!(d >= 3 && !d.is_power_of_two());
+    let s = 31 - d.leading_zeros();
+    let m = (1u64 << (32 + s)).div_ceil(u64::from(d));
+    (m as u32, s)
+}
+
+/// `hash`: the composite's conflict test (Owens et al., "Polygon Rendering on a Stream
+/// Architecture", Graphics Hardware 2000). A fragment conflicts when an earlier fragment of
+/// the same round (earlier in the stream) has the same key, the low [`STAMP_BITS`] bits of
+/// its pixel's x and y: the two would read and write back the same pixel. Outputs:
+/// `conflict`, unconditional: 1 for such a fragment (it waits for the next round), else 0;
+/// after the loop, `count`: a row of the number of conflicts (the same word in every
+/// cluster), for the host. Null fragments (the trash pixel) never conflict.
+///
+/// Each cluster keeps a 32×32 bit stamp of the keys of its own earlier fragments in its
+/// scratchpad (word `y & 31`, bit `x & 31`), cleared before the loop. An iteration rotates
+/// every cluster's key past every other cluster (`C − 1` comms); each cluster looks the
+/// keys up in its stamp, adds "the same key as mine, and I come first", and rotates the
+/// answers back (`C − 1` comms). Then each cluster stamps its own key. The pixel's x and y
+/// come from its address `y·W + x` by a multiply by the reciprocal of `W`.
+pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
+    let c = desc.cluster.count;
+    let mut b = KernelBuilder::new("hash");
+    let addr_in = b.input("addr");
+    let conflict_out = b.output("conflict");
+    let count_out = b.output("count");
+    let (zero, one) = (b.i32(0), b.i32(1));
+    let low = b.i32((1 << STAMP_BITS) - 1);
+    let row_words = b.i32(1 << STAMP_BITS);
+    // `mulhi(key, 2^(32 − 5))` is `key >> 5`.
+    let key_to_row = b.word(1 << (32 - STAMP_BITS));
+    let null_key = b.i32(NULL_KEY);
+    let trash = b.i32(shape.trash() as i32);
+    let width = b.i32(shape.width as i32);
+    for row in 0..=STAMP_ROWS {
+        b.sp_write(row, None, zero);
+    }
+    // Rotation t brings cluster (c + t) mod C's key to cluster c, which comes first when
+    // c + t < C.
+    let lane = b.cluster_id();
+    let first: Vec<Value> = (1..c)
+        .map(|t| {
+            let bound = b.i32((c - t) as i32);
+            let before = b.ilt(lane, bound);
+            flag(&mut b, before)
+        })
+        .collect();
+    b.begin_loop(LoopSpec::OverStream(addr_in));
+    let count0 = b.carried(zero);
+    let n = b.read_i32(addr_in);
+    let y = if shape.width.is_power_of_two() {
+        let s = b.i32(shape.width.trailing_zeros() as i32);
+        b.shr(n, s)
+    } else {
+        let (m, s) = reciprocal(shape.width);
+        let m = b.word(m);
+        let s = b.i32(s as i32);
+        let q = b.op(Op::IMulHiU, &[n, m]);
+        b.shr(q, s)
+    };
+    let row_start = b.imul(y, width);
+    let x = b.isub(n, row_start);
+    // Shifts by a constant are multiplies where they can be: the adders are the busier.
+    let key = {
+        let ky = b.and(y, low);
+        let ky = b.imul(ky, row_words);
+        let kx = b.and(x, low);
+        b.or(ky, kx)
+    };
+    let valid = b.ine(n, trash);
+    let key = b.select(valid, key, null_key);
+    let row_of = |b: &mut KernelBuilder, key: Value| b.op(Op::IMulHiU, &[key, key_to_row]);
+    let row = row_of(&mut b, key);
+    // `shr` by a key shifts by its low five bits, the x: bit 0 is then the key's stamp bit.
+    let mine = b.sp_read(0, Some(row));
+    let mut conflict = b.shr(mine, key);
+    for t in 1..c {
+        let other = b.comm(key, Perm::Rotate(t as u16));
+        let other_row = row_of(&mut b, other);
+        let stamped = b.sp_read(0, Some(other_row));
+        let seen = b.shr(stamped, other);
+        let same = b.ieq(other, key);
+        let before = b.select(same, first[t - 1], zero);
+        let answer = b.or(seen, before);
+        let back = b.comm(answer, Perm::Rotate((c - t) as u16));
+        conflict = b.or(conflict, back);
+    }
+    let bit = b.shl(one, key);
+    let stamped = b.or(mine, bit);
+    b.sp_write(0, Some(row), stamped);
+    let conflict = b.and(conflict, one);
+    let conflict = b.select(valid, conflict, zero);
+    b.write(conflict_out, conflict);
+    let count = b.iadd(count0, conflict);
+    b.set_next(count0, count);
+    b.end_loop();
+    let total = all_reduce(&mut b, c, count0, KernelBuilder::iadd);
+    b.write(count_out, total);
+    finish(b)
+}
+
 /// `zcompare`: the depth test LESS of a fragment against its pixel (colour, depth,
-/// primitive, owner), gathered from the framebuffer. Only the fragment whose primitive
-/// number the owner word holds (the one that won this round's scatter) may write; it
-/// passes if its depth is in [0, 1] and less than the pixel's, or equal to it with an
-/// earlier primitive (OpenGL's ordering: the later of two equal depths fails LESS).
-/// Outputs, unconditional: the pixel to write back (3 words) and where (`newaddr`: the
-/// fragment's pixel if it passed, else the trash pixel), and `loser`: 1 for a fragment with
-/// a valid depth that did not own its pixel this round (it tries again).
+/// primitive), gathered from the framebuffer. A fragment `hash` found in conflict waits for
+/// the next round; any other passes if its depth is in [0, 1] and less than the pixel's, or
+/// equal to it with an earlier primitive (OpenGL's ordering: the later of two equal depths
+/// fails LESS). The test is a minimum over (depth, primitive), so the order in which the
+/// rounds reach a pixel does not change the result. Outputs, unconditional: the pixel to
+/// write back (3 words) and where (`newaddr`: the fragment's pixel if it passed, else the
+/// trash pixel).
 pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let mut b = KernelBuilder::new("zcompare");
     let z_in = b.input("z");
@@ -657,56 +771,35 @@ pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let addr_in = b.input("addr");
     let prim_in = b.input("prim");
     let pixel_in = b.input("pixel");
+    let conflict_in = b.input("conflict");
     let pixel_out = b.output("new_pixel");
     let newaddr_out = b.output("newaddr");
-    let loser_out = b.output("loser");
-    let (zero_f, one_f) = (b.f32(0.0), b.f32(1.0));
-    let (zero, one) = (b.i32(0), b.i32(1));
     let trash = b.i32(shape.trash() as i32);
     b.begin_loop(LoopSpec::OverStream(z_in));
-    let z = b.read_f32(z_in);
+    let z = b.read(z_in);
     let colour = b.read(colour_in);
     let addr = b.read_i32(addr_in);
     let prim = b.read_i32(prim_in);
     let old: Vec<Value> = (0..PIXEL_WORDS).map(|_| b.read(pixel_in)).collect();
-    let (old_colour, old_z, old_prim, owner) = (
-        old[0],
-        b.cast(old[1], Ty::F32),
-        b.cast(old[2], Ty::I32),
-        b.cast(old[3], Ty::I32),
-    );
-    let owns = b.ieq(owner, prim);
-    let owns = flag(&mut b, owns);
-    let above = b.fle(zero_f, z);
-    let below = b.fle(z, one_f);
-    let valid = {
-        let a = flag(&mut b, above);
-        let c = flag(&mut b, below);
-        b.and(a, c)
-    };
-    let less = b.flt(z, old_z);
-    let equal = b.feq(z, old_z);
+    let (old_colour, old_z, old_prim) = (old[0], old[1], old[2]);
+    let conflict = b.read_i32(conflict_in);
+    // The framebuffer holds only depths in [+0, 1], whose words order like the depths;
+    // every other word (negative, above 1, NaN) is above 1.0's and so never less than the
+    // pixel's nor equal to it. (depth, primitive) then compare as a pair of unsigned words.
+    let less = b.iltu(z, old_z);
+    let equal = b.ieq(z, old_z);
+    // A pixel never drawn has primitive 0, which no fragment precedes.
     let earlier = b.iltu(prim, old_prim);
-    let drawn = b.ine(old_prim, zero);
-    let tie = {
-        let e = flag(&mut b, equal);
-        let r = flag(&mut b, earlier);
-        let d = flag(&mut b, drawn);
-        let t = b.and(e, r);
-        b.and(t, d)
+    let wins = {
+        let less = flag(&mut b, less);
+        let earlier = flag(&mut b, earlier);
+        b.select(equal, earlier, less)
     };
-    let less = flag(&mut b, less);
-    let wins = b.or(less, tie);
-    let pass = b.and(wins, owns);
-    let pass = b.and(pass, valid);
-    let pass = cond(&mut b, pass);
+    // Both 0 or 1: passes when it wins and does not conflict.
+    let pass = b.ilt(conflict, wins);
     let new = [
         b.select(pass, colour, old_colour),
-        {
-            let zw = b.cast(z, Ty::Word);
-            let ow = b.cast(old_z, Ty::Word);
-            b.select(pass, zw, ow)
-        },
+        b.select(pass, z, old_z),
         b.select(pass, prim, old_prim),
     ];
     for w in new {
@@ -714,27 +807,25 @@ pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     }
     let where_ = b.select(pass, addr, trash);
     b.write(newaddr_out, where_);
-    let lost = b.xor(owns, one);
-    let loser = b.and(lost, valid);
-    b.write(loser_out, loser);
     b.end_loop();
     finish(b)
 }
 
-/// `compact_recycle`: keeps the words of streams `a` and `b` whose `loser` flag is set, in
-/// order, then a row of nulls (`nulls`).
+/// `compact_recycle`: keeps the words of streams `a` and `b` whose `conflict` flag is set,
+/// in order, then a row of nulls (`nulls`): the fragments `hash` held back, for the next
+/// round.
 pub fn compact_recycle(_desc: &MachineDesc, nulls: [u32; 2]) -> Kernel {
     let mut b = KernelBuilder::new("compact_recycle");
-    let loser_in = b.input("loser");
+    let conflict_in = b.input("conflict");
     let a_in = b.input("a");
     let b_in = b.input("b");
     let a_out = b.output("a_kept");
     let b_out = b.output("b_kept");
-    b.begin_loop(LoopSpec::OverStream(loser_in));
-    let loser = b.read_i32(loser_in);
+    b.begin_loop(LoopSpec::OverStream(conflict_in));
+    let conflict = b.read_i32(conflict_in);
     let a = b.read(a_in);
     let c = b.read(b_in);
-    let keep = cond(&mut b, loser);
+    let keep = cond(&mut b, conflict);
     b.write_if(a_out, keep, a);
     b.write_if(b_out, keep, c);
     b.end_loop();

@@ -8,10 +8,11 @@
 //! (the whole window unless the batch overflows) run `setup`, store its interpolation
 //! records to memory and run `xyrast` for as many iterations as `setup` counted. Fragments
 //! then go through in chunks: gather their interpolation records by triangle index, run
-//! `irast`, and composite in rounds — scatter each fragment's primitive number to its
-//! pixel's owner word, gather the pixels, run `zcompare`, scatter the pixels that passed,
-//! and recycle the fragments that lost the owner race (`compact_recycle`) until none is
-//! left. The framebuffer (colour, depth, primitive, owner per pixel) lives in DRAM.
+//! `irast`, and composite in rounds — gather the fragments' pixels while `hash` marks
+//! the fragments that share a pixel (their stamp key) with an earlier one, run `zcompare`
+//! on the others, scatter the pixels that passed, and recycle the conflicting fragments
+//! (`compact_recycle`) until none is left. The framebuffer (colour, depth, primitive per
+//! pixel) lives in DRAM.
 //!
 //! **Two batches in flight.** The next batch's vertices are loaded while this one is set
 //! up, and its vertex program is queued right after this batch's `xyrast`, so that it runs
@@ -45,9 +46,7 @@ use imagine_units::processor::{self, ProcessorOptions, StreamProgram};
 use imagine_units::stream_controller::StreamInstr;
 use serde::Serialize;
 
-use super::kernels::{
-    self, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS, PIXEL_WRITE_WORDS, RASTER_WORDS,
-};
+use super::kernels::{self, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS};
 use crate::compile::{Compiled, compile};
 use crate::kernel::Kernel;
 use crate::scene::{Scene, Shading};
@@ -134,6 +133,7 @@ struct Kernels {
     setup: usize,
     xyrast: usize,
     irast: usize,
+    hash: usize,
     zcompare: usize,
     recycle_zc: usize,
     recycle_ap: usize,
@@ -154,6 +154,7 @@ fn compile_all(
         kernels::setup(desc, shape),
         kernels::xyrast(desc, shape),
         kernels::irast(desc),
+        kernels::hash(desc, shape),
         kernels::zcompare(desc, shape),
         kernels::compact_recycle(desc, [NULL_DEPTH, 0]),
         kernels::compact_recycle(desc, [shape.trash(), 0]),
@@ -171,9 +172,10 @@ fn compile_all(
         setup: 1,
         xyrast: 2,
         irast: 3,
-        zcompare: 4,
-        recycle_zc: 5,
-        recycle_ap: 6,
+        hash: 4,
+        zcompare: 5,
+        recycle_zc: 6,
+        recycle_ap: 7,
         compiled,
     })
 }
@@ -226,7 +228,9 @@ struct Regions {
     pixel: usize,
     new_pixel: usize,
     newaddr: usize,
-    loser: usize,
+    conflict: usize,
+    /// `hash`'s row of conflict counts.
+    conflicts: usize,
     /// Fragments per chunk.
     chunk: usize,
 }
@@ -536,35 +540,26 @@ impl Host {
         loop {
             self.stats.composite_rounds += 1;
             let r = &self.r;
-            let (pixel, new_pixel, newaddr, loser) = (r.pixel, r.new_pixel, r.newaddr, r.loser);
+            let (pixel, new_pixel, newaddr, conflict) =
+                (r.pixel, r.new_pixel, r.newaddr, r.conflict);
             let next = r.zcap[set];
             let (fb, pixels) = (self.m.framebuffer, self.m.pixels);
             let [z, colour, addr, prim] = current;
-            // Owner race: the last scatter to a pixel wins it for this round.
-            self.push(StreamInstr::Memory(MemOp {
-                kind: MemOpKind::Store,
-                base: fb + 3,
-                pattern: Pattern::Indexed {
-                    index_start: addr,
-                    scale: PIXEL_WORDS as u64,
-                    bound: Some(pixels),
-                },
-                record_words: 1,
-                records: len,
-                srf_start: prim,
-                row_records: 1,
-            }));
-            self.mem(
-                MemOpKind::Load,
-                fb,
-                Pattern::Indexed {
-                    index_start: addr,
-                    scale: PIXEL_WORDS as u64,
-                    bound: Some(pixels),
-                },
-                PIXEL_WORDS,
-                len,
-                pixel,
+            let by_pixel = Pattern::Indexed {
+                index_start: addr,
+                scale: PIXEL_WORDS as u64,
+                bound: Some(pixels),
+            };
+            // The pixels are gathered while `hash` looks for conflicts.
+            self.mem(MemOpKind::Load, fb, by_pixel, PIXEL_WORDS, len, pixel);
+            let hashed = self.kernel(
+                self.k.hash,
+                vec![
+                    bind(addr, len),
+                    bind(conflict, len),
+                    bind(self.r.conflicts, self.clusters),
+                ],
+                None,
             );
             self.kernel(
                 self.k.zcompare,
@@ -574,9 +569,9 @@ impl Host {
                     bind(addr, len),
                     bind(prim, len),
                     bind(pixel, len * PIXEL_WORDS),
-                    bind(new_pixel, len * PIXEL_WRITE_WORDS),
+                    bind(conflict, len),
+                    bind(new_pixel, len * PIXEL_WORDS),
                     bind(newaddr, len),
-                    bind(loser, len),
                 ],
                 None,
             );
@@ -588,15 +583,21 @@ impl Host {
                     scale: PIXEL_WORDS as u64,
                     bound: Some(pixels),
                 },
-                PIXEL_WRITE_WORDS,
+                PIXEL_WORDS,
                 len,
                 new_pixel,
             );
+            // The zcompare and the scatter are queued; the host needs only the count.
+            self.wait_for(hashed)?;
+            let conflicts = self.read_srf(self.r.conflicts, 1)?[0] as usize;
+            if conflicts == 0 {
+                return Ok(());
+            }
             let cap = self.r.chunk + self.clusters;
-            let a = self.kernel(
+            self.kernel(
                 self.k.recycle_zc,
                 vec![
-                    bind(loser, len),
+                    bind(conflict, len),
                     bind(z, len),
                     bind(colour, len),
                     bind(next[0], cap),
@@ -607,7 +608,7 @@ impl Host {
             self.kernel(
                 self.k.recycle_ap,
                 vec![
-                    bind(loser, len),
+                    bind(conflict, len),
                     bind(addr, len),
                     bind(prim, len),
                     bind(next[2], cap),
@@ -615,13 +616,9 @@ impl Host {
                 ],
                 None,
             );
-            self.wait_for(a)?;
-            let kept = self.outputs(a)[3];
+            // The conflicting fragments, then `compact_recycle`'s row of nulls: whole rows.
             let c = self.clusters;
-            if kept <= c {
-                return Ok(());
-            }
-            len = kept / c * c;
+            len = (conflicts + c) / c * c;
             current = next;
             set = if set == 1 { 2 } else { 1 };
         }
@@ -670,9 +667,10 @@ fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, Rend
         }
     }
     let pixel = p.take(chunk * PIXEL_WORDS)?;
-    let new_pixel = p.take(chunk * PIXEL_WRITE_WORDS)?;
+    let new_pixel = p.take(chunk * PIXEL_WORDS)?;
     let newaddr = p.take(chunk)?;
-    let loser = p.take(chunk)?;
+    let conflict = p.take(chunk)?;
+    let conflicts = p.take(c)?;
     let tickets_words = p.next - tickets;
     // What is left: the five xyrast outputs, equal shares.
     let left = p.words.saturating_sub(p.next);
@@ -702,7 +700,8 @@ fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, Rend
         pixel,
         new_pixel,
         newaddr,
-        loser,
+        conflict,
+        conflicts,
         chunk,
     })
 }
@@ -784,7 +783,7 @@ pub fn render(
     let pixels = (scene.width * scene.height) as usize + 1;
     let mut fb = Vec::with_capacity(pixels * PIXEL_WORDS);
     for _ in 0..pixels {
-        fb.extend([0xFF00_0000, 1.0f32.to_bits(), 0, 0]);
+        fb.extend([0xFF00_0000, 1.0f32.to_bits(), 0]);
     }
     let align = |x: u64| x.div_ceil(1024) * 1024;
     let interp = align(verts.len() as u64);
