@@ -644,8 +644,16 @@ fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, Rend
     };
     // Fragments per chunk. Its buffers also hold xyrast's tickets, so smaller chunks split
     // more tiles, and larger ones leave fewer words for fragments; 96 was the fastest on
-    // SPHERE (gold8) of the sizes 64 to 256 tried.
-    let chunk = (96usize.div_ceil(c) * c).max(c);
+    // SPHERE (gold8) of the sizes 64 to 256 tried. A chunk is whole rows of clusters and
+    // whole SRF blocks: its slices of the fragment streams start on block boundaries.
+    let gcd = |mut a: usize, mut b: usize| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let unit = c / gcd(c, desc.srf.block_words) * desc.srf.block_words;
+    let chunk = 96usize.div_ceil(unit) * unit;
     let vertex_params = p.take(params * c)?;
     let setup_params = p.take(5 * c)?;
     let vertices = p.take(3 * batch * VERTEX_WORDS)?;
