@@ -313,14 +313,15 @@ fn reciprocal_divides_every_pixel_address_exactly() {
     }
 }
 
-/// Whether each fragment of `addrs` conflicts with an earlier one: the same low five bits of
-/// x and y, the trash pixel excepted.
+/// Whether each fragment of `addrs` conflicts with an earlier one: the same stamp row
+/// `(y + x / 32) mod 32` and bit `x mod 32`, the trash pixel excepted.
 fn conflicts(addrs: &[u32], width: u32, trash: u32) -> Vec<u32> {
     let mut seen = std::collections::HashSet::new();
     addrs
         .iter()
         .map(|&a| {
-            let key = ((a / width) & 31, (a % width) & 31);
+            let (x, y) = (a % width, a / width);
+            let key = ((y + x / 32) & 31, x & 31);
             u32::from(a != trash && !seen.insert(key))
         })
         .collect()
@@ -341,7 +342,7 @@ fn hash_holds_back_exactly_the_fragments_an_earlier_one_shares_a_stamp_key_with(
         };
         let k = kernels::hash(&desc, shape);
         let compiled = compile(&k, &desc).unwrap();
-        // 256 fragments in a 40 × 8 corner (x and x + 32 alias), many of them on the same
+        // 256 fragments in a 40 × 8 corner ((x + 32, y) and (x, y + 1) alias), many of them on the same
         // pixel, some in the same row of clusters; and nulls (the trash pixel).
         let rows = 256 / c;
         let mut state = 0x9E37_79B9u32;

@@ -663,14 +663,17 @@ pub fn reciprocal(d: u32) -> (u32, u32) {
 
 /// `hash`: the composite's conflict test (Owens et al., "Polygon Rendering on a Stream
 /// Architecture", Graphics Hardware 2000). A fragment conflicts when an earlier fragment of
-/// the same round (earlier in the stream) has the same key, the low [`STAMP_BITS`] bits of
-/// its pixel's x and y: the two would read and write back the same pixel. Outputs:
+/// the same round (earlier in the stream) has the same key, a hash of its pixel's x and y:
+/// the two might read and write back the same pixel. Outputs:
 /// `conflict`, unconditional: 1 for such a fragment (it waits for the next round), else 0;
 /// after the loop, `count`: a row of the number of conflicts (the same word in every
 /// cluster), for the host. Null fragments (the trash pixel) never conflict.
 ///
-/// Each cluster keeps a 32×32 bit stamp of the keys of its own earlier fragments in its
-/// scratchpad (word `y & 31`, bit `x & 31`), cleared before the loop. An iteration rotates
+/// The key of pixel (x, y) is row `(y + ⌊x / 32⌋) mod 32`, bit `x mod 32` of a 32×32
+/// stamp: the low five bits of x and y, with the row skewed by x's next bits so that the
+/// pixels of a long span (x, x + 32, x + 64 …, one row of a wide triangle or a strip of
+/// thin ones) do not alias. Each cluster keeps the stamp of its own earlier fragments in
+/// its scratchpad (one word per row), cleared before the loop. An iteration rotates
 /// every cluster's key past every other cluster (`C − 1` comms); each cluster looks the
 /// keys up in its stamp, adds "the same key as mine, and I come first", and rotates the
 /// answers back (`C − 1` comms). Then each cluster stamps its own key. The pixel's x and y
@@ -684,7 +687,7 @@ pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let (zero, one) = (b.i32(0), b.i32(1));
     let low = b.i32((1 << STAMP_BITS) - 1);
     let row_words = b.i32(1 << STAMP_BITS);
-    // `mulhi(key, 2^(32 − 5))` is `key >> 5`.
+    // `mulhi(v, 2^(32 − 5))` is `v >> 5`.
     let key_to_row = b.word(1 << (32 - STAMP_BITS));
     let null_key = b.i32(NULL_KEY);
     let trash = b.i32(shape.trash() as i32);
@@ -719,7 +722,9 @@ pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let x = b.isub(n, row_start);
     // Shifts by a constant are multiplies where they can be: the adders are the busier.
     let key = {
-        let ky = b.and(y, low);
+        let span = b.op(Op::IMulHiU, &[x, key_to_row]);
+        let ky = b.iadd(y, span);
+        let ky = b.and(ky, low);
         let ky = b.imul(ky, row_words);
         let kx = b.and(x, low);
         b.or(ky, kx)
