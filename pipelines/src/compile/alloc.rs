@@ -215,3 +215,83 @@ pub fn allocate(
     }
     Ok(out)
 }
+
+/// Values live in each location (LRFs, then the condition codes) in the loop at interval
+/// `ii`: per row of the interval, the loop's values written there (from landing to last
+/// read), and the values kept there for the whole loop.
+pub struct Liveness {
+    pub rows: Vec<Vec<usize>>,
+    pub kept: Vec<usize>,
+}
+
+impl Liveness {
+    pub fn new(
+        g: &Graph,
+        s: &Schedule,
+        slots: &Slots,
+        ii: i64,
+        desc: &imagine_units::desc::MachineDesc,
+    ) -> Liveness {
+        let nlrf = slots.lrfs();
+        let perm = permanent(g);
+        let mut kept = vec![0usize; nlrf + 1];
+        let mut rows = vec![vec![0usize; ii as usize]; nlrf + 1];
+        let last_read = loop_reads(g, s, slots);
+        for (u, op) in g.ops.iter().enumerate() {
+            if perm[u] && op.tie.is_none() {
+                for &loc in &s.dests[u] {
+                    kept[index(slots, loc)] += 1;
+                }
+                continue;
+            }
+            if perm[u] || op.region != Region::Loop {
+                continue;
+            }
+            let Some(pl) = s.place[u] else { continue };
+            let w = pl.time + g.latency(u, desc);
+            for &loc in &s.dests[u] {
+                let r = last_read
+                    .get(&(u, loc))
+                    .copied()
+                    .unwrap_or(w + 1)
+                    .max(w + 1);
+                for c in w..r.min(w + ii) {
+                    rows[index(slots, loc)][c.rem_euclid(ii) as usize] += 1;
+                }
+            }
+        }
+        Liveness { rows, kept }
+    }
+
+    /// The most values live at once in location `k` (an index as [`index`] gives).
+    pub fn peak(&self, k: usize) -> usize {
+        self.kept[k] + self.rows[k].iter().copied().max().unwrap_or(0)
+    }
+}
+
+/// The index of a location in [`Liveness`]: LRFs, then the condition codes.
+pub fn index(slots: &Slots, loc: Loc) -> usize {
+    match loc {
+        Loc::Lrf(l) => l as usize,
+        Loc::Cc => slots.lrfs(),
+    }
+}
+
+/// The last cycle each loop value is read from each location.
+pub fn loop_reads(g: &Graph, s: &Schedule, slots: &Slots) -> HashMap<(usize, Loc), i64> {
+    let mut last_read: HashMap<(usize, Loc), i64> = HashMap::new();
+    for (u, op) in g.ops.iter().enumerate() {
+        let Some(pl) = s.place[u] else { continue };
+        if op.region != Region::Loop {
+            continue;
+        }
+        for a in &op.args {
+            if let Source::Local(p) = a.src {
+                let loc = slots.operand_loc(op.kind, pl.slot, pl.swap, a);
+                let e = last_read.entry((p, loc)).or_insert(pl.time);
+                *e = (*e).max(pl.time);
+            }
+        }
+    }
+    last_read
+}

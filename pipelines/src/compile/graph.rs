@@ -183,6 +183,9 @@ pub struct Graph {
     /// Program streams: the kernel's, then `params` if it has parameters.
     pub params_stream: Option<u16>,
     pub main_loop: Option<LoopSpec>,
+    /// Issue cycles of the loop's ops in its straight-line schedule (indexed by op; empty
+    /// when there is none): the order the modulo scheduler places them in.
+    pub hint: Vec<i64>,
 }
 
 impl Graph {
@@ -427,6 +430,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
             ops: Vec::new(),
             params_stream,
             main_loop: kernel.main_loop,
+            hint: Vec::new(),
         },
         op_of: vec![None; n],
         carried_mov: vec![None; n],

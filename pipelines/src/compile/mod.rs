@@ -11,8 +11,10 @@
 //! The initiation interval starts at its lower bound, the larger of the resource bound
 //! (ops per unit class over units, stream words over SRF ports, …) and the recurrence bound
 //! (the longest dependence cycle through carried values and scratchpad order), and rises
-//! until the loop schedules, fits the stage field and its values fit the LRFs. A kernel that
-//! cannot fit fails with a [`CompileError`] naming the kernel and the resource.
+//! until the loop schedules, fits the stage field and its values fit the LRFs (a full LRF
+//! first gets copies into the adders' LRFs around the schedule as it is, then a schedule
+//! with a copy). A kernel that cannot fit fails with a [`CompileError`] naming the kernel
+//! and the resource.
 
 pub mod alloc;
 pub mod bind;
@@ -140,10 +142,10 @@ fn search(
             });
     }
     // Copies that move long-lived values out of a full LRF, then the same mode again.
-    let with_repairs = |mode: LoopMode| -> Result<Attempted, Retry> {
+    let with_repairs = |base: &Graph, mode: LoopMode, repairs: usize| -> Result<Attempted, Retry> {
         let mut work = base.clone();
         let mut last = None;
-        for _repair in 0..=MAX_REPAIRS {
+        for _repair in 0..=repairs {
             match try_ii(kernel, &work, desc, slots, mode) {
                 Err(Retry::Repair(g, e)) => {
                     work = *g;
@@ -154,9 +156,22 @@ fn search(
         }
         Err(Retry::Larger(last.expect("repairs were tried")))
     };
-    // The body list-scheduled, one iteration at a time: the interval to beat.
-    let line = match with_repairs(LoopMode::Line) {
-        Ok(a) => Some(compiled(a)),
+    // The body list-scheduled, one iteration at a time: the interval to beat. Its order is
+    // also the order the scheduler places big loops in far from their bound.
+    let mut hinted = base.clone();
+    let line = match with_repairs(base, LoopMode::Line, MAX_REPAIRS) {
+        Ok(a) => {
+            hinted.hint = (0..base.ops.len())
+                .map(|o| {
+                    if base.ops[o].region == Region::Loop {
+                        a.2.place[o].map_or(-1, |p| p.time)
+                    } else {
+                        -1
+                    }
+                })
+                .collect();
+            Some(compiled(a))
+        }
         Err(Retry::Fatal(e) | Retry::Larger(e) | Retry::Repair(_, e)) => {
             last_error = Some(e);
             None
@@ -166,18 +181,32 @@ fn search(
         Some(c) => (c.report.ii.unwrap_or(1) - 1).min(max_ii),
         None => max_ii,
     };
-    // Software pipelining pays for big bodies only when close to the bound.
-    let max_ii = if mii >= 64 {
+    // Big bodies are tried close to their bound first, in the order of their heights, …
+    let near = if mii >= 64 {
         max_ii.min(mii + mii / 4)
     } else {
         max_ii
     };
-    for ii in mii..=max_ii {
-        match with_repairs(LoopMode::Modulo(ii as i64)) {
+    for ii in mii..=near {
+        match with_repairs(base, LoopMode::Modulo(ii as i64), MAX_REPAIRS) {
             Ok(a) => return Ok(compiled(a)),
             Err(Retry::Fatal(e)) => return Err(e),
             Err(Retry::Larger(e) | Retry::Repair(_, e)) => {
                 last_error = Some(e);
+            }
+        }
+    }
+    // … then up to the straight-line interval, in the order of the straight-line schedule
+    // (which keeps the dense part of the body as the list scheduler packed it, and fills
+    // the rest of the interval with the next iteration's serial tail), with fewer repairs.
+    if !hinted.hint.is_empty() {
+        for ii in near + 1..=max_ii {
+            match with_repairs(&hinted, LoopMode::Modulo(ii as i64), WIDE_REPAIRS) {
+                Ok(a) => return Ok(compiled(a)),
+                Err(Retry::Fatal(e)) => return Err(e),
+                Err(Retry::Larger(e) | Retry::Repair(_, e)) => {
+                    last_error = Some(e);
+                }
             }
         }
     }
@@ -226,8 +255,15 @@ enum LoopMode {
     Line,
 }
 
+/// How far below its size [`schedule::relieve`] may take an LRF's peak of live values for
+/// the allocation (first fit, round the interval) to succeed.
+const RELIEF_SLACK: usize = 4;
+
 /// Repairs of a full LRF tried at one initiation interval before a larger one.
 const MAX_REPAIRS: usize = 96;
+
+/// Repairs tried at each interval far from the bound (see [`search`]).
+const WIDE_REPAIRS: usize = 16;
 
 enum Retry {
     /// Try a larger initiation interval.
@@ -307,7 +343,33 @@ fn try_ii(
     let providers = fan_out(&mut g, &mut s);
     schedule_region(&mut g, &mut s, Region::Pre, None, slots, desc)
         .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
-    let entries = alloc::allocate(&g, &s, slots, ii, desc).map_err(|o| {
+    // A full LRF in the loop first gets copies that move its long-waiting values to the
+    // adders' LRFs, the schedule kept (see [`schedule::relieve`]); then, if that is not
+    // enough, it is repaired by rescheduling with a copy.
+    let mut lowered = vec![0usize; slots.lrfs()];
+    let mut allocated = alloc::allocate(&g, &s, slots, ii, desc);
+    while let (Err(o), Some(ii), LoopMode::Modulo(_)) = (&allocated, ii, mode) {
+        let (Some(Region::Loop), Loc::Lrf(l)) = (o.region, o.loc) else {
+            break;
+        };
+        let l = l as usize;
+        let cap = slots.shape.lrf_sizes[l];
+        if lowered[l] > RELIEF_SLACK {
+            break;
+        }
+        let peak = alloc::Liveness::new(&g, &s, slots, ii, desc).peak(l);
+        let target = if peak > cap {
+            cap - lowered[l]
+        } else {
+            peak - 1
+        };
+        lowered[l] = cap - target + 1;
+        if !schedule::relieve(&mut g, &mut s, ii, o.loc, target, slots, desc) {
+            break;
+        }
+        allocated = alloc::allocate(&g, &s, slots, Some(ii), desc);
+    }
+    let entries = allocated.map_err(|o| {
         let name = match o.loc {
             Loc::Lrf(l) => format!("LRF {}", slots.shape.lrf_names[l as usize]),
             Loc::Cc => "condition codes".into(),

@@ -522,6 +522,25 @@ fn attempt_modulo(
     }
     let jit = |o: usize| g.ops[o].just_in_time;
     let latency: Vec<i64> = (0..n).map(|o| g.latency(o, desc)).collect();
+    // Ops go in the order of the loop body's straight-line schedule when there is one
+    // (copies added since then just after what they copy), else in height order.
+    let height = if !g.hint.is_empty() {
+        let mut h = vec![0i64; n];
+        for &o in &order {
+            h[o] = match g.hint.get(o) {
+                Some(&t) if t >= 0 => t,
+                _ => preds[o]
+                    .iter()
+                    .filter(|e| e.distance == 0)
+                    .map(|e| h[e.from] + e.latency)
+                    .max()
+                    .unwrap_or(0),
+            };
+        }
+        h.iter().map(|&t| -t).collect()
+    } else {
+        height
+    };
     let mut queue: std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)> = ops
         .iter()
         .filter(|&&o| !jit(o) || succs[o].is_empty())
@@ -1049,4 +1068,224 @@ fn try_place(
         swap: op.swap,
     });
     Ok(())
+}
+
+/// A way to take value `p` out of an LRF for a while (see [`relieve`]).
+#[derive(Clone, Debug)]
+struct Relief {
+    /// Cycles of the LRF freed.
+    saved: i64,
+    p: usize,
+    /// The adder whose `a` LRF holds the value meanwhile, and whose `mov`s copy it back.
+    adder: usize,
+    /// `p` still writes the LRF (for its early readers).
+    keep: bool,
+    /// Each copy: its issue cycle and the first and last reader cycles it serves.
+    copies: Vec<(i64, i64, i64)>,
+}
+
+/// Takes values out of the loop's LRF `loc` until no more than `target` are live in it at
+/// once, without moving any op: a value waiting long in `loc` for its readers is written
+/// to an adder's `a` LRF instead (or as well, for the readers before the wait), and a `mov`
+/// on that adder, placed in a free adder issue slot as late as the readers allow, carries
+/// it back into `loc` just in time (two `mov`s when the value has early readers and no
+/// destination to spare). This is the copy insertion of communication scheduling (Mattson
+/// et al., MICRO 2000) applied after the fact to a modulo schedule, as register-pressure
+/// repairs of modulo schedules add spill code to a schedule rather than schedule again
+/// (Zalamea et al., "Improved spill code generation for software pipelined loops", PLDI
+/// 2000), with copies to roomier LRFs in place of spills. Returns whether `loc` got down to
+/// `target`.
+#[allow(clippy::too_many_arguments)]
+pub fn relieve(
+    g: &mut Graph,
+    sched: &mut Schedule,
+    ii: i64,
+    loc: Loc,
+    target: usize,
+    slots: &Slots,
+    desc: &MachineDesc,
+) -> bool {
+    use super::alloc::{Liveness, index, loop_reads};
+    let Loc::Lrf(lrf) = loc else { return false };
+    let mut table = Table::new(ii, slots);
+    for u in g.in_region(Region::Loop) {
+        let Some(p) = sched.place[u] else {
+            return false;
+        };
+        if try_place(g, sched, &mut table, u, p.time, slots, desc).is_err() {
+            return false;
+        }
+    }
+    let lm = i64::from(Op::Mov.latency(&desc.latency));
+    let k = index(slots, loc);
+    let adders: Vec<usize> = slots.fu_slots(UnitClass::Adder).collect();
+    // (Each copy frees part of a row at least; this only bounds a runaway.)
+    for _ in 0..ii.max(64) {
+        let ops = g.in_region(Region::Loop);
+        let perm = super::alloc::permanent(g);
+        let live = Liveness::new(g, sched, slots, ii, desc);
+        if live.peak(k) <= target {
+            return true;
+        }
+        let peak = live.rows[k].iter().copied().max().unwrap_or(0);
+        let row = live.rows[k].iter().position(|&x| x == peak).unwrap_or(0) as i64;
+        let last_read = loop_reads(g, sched, slots);
+        let covers =
+            |from: i64, to: i64| (from..to.min(from + ii)).any(|c| c.rem_euclid(ii) == row);
+        // Readers of each value through `loc`, and when.
+        let mut times: std::collections::BTreeMap<usize, Vec<i64>> = Default::default();
+        for &r in &ops {
+            let Some(pr) = sched.place[r] else { continue };
+            for a in &g.ops[r].args {
+                if let Source::Local(p) = a.src
+                    && slots.operand_loc(g.ops[r].kind, pr.slot, pr.swap, a) == loc
+                {
+                    times.entry(p).or_default().push(pr.time);
+                }
+            }
+        }
+        let mut best: Option<Relief> = None;
+        for (&p, times) in &mut times {
+            times.sort_unstable();
+            times.dedup();
+            let op = &g.ops[p];
+            if perm[p]
+                || !sched.dests[p].contains(&loc)
+                || op.seeded.contains(&loc)
+                || sched.required[p].iter().any(|&(l, _)| l == loc)
+            {
+                continue;
+            }
+            let Some(pp) = sched.place[p] else { continue };
+            let w = pp.time + g.latency(p, desc);
+            if !covers(w, times[times.len() - 1]) {
+                continue;
+            }
+            for &a in &adders {
+                let dst_lrf = slots.fu_inputs[a][0];
+                let dst = Loc::Lrf(dst_lrf);
+                if dst == loc {
+                    continue;
+                }
+                let d = index(slots, dst);
+                let already = sched.dests[p].contains(&dst);
+                if !already && table.port(dst_lrf, w) != FREE {
+                    continue;
+                }
+                let can_keep = already || sched.dests[p].len() < 2;
+                // The value in the adder's LRF until `t`: room for it there (one entry
+                // spare for the packing).
+                let held_from = if already {
+                    last_read.get(&(p, dst)).copied().unwrap_or(w)
+                } else {
+                    w
+                };
+                let cap = slots.shape.lrf_sizes[d];
+                let room = |t: i64| {
+                    (held_from..t)
+                        .all(|c| live.kept[d] + live.rows[d][c.rem_euclid(ii) as usize] + 2 <= cap)
+                };
+                // The latest cycle a copy may issue before `until`, not in `taken`'s row.
+                let slot = |until: i64, taken: Option<i64>| -> Option<i64> {
+                    (w + 1..=(until - lm - 1).min(w + ii)).rev().find(|&t| {
+                        taken.is_none_or(|x| table.row(x) != table.row(t))
+                            && table.fu[table.row(t) * table.nfu + a] == FREE
+                            && table.fu_result[table.row(t + lm) * table.nfu + a] == FREE
+                            && table.port(lrf, t + lm) == FREE
+                            && room(t)
+                    })
+                };
+                for split in 0..times.len() {
+                    let first = times[split];
+                    let Some(t2) = slot(first, None) else {
+                        continue;
+                    };
+                    let last = times[times.len() - 1];
+                    let late = (t2, first, last);
+                    let candidate = if split == 0 {
+                        (covers(w, t2 + lm)).then(|| Relief {
+                            saved: t2 + lm - w,
+                            p,
+                            adder: a,
+                            keep: false,
+                            copies: vec![late],
+                        })
+                    } else {
+                        let start = times[split - 1];
+                        if !covers(start, t2 + lm) {
+                            continue;
+                        }
+                        if can_keep {
+                            Some(Relief {
+                                saved: t2 + lm - start,
+                                p,
+                                adder: a,
+                                keep: true,
+                                copies: vec![late],
+                            })
+                        } else {
+                            slot(times[0], Some(t2)).map(|t1| Relief {
+                                // (A second copy costs an adder slot.)
+                                saved: t2 + lm - start + t1 + lm - w - 4,
+                                p,
+                                adder: a,
+                                keep: false,
+                                copies: vec![(t1, times[0], start), late],
+                            })
+                        }
+                    };
+                    if let Some(c) = candidate
+                        && best.as_ref().is_none_or(|b| c.saved > b.saved)
+                    {
+                        best = Some(c);
+                    }
+                }
+            }
+        }
+        let Some(r) = best else {
+            return false;
+        };
+        // `p` writes the adder's LRF (instead of `loc` unless it keeps it); the copies
+        // write `loc`.
+        let p = r.p;
+        let pp = sched.place[p].expect("placed");
+        let dst = Loc::Lrf(slots.fu_inputs[r.adder][0]);
+        unplace(g, sched, &mut table, p, slots, desc);
+        if !r.keep {
+            sched.dests[p].retain(|&l| l != loc);
+        }
+        if !sched.dests[p].contains(&dst) {
+            sched.dests[p].push(dst);
+        }
+        try_place(g, sched, &mut table, p, pp.time, slots, desc).expect("its ports are free");
+        for &(t, from, to) in &r.copies {
+            let c = g.ops.len();
+            let mut mov = super::graph::MOp::copy_of(
+                Source::Local(p),
+                Region::Loop,
+                g.ops[p].ir,
+                CopyKind::Lifetime,
+            );
+            mov.slot = r.adder;
+            g.ops.push(mov);
+            sched.grow(g.ops.len());
+            sched.dests[c] = vec![loc];
+            for &u in &ops {
+                let Some(pu) = sched.place[u] else { continue };
+                if pu.time < from || pu.time > to {
+                    continue;
+                }
+                let kind = g.ops[u].kind;
+                for arg in &mut g.ops[u].args {
+                    if arg.src == Source::Local(p)
+                        && slots.operand_loc(kind, pu.slot, pu.swap, arg) == loc
+                    {
+                        arg.src = Source::Local(c);
+                    }
+                }
+            }
+            try_place(g, sched, &mut table, c, t, slots, desc).expect("its slot is free");
+        }
+    }
+    false
 }
