@@ -421,22 +421,31 @@ fn dram_vcd_is_deterministic_and_has_the_memory_signals() {
     std::fs::create_dir_all(&dir).unwrap();
     let run = |name: &str| {
         let vcd = dir.join(name);
-        let o = imagine(&[
-            "dram",
-            "--bench",
-            "constrained-random",
-            "--requests",
-            "300",
-            "--policy",
-            "row-closed",
-            "--vcd",
-            vcd.to_str().unwrap(),
-        ]);
+        // The header's `$date` is the wall clock unless SOURCE_DATE_EPOCH fixes it.
+        let o = Command::new(env!("CARGO_BIN_EXE_imagine"))
+            .env("SOURCE_DATE_EPOCH", "1798675200")
+            .args([
+                "dram",
+                "--bench",
+                "constrained-random",
+                "--requests",
+                "300",
+                "--policy",
+                "row-closed",
+                "--vcd",
+                vcd.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
         assert!(o.status.success(), "{}", stderr(&o));
         std::fs::read_to_string(vcd).unwrap()
     };
     let (a, b) = (run("a.vcd"), run("b.vcd"));
     assert_eq!(a, b, "same inputs, same waveform");
+    assert!(
+        a.contains("2026-12-31 00:00:00 UTC"),
+        "the $date SOURCE_DATE_EPOCH gives"
+    );
     for sig in ["queue_depth", "decision", "cmd_row", "state", "row", "dq"] {
         assert!(a.contains(&format!(" {sig} ")), "`{sig}` missing");
     }

@@ -232,7 +232,7 @@ impl<W: Write> VcdWriter<W> {
 
     fn header(&mut self, probes: &ProbeRegistry) -> io::Result<()> {
         let v = &mut self.vcd;
-        v.date(&utc_now())?;
+        v.date(&utc_date(header_seconds()))?;
         v.version(&format!("imagine-waves {}", env!("CARGO_PKG_VERSION")))?;
         let scopes = if self.filter.is_empty() {
             "all".to_string()
@@ -666,11 +666,22 @@ fn push_decimal(buf: &mut Vec<u8>, mut v: u64) {
     buf.extend_from_slice(&tmp[i..]);
 }
 
-/// The current date and time, UTC, as `2025-01-31 12:34:56 UTC`.
-fn utc_now() -> String {
-    let secs = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
+/// The time the header's `$date` gives, in seconds since 1970: `SOURCE_DATE_EPOCH` when it
+/// is set (the reproducible-builds convention, so that the same inputs give the same file
+/// byte for byte), else now.
+fn header_seconds() -> u64 {
+    std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|s| s.trim().parse().ok())
+        .unwrap_or_else(|| {
+            SystemTime::now()
+                .duration_since(UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs())
+        })
+}
+
+/// `secs` since 1970 as a UTC date and time, `2025-01-31 12:34:56 UTC`.
+fn utc_date(secs: u64) -> String {
     let (days, rem) = (secs / 86_400, secs % 86_400);
     // Civil date from days since 1970-01-01 (H. Hinnant's algorithm).
     let z = days as i64 + 719_468;
@@ -754,8 +765,8 @@ mod tests {
             push_decimal(&mut b, v);
             assert_eq!(String::from_utf8(b).unwrap(), v.to_string());
         }
-        let d = utc_now();
-        assert_eq!(d.len(), 23, "{d}");
-        assert!(d.starts_with("20") && d.ends_with(" UTC"), "{d}");
+        assert_eq!(utc_date(0), "1970-01-01 00:00:00 UTC");
+        assert_eq!(utc_date(951_782_400 + 86_399), "2000-02-29 23:59:59 UTC");
+        assert_eq!(utc_date(1_798_675_200), "2026-12-31 00:00:00 UTC");
     }
 }
