@@ -61,27 +61,13 @@ pub fn allocate(
 ) -> Result<Entries, Overflow> {
     let n = g.ops.len();
     let perm = permanent(g);
-    // Last read of each (value, loc), in the reader's region time.
-    let mut last_read: HashMap<(usize, Loc), i64> = HashMap::new();
-    for (u, op) in g.ops.iter().enumerate() {
-        let Some(pl) = s.place[u] else { continue };
-        for a in &op.args {
-            if let Source::Local(p) = a.src {
-                let loc = slots.operand_loc(op.kind, pl.slot, pl.swap, a);
-                let e = last_read.entry((p, loc)).or_insert(pl.time);
-                *e = (*e).max(pl.time);
-            }
-        }
-    }
+    let last_read = last_reads(g, s, slots, None);
     let nlrf = slots.lrfs();
     let capacity = |loc: Loc| match loc {
         Loc::Lrf(l) => slots.shape.lrf_sizes[l as usize],
         Loc::Cc => slots.shape.condition_codes,
     };
-    let index = |loc: Loc| match loc {
-        Loc::Lrf(l) => l as usize,
-        Loc::Cc => nlrf,
-    };
+    let index = |loc: Loc| index(slots, loc);
     let mut out = Entries {
         peak: vec![0; nlrf],
         ..Entries::default()
@@ -153,11 +139,7 @@ pub fn allocate(
         let region = g.ops[u].region;
         let w = pl.time + g.latency(u, desc);
         for &loc in &s.dests[u] {
-            let r = last_read
-                .get(&(u, loc))
-                .copied()
-                .unwrap_or(w + 1)
-                .max(w + 1);
+            let r = live_end(&last_read, u, loc, w);
             let k = index(loc);
             let first = next_perm[k];
             let cap = capacity(loc);
@@ -236,7 +218,7 @@ impl Liveness {
         let perm = permanent(g);
         let mut kept = vec![0usize; nlrf + 1];
         let mut rows = vec![vec![0usize; ii as usize]; nlrf + 1];
-        let last_read = loop_reads(g, s, slots);
+        let last_read = last_reads(g, s, slots, Some(Region::Loop));
         for (u, op) in g.ops.iter().enumerate() {
             if perm[u] && op.tie.is_none() {
                 for &loc in &s.dests[u] {
@@ -250,11 +232,7 @@ impl Liveness {
             let Some(pl) = s.place[u] else { continue };
             let w = pl.time + g.latency(u, desc);
             for &loc in &s.dests[u] {
-                let r = last_read
-                    .get(&(u, loc))
-                    .copied()
-                    .unwrap_or(w + 1)
-                    .max(w + 1);
+                let r = live_end(&last_read, u, loc, w);
                 for c in w..r.min(w + ii) {
                     rows[index(slots, loc)][c.rem_euclid(ii) as usize] += 1;
                 }
@@ -277,12 +255,18 @@ pub fn index(slots: &Slots, loc: Loc) -> usize {
     }
 }
 
-/// The last cycle each loop value is read from each location.
-pub fn loop_reads(g: &Graph, s: &Schedule, slots: &Slots) -> HashMap<(usize, Loc), i64> {
+/// The last cycle each value is read from each location, in the reader's region time;
+/// with `region`, only the readers in that region count.
+pub fn last_reads(
+    g: &Graph,
+    s: &Schedule,
+    slots: &Slots,
+    region: Option<Region>,
+) -> HashMap<(usize, Loc), i64> {
     let mut last_read: HashMap<(usize, Loc), i64> = HashMap::new();
     for (u, op) in g.ops.iter().enumerate() {
         let Some(pl) = s.place[u] else { continue };
-        if op.region != Region::Loop {
+        if region.is_some_and(|r| r != op.region) {
             continue;
         }
         for a in &op.args {
@@ -294,4 +278,10 @@ pub fn loop_reads(g: &Graph, s: &Schedule, slots: &Slots) -> HashMap<(usize, Loc
         }
     }
     last_read
+}
+
+/// Until when value `u`, landing in `loc` at cycle `w`, holds its entry: its last read
+/// there, and at least the cycle after it lands.
+fn live_end(last_read: &HashMap<(usize, Loc), i64>, u: usize, loc: Loc, w: i64) -> i64 {
+    last_read.get(&(u, loc)).map_or(w + 1, |&r| r.max(w + 1))
 }

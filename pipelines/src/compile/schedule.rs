@@ -1105,7 +1105,7 @@ pub fn relieve(
     slots: &Slots,
     desc: &MachineDesc,
 ) -> bool {
-    use super::alloc::{Liveness, index, loop_reads};
+    use super::alloc::{Liveness, index, last_reads};
     let Loc::Lrf(lrf) = loc else { return false };
     let mut table = Table::new(ii, slots);
     for u in g.in_region(Region::Loop) {
@@ -1129,7 +1129,7 @@ pub fn relieve(
         }
         let peak = live.rows[k].iter().copied().max().unwrap_or(0);
         let row = live.rows[k].iter().position(|&x| x == peak).unwrap_or(0) as i64;
-        let last_read = loop_reads(g, sched, slots);
+        let last_read = last_reads(g, sched, slots, Some(Region::Loop));
         let covers =
             |from: i64, to: i64| (from..to.min(from + ii)).any(|c| c.rem_euclid(ii) == row);
         // Readers of each value through `loc`, and when.

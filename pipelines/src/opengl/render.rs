@@ -545,13 +545,13 @@ impl Host {
             let next = r.zcap[set];
             let (fb, pixels) = (self.m.framebuffer, self.m.pixels);
             let [z, colour, addr, prim] = current;
-            let by_pixel = Pattern::Indexed {
-                index_start: addr,
+            let by_pixel = |index_start| Pattern::Indexed {
+                index_start,
                 scale: PIXEL_WORDS as u64,
                 bound: Some(pixels),
             };
             // The pixels are gathered while `hash` looks for conflicts.
-            self.mem(MemOpKind::Load, fb, by_pixel, PIXEL_WORDS, len, pixel);
+            self.mem(MemOpKind::Load, fb, by_pixel(addr), PIXEL_WORDS, len, pixel);
             let hashed = self.kernel(
                 self.k.hash,
                 vec![
@@ -575,18 +575,8 @@ impl Host {
                 ],
                 None,
             );
-            self.mem(
-                MemOpKind::Store,
-                fb,
-                Pattern::Indexed {
-                    index_start: newaddr,
-                    scale: PIXEL_WORDS as u64,
-                    bound: Some(pixels),
-                },
-                PIXEL_WORDS,
-                len,
-                new_pixel,
-            );
+            let scatter = by_pixel(newaddr);
+            self.mem(MemOpKind::Store, fb, scatter, PIXEL_WORDS, len, new_pixel);
             // The zcompare and the scatter are queued; the host needs only the count.
             self.wait_for(hashed)?;
             let conflicts = self.read_srf(self.r.conflicts, 1)?[0] as usize;
