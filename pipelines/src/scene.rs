@@ -65,14 +65,21 @@ pub struct Scene {
     pub normals: Vec<[f32; 3]>,
     /// One per position for [`Shading::Unlit`] (r, g, b in [0, 1]), else empty.
     pub colours: Vec<[f32; 3]>,
-    /// Model-view-projection matrix, row-major: clip = mvp · (x, y, z, 1).
-    pub mvp: [f32; 16],
+    /// The model-view and projection matrices, row-major: clip = projection · modelview ·
+    /// (x, y, z, 1). The machine composes them (the `perbegin` kernel); see [`Scene::mvp`].
+    pub modelview: [f32; 16],
+    pub projection: [f32; 16],
     pub shading: Shading,
     /// Discard clockwise (back-facing) triangles.
     pub cull_back: bool,
 }
 
 impl Scene {
+    /// The model-view-projection matrix `projection · modelview`, as `perbegin` composes it.
+    pub fn mvp(&self) -> [f32; 16] {
+        mat_mul(&self.projection, &self.modelview)
+    }
+
     pub fn triangles(&self) -> usize {
         self.positions.len() / 3
     }
@@ -109,8 +116,18 @@ impl Scene {
                 "vertex {i} has a coordinate that is not a finite number"
             ));
         }
-        if !finite(&self.mvp) {
-            return bad("the matrix has an entry that is not a finite number".into());
+        for (m, name) in [
+            (&self.modelview, "model-view"),
+            (&self.projection, "projection"),
+        ] {
+            if !finite(m) {
+                return bad(format!(
+                    "the {name} matrix has an entry that is not a finite number"
+                ));
+            }
+        }
+        if !finite(&self.mvp()) {
+            return bad("the model-view-projection matrix overflows".into());
         }
         Ok(())
     }
@@ -178,12 +195,22 @@ pub fn builtin(name: &str, size: u32) -> Result<Scene, SceneError> {
 }
 
 /// Row-major 4×4 product `a · b`.
-fn mat_mul(a: &[f32; 16], b: &[f32; 16]) -> [f32; 16] {
+/// The product `a · b` of row-major 4×4 matrices, each entry summed left to right
+/// (`((a_i0·b_0j + a_i1·b_1j) + a_i2·b_2j) + a_i3·b_3j`), as the `perbegin` kernel does.
+pub fn mat_mul(a: &[f32; 16], b: &[f32; 16]) -> [f32; 16] {
     std::array::from_fn(|k| {
         let (i, j) = (k / 4, k % 4);
-        (0..4).map(|t| a[i * 4 + t] * b[t * 4 + j]).sum()
+        (1..4).fold(a[i * 4] * b[j], |sum, t| sum + a[i * 4 + t] * b[t * 4 + j])
     })
 }
+
+/// The identity matrix.
+pub const IDENTITY: [f32; 16] = [
+    1.0, 0.0, 0.0, 0.0, //
+    0.0, 1.0, 0.0, 0.0, //
+    0.0, 0.0, 1.0, 0.0, //
+    0.0, 0.0, 0.0, 1.0,
+];
 
 /// `gluPerspective(fovy, aspect, near, far)`, row-major.
 fn perspective(fovy_degrees: f32, aspect: f32, near: f32, far: f32) -> [f32; 16] {
@@ -314,7 +341,6 @@ pub fn sphere(subdivisions: u32, size: u32) -> Scene {
     let tris = icosphere(subdivisions);
     let positions: Vec<[f32; 3]> = tris.iter().flatten().copied().collect();
     let eye_z = 3.0;
-    let mvp = mat_mul(&perspective(45.0, 1.0, 1.0, 10.0), &look_down_z(eye_z));
     Scene {
         name: if subdivisions == SPHERE_SUBDIVISIONS {
             "SPHERE".into()
@@ -326,7 +352,8 @@ pub fn sphere(subdivisions: u32, size: u32) -> Scene {
         normals: positions.clone(),
         positions,
         colours: Vec::new(),
-        mvp,
+        modelview: look_down_z(eye_z),
+        projection: perspective(45.0, 1.0, 1.0, 10.0),
         shading: Shading::Lit(Lighting {
             eye: [0.0, 0.0, eye_z],
             lights: [
@@ -398,7 +425,8 @@ pub fn rate(n: u32, size: u32) -> Result<Scene, SceneError> {
         positions,
         normals: Vec::new(),
         colours,
-        mvp: window_to_clip(size, size),
+        modelview: IDENTITY,
+        projection: window_to_clip(size, size),
         shading: Shading::Unlit,
         cull_back: false,
     })
@@ -498,7 +526,8 @@ pub fn parse_tri(name: &str, text: &str) -> Result<Scene, SceneError> {
         positions,
         normals: Vec::new(),
         colours,
-        mvp: window_to_clip(width, height),
+        modelview: IDENTITY,
+        projection: window_to_clip(width, height),
         shading: Shading::Unlit,
         cull_back: false,
     })

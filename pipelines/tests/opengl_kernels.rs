@@ -21,6 +21,7 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             batch: rows * c,
         };
         for k in [
+            kernels::perbegin(&desc, 27),
             kernels::vertex_unlit(&desc),
             kernels::setup(&desc, shape),
             kernels::xyrast(&desc, shape),
@@ -226,7 +227,7 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
             let mut rec = Vec::new();
             for kk in 0..3 {
                 let p = scene.positions[3 * t + kk];
-                let m = scene.mvp;
+                let m = scene.mvp();
                 for r in 0..4 {
                     rec.push(
                         (m[4 * r] * p[0]
@@ -301,6 +302,53 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
 }
 
 #[test]
+fn perbegin_composes_the_matrices_as_the_host_does_and_passes_the_rest_through() {
+    use imagine_pipelines::kernel::KernelInputs;
+    use imagine_pipelines::scene::{builtin, mat_mul};
+    use imagine_units::arith::fp32::testgen::SplitMix64;
+    let sphere = builtin("SPHERE", 64).unwrap();
+    let mut rng = SplitMix64::new(7);
+    let mut random = || f32::from_bits(rng.next_u32() & 0xBFFF_FFFF) - 1.5;
+    let random_matrix: [f32; 16] = std::array::from_fn(|_| random());
+    let passthrough: Vec<u32> = (0..27).map(|_| random().to_bits()).collect();
+    for name in ["gold1", "gold8", "gold32"] {
+        let desc = MachineDesc::resolve(name).unwrap();
+        let c = desc.cluster.count;
+        for (modelview, projection) in [
+            (sphere.modelview, sphere.projection),
+            (random_matrix, sphere.projection),
+            (sphere.modelview, random_matrix),
+        ] {
+            for extra in [0, passthrough.len()] {
+                let k = kernels::perbegin(&desc, extra);
+                let compiled = compile(&k, &desc).unwrap();
+                let mut state: Vec<u32> = modelview
+                    .iter()
+                    .chain(&projection)
+                    .map(|x| x.to_bits())
+                    .chain(passthrough[..extra].iter().copied())
+                    .collect();
+                state.resize(state.len().div_ceil(c) * c, 0);
+                let inputs = KernelInputs {
+                    streams: vec![state, vec![]],
+                    params: vec![],
+                };
+                let out = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
+                let want: Vec<u32> = mat_mul(&projection, &modelview)
+                    .iter()
+                    .map(|x| x.to_bits())
+                    .chain(passthrough[..extra].iter().copied())
+                    .flat_map(|w| std::iter::repeat_n(w, c))
+                    .collect();
+                assert_eq!(out[1], want, "{name}: parameter rows");
+                let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
+                assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
+            }
+        }
+    }
+}
+
+#[test]
 fn reciprocal_divides_every_pixel_address_exactly() {
     for d in [3u32, 5, 7, 40, 100, 640, 720, 1000, 1023, 4095] {
         let (m, s) = kernels::reciprocal(d);
@@ -314,14 +362,14 @@ fn reciprocal_divides_every_pixel_address_exactly() {
 }
 
 /// Whether each fragment of `addrs` conflicts with an earlier one: the same stamp row
-/// `(y + x / 32) mod 32` and bit `x mod 32`, the trash pixel excepted.
+/// `(y + ⌊5x / 32⌋) mod 32` and bit `x mod 32`, the trash pixel excepted.
 fn conflicts(addrs: &[u32], width: u32, trash: u32) -> Vec<u32> {
     let mut seen = std::collections::HashSet::new();
     addrs
         .iter()
         .map(|&a| {
             let (x, y) = (a % width, a / width);
-            let key = ((y + x / 32) & 31, x & 31);
+            let key = ((y + kernels::STAMP_SKEW * x / 32) & 31, x & 31);
             u32::from(a != trash && !seen.insert(key))
         })
         .collect()

@@ -171,6 +171,8 @@ pub struct StreamController {
     /// Host dispatch overhead: a kernel occupies the clusters for at least this many core
     /// cycles.
     pub min_kernel_cycles: u64,
+    /// Words per core cycle the host interface writes into the SRF (kernel parameters).
+    pub host_words_per_cycle: usize,
 }
 
 #[derive(Clone, Debug, Default, Deserialize, PartialEq, Eq)]
@@ -592,6 +594,12 @@ impl MachineDesc {
                 1,
                 256,
             ),
+            (
+                "stream_controller.host_words_per_cycle",
+                self.stream_controller.host_words_per_cycle,
+                1,
+                64,
+            ),
         ] {
             if !(lo..=hi).contains(&v) {
                 return bad(key, format!("is {v}, must be {lo}..={hi}"));
@@ -846,6 +854,11 @@ mod tests {
                 "scoreboard_entries = 32",
                 "scoreboard_entries = 0",
                 "stream_controller.scoreboard_entries",
+            ),
+            (
+                "host_words_per_cycle = 1",
+                "host_words_per_cycle = 0",
+                "stream_controller.host_words_per_cycle",
             ),
             (
                 "refresh_interval = 2604",

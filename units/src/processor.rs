@@ -51,6 +51,14 @@ pub struct ProcessorOptions {
     pub on_start: Option<OnStart>,
 }
 
+/// A host write in progress: its words land in the SRF at cycle `done`.
+struct HostWrite {
+    id: usize,
+    done: u64,
+    start: usize,
+    words: Vec<u32>,
+}
+
 struct RunningKernel {
     id: usize,
     program: usize,
@@ -69,12 +77,13 @@ pub struct Processor {
     kernel: Option<RunningKernel>,
     /// Microcode load in progress: (instruction, done at cycle).
     loader: Option<(usize, u64)>,
+    host_write: Option<HostWrite>,
     ag_ops: Vec<Option<usize>>,
     replies: Vec<Reply>,
     /// An error met at a clock edge, reported by the next `eval`.
     deferred: Option<ContractError>,
     path: String,
-    ids: [SignalId; 4],
+    ids: [SignalId; 5],
 }
 
 impl Processor {
@@ -144,6 +153,14 @@ impl Processor {
                 let len = self.sc.programs()[*program].code.len() as u64;
                 self.loader = Some((is.id, cycle + len.max(1)));
             }
+            (StreamInstr::WriteSrf { start, words }, Unit::HostInterface) => {
+                self.host_write = Some(HostWrite {
+                    id: is.id,
+                    done: cycle + self.sc.host_write_cycles(words.len()),
+                    start: *start,
+                    words: words.clone(),
+                });
+            }
             _ => unreachable!("the controller picks a unit of the instruction's kind"),
         }
         Ok(())
@@ -188,6 +205,10 @@ impl Processor {
             self.sc.complete(id, cycle);
             self.loader = None;
         }
+        if let Some(w) = self.host_write.take_if(|w| cycle >= w.done) {
+            self.machine.srf_mut().load(w.start, &w.words)?;
+            self.sc.complete(w.id, cycle);
+        }
         let issue = self.issue.take();
         if let Some(is) = &issue {
             self.start(is)?;
@@ -212,6 +233,7 @@ impl Module for Processor {
             ags.len(),
             self.kernel.is_none(),
             self.loader.is_none(),
+            self.host_write.is_none(),
         );
         self.replies.clear();
         self.ports.pop_replies(&mut self.replies)?;
@@ -251,6 +273,7 @@ impl Module for Processor {
             self.ids[3],
             self.ags.iter().filter(|a| a.is_busy()).count() as u64,
         );
+        t.value(self.ids[4], self.host_write.is_some() as u64);
     }
 }
 
@@ -278,10 +301,14 @@ pub fn build(
                 *p >= program.kernels.len()
             }
             StreamInstr::Memory(m) => m.record_words == 0,
+            StreamInstr::WriteSrf { start, words } => {
+                words.is_empty() || start + words.len() > desc.srf.words
+            }
         };
         if bad {
             return Err(setup(format!(
-                "stream instruction {i} names a kernel that is not in the program or has 0-word records"
+                "stream instruction {i} names a kernel that is not in the program, has \
+                 0-word records, or writes no words or past the end of the SRF"
             )));
         }
     }
@@ -336,6 +363,7 @@ pub fn build(
             bits_for(m.address_generators as u64),
             SignalKind::Reg,
         ),
+        s.signal("host_write_busy", 1, SignalKind::Reg),
     ];
     let path = s.path().to_string();
     let n_ags = ags.len();
@@ -349,6 +377,7 @@ pub fn build(
         issue: None,
         kernel: None,
         loader: None,
+        host_write: None,
         ag_ops: vec![None; n_ags],
         replies: Vec::new(),
         deferred: None,

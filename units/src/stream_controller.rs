@@ -19,6 +19,10 @@
 //!   kernel at a time), and the microcode loader (one program at a time, one VLIW
 //!   instruction per cycle (A), into a store of `microcontroller.store_words`
 //!   instructions; the oldest programs not in use are evicted to make room).
+//! * **Host interface**: a host write (kernel parameters) moves
+//!   `stream_controller.host_words_per_cycle` words per core cycle and lands in the SRF
+//!   when it completes (the scoreboard keeps every reader of those words waiting until
+//!   then, so the write needs no SRF port arbitration).
 //! * **Host dispatch overhead**: a kernel holds the clusters for at least
 //!   `stream_controller.min_kernel_cycles` core cycles (300 on gold8; Owens 2002 measured
 //!   200–500), however short its microcode run.
@@ -47,6 +51,10 @@ pub enum StreamInstr {
     },
     /// Load program `program`'s microcode into the microcode store.
     LoadMicrocode { program: usize },
+    /// Write `words`, sent by the host with the instruction, into the SRF from word
+    /// `start`: scalar values for kernels (parameters), as Imagine's host interface
+    /// carried them.
+    WriteSrf { start: usize, words: Vec<u32> },
 }
 
 /// The unit an instruction runs on.
@@ -55,6 +63,7 @@ pub enum Unit {
     AddressGenerator(usize),
     Clusters,
     MicrocodeLoader,
+    HostInterface,
 }
 
 /// When an instruction went through the controller (core cycles).
@@ -93,6 +102,7 @@ impl InstrRecord {
             StreamInstr::LoadMicrocode { program } => {
                 format!("microcode {}", programs[*program].name)
             }
+            StreamInstr::WriteSrf { .. } => "host write".into(),
         }
     }
 }
@@ -150,6 +160,7 @@ impl Footprint {
                 f.code_read = Some(*program);
             }
             StreamInstr::LoadMicrocode { program } => f.code_write = Some(*program),
+            StreamInstr::WriteSrf { start, words } => f.srf_writes.push((*start, words.len())),
         }
         f
     }
@@ -203,6 +214,7 @@ pub struct StreamController {
     scoreboard: Vec<Entry>,
     sb_cap: usize,
     min_kernel: u64,
+    host_words_per_cycle: usize,
     store_words: usize,
     /// Programs in the microcode store, oldest first.
     resident: Vec<usize>,
@@ -229,6 +241,7 @@ impl StreamController {
             scoreboard: Vec::new(),
             sb_cap: desc.stream_controller.scoreboard_entries,
             min_kernel: desc.stream_controller.min_kernel_cycles,
+            host_words_per_cycle: desc.stream_controller.host_words_per_cycle,
             store_words: desc.microcontroller.store_words,
             resident: Vec::new(),
             stats: ScStats::default(),
@@ -261,6 +274,11 @@ impl StreamController {
         &self.stats
     }
 
+    /// Core cycles the host interface takes to write `words` words into the SRF.
+    pub fn host_write_cycles(&self, words: usize) -> u64 {
+        words.div_ceil(self.host_words_per_cycle).max(1) as u64
+    }
+
     pub fn min_kernel_cycles(&self) -> u64 {
         self.min_kernel
     }
@@ -276,14 +294,15 @@ impl StreamController {
     }
 
     /// Picks the oldest scoreboard entry that may issue on a free unit (`free_ag` gives the
-    /// free address generators, `clusters_free` and `loader_free` the other units), from
-    /// committed state.
+    /// free address generators, `clusters_free`, `loader_free` and `host_free` the other
+    /// units), from committed state.
     pub fn select(
         &mut self,
         free_ag: impl Fn(usize) -> bool,
         ags: usize,
         clusters_free: bool,
         loader_free: bool,
+        host_free: bool,
     ) -> Option<Issue> {
         let mut unit_busy = false;
         for (k, e) in self.scoreboard.iter().enumerate() {
@@ -303,6 +322,7 @@ impl StreamController {
                 }
                 StreamInstr::Kernel { .. } => clusters_free.then_some(Unit::Clusters),
                 StreamInstr::LoadMicrocode { .. } => loader_free.then_some(Unit::MicrocodeLoader),
+                StreamInstr::WriteSrf { .. } => host_free.then_some(Unit::HostInterface),
             };
             match unit {
                 Some(unit) => {

@@ -301,3 +301,81 @@ fn a_bounded_gather_overlaps_a_store_elsewhere() {
     let err = run(Some(k as u64 - 1)).expect_err("an index past the bound");
     assert!(err.to_string().contains("past its bound"), "{err}");
 }
+
+#[test]
+fn host_writes_land_before_their_reader_and_after_the_previous_one() {
+    let desc = MachineDesc::gold8();
+    let per_cycle = desc.stream_controller.host_words_per_cycle;
+    let mut rng = Rng(11);
+    let [x, y, w, x2]: [Vec<u32>; 4] =
+        std::array::from_fn(|_| (0..N).map(|_| rng.float()).collect());
+    let (sx, sy, sw, sz, sz2) = (0, N, 2 * N, 3 * N, 4 * N);
+    let madd = |x: usize, z: usize| StreamInstr::Kernel {
+        program: 0,
+        bindings: [x, sy, sw, z]
+            .map(|start| StreamBinding { start, words: N })
+            .to_vec(),
+    };
+    let instrs = vec![
+        StreamInstr::LoadMicrocode { program: 0 },
+        StreamInstr::WriteSrf {
+            start: sx,
+            words: x.clone(),
+        },
+        StreamInstr::WriteSrf {
+            start: sy,
+            words: y.clone(),
+        },
+        strided(MemOpKind::Load, W, sw),
+        madd(sx, sz),
+        strided(MemOpKind::Store, Z, sz),
+        // Overwrites the first kernel's input: it must wait for that kernel.
+        StreamInstr::WriteSrf {
+            start: sx,
+            words: x2.clone(),
+        },
+        madd(sx, sz2),
+        strided(MemOpKind::Store, Z + N as u64, sz2),
+    ];
+    let program = StreamProgram {
+        kernels: vec![assemble(include_str!("microcode/madd.uc"), &desc).unwrap()],
+        instrs,
+    };
+    let opts = ProcessorOptions {
+        dram_init: vec![(W, w.clone())],
+        ..ProcessorOptions::default()
+    };
+    let mut sim = processor::build(&desc, program, opts).expect("builds");
+    let r = processor::run(&mut sim, &desc, 2_000_000).expect("runs");
+    show(&r);
+    let z = processor::read_dram(&sim, &desc, Z, 2 * N);
+    let madd_of = |x: &[u32]| -> Vec<u32> {
+        (0..N)
+            .map(|i| fp32::add(fp32::mul(x[i], y[i], FpMode::IEEE).0, w[i], FpMode::IEEE).0)
+            .collect()
+    };
+    assert_eq!(z[..N], madd_of(&x), "the first kernel read the first write");
+    assert_eq!(
+        z[N..],
+        madd_of(&x2),
+        "the second kernel read the second write"
+    );
+    for write in [1, 2, 6] {
+        let (issued, completed) = span(&r, write);
+        assert_eq!(
+            completed - issued,
+            N.div_ceil(per_cycle) as u64,
+            "host write {write} moves {per_cycle} words per cycle"
+        );
+    }
+    // One host interface: the second write waits for the first.
+    assert!(span(&r, 2).0 >= span(&r, 1).1);
+    assert!(
+        span(&r, 4).0 >= span(&r, 2).1,
+        "the kernel waits for its inputs"
+    );
+    assert!(
+        span(&r, 6).0 >= span(&r, 4).1,
+        "the rewrite waits for the reader"
+    );
+}

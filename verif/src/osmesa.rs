@@ -189,7 +189,8 @@ pub fn render(scene: &Scene) -> Result<Image, String> {
     let _guard = LOCK.lock().unwrap_or_else(|e| e.into_inner());
     let context = Context::new(width, height)?;
     // GL is column-major: element (row i, column j) at j·4 + i.
-    let column_major: [f32; 16] = std::array::from_fn(|k| scene.mvp[(k % 4) * 4 + k / 4]);
+    let mvp = scene.mvp();
+    let column_major: [f32; 16] = std::array::from_fn(|k| mvp[(k % 4) * 4 + k / 4]);
     // SAFETY: a context is current on this thread (we hold the lock); all arguments are
     // plain values or a pointer to 16 floats.
     let error = unsafe {

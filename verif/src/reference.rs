@@ -94,13 +94,13 @@ fn widen(v: [f32; 3]) -> V3 {
     v.map(f64::from)
 }
 
-/// `mvp · (x, y, z, 1)` in f64, `mvp` row-major.
-pub fn clip_position(mvp: &[f32; 16], p: [f32; 3]) -> [f64; 4] {
+/// `projection · (modelview · (x, y, z, 1))` in f64, both row-major.
+pub fn clip_position(projection: &[f32; 16], modelview: &[f32; 16], p: [f32; 3]) -> [f64; 4] {
+    let times = |m: &[f32; 16], v: [f64; 4]| -> [f64; 4] {
+        std::array::from_fn(|i| (0..4).map(|j| f64::from(m[i * 4 + j]) * v[j]).sum())
+    };
     let p = widen(p);
-    std::array::from_fn(|i| {
-        let m = |j: usize| f64::from(mvp[i * 4 + j]);
-        m(0) * p[0] + m(1) * p[1] + m(2) * p[2] + m(3)
-    })
+    times(projection, times(modelview, [p[0], p[1], p[2], 1.0]))
 }
 
 /// The colour of a vertex at `p` with normal `n` under `lighting` (the `vertex` kernel's
@@ -218,7 +218,7 @@ pub fn for_each_fragment_with(
     let clip: Vec<[f64; 4]> = scene
         .positions
         .iter()
-        .map(|&p| clip_position(&scene.mvp, p))
+        .map(|&p| clip_position(&scene.projection, &scene.modelview, p))
         .collect();
     let colours = vertex_colours(scene);
     let (width, height) = (scene.width, scene.height);
@@ -336,7 +336,7 @@ pub fn render(scene: &Scene) -> Image {
 mod tests {
     use super::*;
     use crate::image::BACKGROUND;
-    use imagine_pipelines::scene::{parse_tri, window_to_clip};
+    use imagine_pipelines::scene::{IDENTITY, parse_tri, window_to_clip};
 
     /// A window-space, unlit scene from `(x, y, z, [r, g, b])` vertices.
     fn window_scene(
@@ -352,7 +352,8 @@ mod tests {
             positions: vertices.iter().map(|v| v.0).collect(),
             normals: Vec::new(),
             colours: vertices.iter().map(|v| v.1).collect(),
-            mvp: window_to_clip(width, height),
+            modelview: IDENTITY,
+            projection: window_to_clip(width, height),
             shading: Shading::Unlit,
             cull_back,
         }
@@ -547,7 +548,7 @@ mod tests {
             [-1.2, 1.1, 0.0],
         ];
         let mut scene = window_scene(64, 64, &[], false);
-        scene.mvp = mvp;
+        scene.projection = mvp;
         let mut union = vec![0u32; 64 * 64];
         for tri in [[0, 1, 2], [0, 2, 3]] {
             scene.positions = tri.map(|i| quad[i]).to_vec();
@@ -565,7 +566,7 @@ mod tests {
         let corners: Vec<[f64; 2]> = quad
             .iter()
             .map(|&p| {
-                let c = clip_position(&mvp, p);
+                let c = clip_position(&mvp, &IDENTITY, p);
                 [(c[0] / c[3] + 1.0) * 32.0, (c[1] / c[3] + 1.0) * 32.0]
             })
             .collect();
@@ -670,7 +671,7 @@ mod tests {
             ],
             false,
         );
-        scene.mvp = mvp;
+        scene.projection = mvp;
         let image = render(&scene);
         let mut checked = 0;
         for py in 0..64 {
@@ -749,7 +750,7 @@ mod tests {
                 ],
                 false,
             );
-            scene.mvp = mvp;
+            scene.projection = mvp;
             let mut depths = Vec::new();
             for_each_fragment(&scene, |f| depths.push(f.depth)).unwrap();
             assert!(depths.iter().all(|d| (0.0..=1.0).contains(d)));
@@ -768,7 +769,7 @@ mod tests {
                 ],
                 false,
             );
-            scene.mvp = mvp;
+            scene.projection = mvp;
             assert!(covered(&render(&scene)).is_empty(), "z = {z}");
         }
     }

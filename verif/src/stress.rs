@@ -17,7 +17,7 @@
 //! [`to_tri`] writes a scene from here as a `.tri` file that `parse_tri` reads back
 //! exactly.
 
-use imagine_pipelines::scene::{Scene, Shading, window_to_clip};
+use imagine_pipelines::scene::{IDENTITY, Scene, Shading, window_to_clip};
 use imagine_units::arith::fp32::testgen::SplitMix64;
 use std::fmt::Write;
 
@@ -59,7 +59,8 @@ impl Builder {
                 positions: Vec::new(),
                 normals: Vec::new(),
                 colours: Vec::new(),
-                mvp: window_to_clip(width, height),
+                modelview: IDENTITY,
+                projection: window_to_clip(width, height),
                 shading: Shading::Unlit,
                 cull_back: false,
             },
@@ -270,7 +271,8 @@ pub fn all(seed: u64, width: u32, height: u32) -> Vec<Scene> {
 /// an error for other scenes.
 pub fn to_tri(scene: &Scene) -> Result<String, String> {
     if scene.shading != Shading::Unlit
-        || scene.mvp != window_to_clip(scene.width, scene.height)
+        || scene.modelview != IDENTITY
+        || scene.projection != window_to_clip(scene.width, scene.height)
         || scene.cull_back
     {
         return Err(format!(

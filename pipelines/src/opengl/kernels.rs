@@ -3,6 +3,7 @@
 //!
 //! | kernel | per element | streams |
 //! |---|---|---|
+//! | [`perbegin`] | once per frame: the vertex program's parameters from the OpenGL state | state → params |
 //! | `vertex` / [`vertex_unlit`] | vertex: clip position and colour | 6 words → 7 words |
 //! | [`setup`] | triangle: assemble, clip (trivial reject), viewport, cull, xyprep, baryprep | 21 words → raster (12), interp (13), counts |
 //! | [`xyrast`] | run of 4 candidate pixels: coverage by three edge functions | raster → addr, tri, E0, E1, E2 (conditional) |
@@ -137,6 +138,46 @@ fn null_row(b: &mut KernelBuilder, outs: &[(StreamId, u32)]) {
         let v = b.word(null);
         b.write_if(s, all, v);
     }
+}
+
+/// Words of the matrices `perbegin` reads first: the model-view, then the projection.
+pub const STATE_MATRIX_WORDS: usize = 32;
+
+/// `perbegin`: the per-`glBegin` work on the current OpenGL state, once per frame. Input
+/// `state`: the model-view matrix (16 words, row-major), the projection (16), then
+/// `passthrough` words (the lit vertex program's eye, lights and material), in rows of `C`
+/// words (word `j` in read `j / C` of cluster `j mod C`), the last row padded. Output
+/// `params`: the vertex program's parameter rows (every cluster writes every word, so row
+/// `i` is parameter `i` in all clusters): the model-view-projection `P · MV` (entry
+/// `(i, j)` is `((P_i0·MV_0j + P_i1·MV_1j) + P_i2·MV_2j) + P_i3·MV_3j`, as
+/// [`crate::scene::mat_mul`]), then the passthrough words. Each cluster gets the state
+/// words by broadcasts from the cluster that read them.
+pub fn perbegin(desc: &MachineDesc, passthrough: usize) -> Kernel {
+    let c = desc.cluster.count;
+    let mut b = KernelBuilder::new("perbegin");
+    let state_in = b.input("state");
+    let params_out = b.output("params");
+    let words = STATE_MATRIX_WORDS + passthrough;
+    let rows: Vec<Value> = (0..words.div_ceil(c))
+        .map(|_| b.read_f32(state_in))
+        .collect();
+    let state: Vec<Value> = (0..words)
+        .map(|j| b.comm(rows[j / c], Perm::Broadcast((j % c) as u16)))
+        .collect();
+    let (modelview, projection) = (&state[..16], &state[16..32]);
+    for k in 0..16 {
+        let (i, j) = (k / 4, k % 4);
+        let mut sum = b.fmul(projection[4 * i], modelview[j]);
+        for t in 1..4 {
+            let term = b.fmul(projection[4 * i + t], modelview[4 * t + j]);
+            sum = b.fadd(sum, term);
+        }
+        b.write(params_out, sum);
+    }
+    for &w in &state[STATE_MATRIX_WORDS..] {
+        b.write(params_out, w);
+    }
+    finish(b)
 }
 
 /// The unlit vertex program: clip position `mvp · (x, y, z, 1)` and the vertex colour.
@@ -648,6 +689,8 @@ pub const STAMP_BITS: u32 = 5;
 /// use, which no pixel shares.
 const STAMP_ROWS: u16 = 1 << STAMP_BITS;
 const NULL_KEY: i32 = (STAMP_ROWS as i32) << STAMP_BITS;
+/// The stamp row of pixel (x, y) is `(y + ⌊STAMP_SKEW · x / 32⌋) mod 32`: see [`hash`].
+pub const STAMP_SKEW: u32 = 5;
 
 /// `(m, s)` such that `⌊n / d⌋ = ⌊n·m / 2^32⌋ >> s` for every `n < 2^31`, for a divisor
 /// `d ≥ 3` that is not a power of two (Granlund and Montgomery, "Division by Invariant
@@ -669,10 +712,14 @@ pub fn reciprocal(d: u32) -> (u32, u32) {
 /// after the loop, `count`: a row of the number of conflicts (the same word in every
 /// cluster), for the host. Null fragments (the trash pixel) never conflict.
 ///
-/// The key of pixel (x, y) is row `(y + ⌊x / 32⌋) mod 32`, bit `x mod 32` of a 32×32
-/// stamp: the low five bits of x and y, with the row skewed by x's next bits so that the
-/// pixels of a long span (x, x + 32, x + 64 …, one row of a wide triangle or a strip of
-/// thin ones) do not alias. Each cluster keeps the stamp of its own earlier fragments in
+/// The key of pixel (x, y) is row `(y + ⌊5x / 32⌋) mod 32`, bit `x mod 32` of a 32×32
+/// stamp ([`STAMP_SKEW`] = 5). Within a 32×32 window the keys are those of the low five
+/// bits of x and y, all different; the skew makes pixels `32m` apart in x alias only
+/// `d ≡ −5m (mod 32)` rows apart, so that the pixels of a long span (one row of a wide
+/// triangle, or a strip of thin ones a few rows tall) do not alias: the nearest aliases
+/// in a strip are 416 pixels apart one row up and 192 apart two rows up. (With a skew of
+/// 1, pixels 32 apart one row up alias, and RATE-2 and RATE-4 need recycle rounds; on
+/// gold8 a skew of 5 took RATE-4 from 9,946 rounds to 6,075, as many as its chunks.) Each cluster keeps the stamp of its own earlier fragments in
 /// its scratchpad (one word per row), cleared before the loop. An iteration rotates
 /// every cluster's key past every other cluster (`C − 1` comms); each cluster looks the
 /// keys up in its stamp, adds "the same key as mine, and I come first", and rotates the
@@ -689,6 +736,8 @@ pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let row_words = b.i32(1 << STAMP_BITS);
     // `mulhi(v, 2^(32 − 5))` is `v >> 5`.
     let key_to_row = b.word(1 << (32 - STAMP_BITS));
+    // `mulhi(x, SKEW · 2^(32 − 5))` is `⌊SKEW · x / 32⌋`.
+    let skew_of_x = b.word(STAMP_SKEW << (32 - STAMP_BITS));
     let null_key = b.i32(NULL_KEY);
     let trash = b.i32(shape.trash() as i32);
     let width = b.i32(shape.width as i32);
@@ -722,7 +771,7 @@ pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let x = b.isub(n, row_start);
     // Shifts by a constant are multiplies where they can be: the adders are the busier.
     let key = {
-        let span = b.op(Op::IMulHiU, &[x, key_to_row]);
+        let span = b.op(Op::IMulHiU, &[x, skew_of_x]);
         let ky = b.iadd(y, span);
         let ky = b.and(ky, low);
         let ky = b.imul(ky, row_words);

@@ -129,6 +129,7 @@ impl std::error::Error for RenderError {}
 
 /// The kernels of a frame, compiled.
 struct Kernels {
+    perbegin: usize,
     vertex: usize,
     setup: usize,
     xyrast: usize,
@@ -150,6 +151,7 @@ fn compile_all(
         Shading::Unlit => kernels::vertex_unlit(desc),
     };
     let list = vec![
+        kernels::perbegin(desc, passthrough(scene).len()),
         vertex,
         kernels::setup(desc, shape),
         kernels::xyrast(desc, shape),
@@ -168,14 +170,15 @@ fn compile_all(
         })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(Kernels {
-        vertex: 0,
-        setup: 1,
-        xyrast: 2,
-        irast: 3,
-        hash: 4,
-        zcompare: 5,
-        recycle_zc: 6,
-        recycle_ap: 7,
+        perbegin: 0,
+        vertex: 1,
+        setup: 2,
+        xyrast: 3,
+        irast: 4,
+        hash: 5,
+        zcompare: 6,
+        recycle_zc: 7,
+        recycle_ap: 8,
         compiled,
     })
 }
@@ -203,6 +206,8 @@ impl SrfPlan {
 }
 
 struct Regions {
+    /// The OpenGL state `perbegin` reads, and the vertex program's parameters it writes.
+    state: usize,
     vertex_params: usize,
     setup_params: usize,
     /// One batch's vertices as loaded: the next batch's load waits (by the scoreboard)
@@ -238,6 +243,8 @@ struct Regions {
 /// DRAM word addresses.
 struct Memory {
     vertices: u64,
+    /// The OpenGL state (see [`state_words`]).
+    state: u64,
     interp: u64,
     /// Interpolation records (a batch's triangles): the bound of gathers by triangle.
     interp_records: u64,
@@ -341,18 +348,15 @@ impl Host {
             .clone()
     }
 
-    /// Writes parameter words (replicated per cluster) at SRF word `start`.
-    fn write_params(&mut self, start: usize, words: &[u32]) -> Result<(), RenderError> {
+    /// Queues the host's write of kernel parameters (each replicated per cluster) at SRF
+    /// word `start`.
+    fn write_params(&mut self, start: usize, words: &[u32]) {
         let c = self.clusters;
-        let data: Vec<u32> = words
+        let words = words
             .iter()
             .flat_map(|&w| std::iter::repeat_n(w, c))
             .collect();
-        processor::processor_mut(&mut self.sim)
-            .machine_mut()
-            .srf_mut()
-            .load(start, &data)
-            .map_err(|e| RenderError(e.to_string()))
+        self.push(StreamInstr::WriteSrf { start, words });
     }
 
     fn read_srf(&self, start: usize, len: usize) -> Result<Vec<u32>, RenderError> {
@@ -361,6 +365,17 @@ impl Host {
             .srf()
             .read_back(start, len)
             .map_err(|e| RenderError(e.to_string()))
+    }
+
+    /// Queues the load of the OpenGL state (`words` words) and `perbegin`, which writes
+    /// the vertex program's parameters.
+    fn begin(&mut self, words: usize) {
+        let (state, params) = (self.r.state, self.r.vertex_params);
+        let stride = Pattern::Strided { stride: 1 };
+        self.mem(MemOpKind::Load, self.m.state, stride, 1, words, state);
+        let params_words = self.k.compiled[self.k.vertex].0.params.len() * self.clusters;
+        let streams = vec![bind(state, words), bind(params, params_words)];
+        self.kernel(self.k.perbegin, streams, None);
     }
 
     /// Queues the load of a batch's vertices, to be shaded into set `set`; its vertex
@@ -412,7 +427,7 @@ impl Host {
             let mut params = tile.map(|v| v as u32).to_vec();
             params.push(first_triangle as u32);
             let sparams = self.r.setup_params;
-            self.write_params(sparams, &params)?;
+            self.write_params(sparams, &params);
             let r = &self.r;
             let streams = vec![
                 bind(r.shaded[set], verts * SHADED_WORDS),
@@ -474,10 +489,12 @@ impl Host {
         let id = self.kernel(self.k.xyrast, streams, None);
         self.shade_pending();
         self.wait_for(id)?;
-        let written = self.outputs(id)[2];
-        // Whole rows: every real fragment and some of the nulls after them.
-        let total = written / c * c;
-        self.stats.fragments += (written - c) as u64;
+        // The real fragments, then the row of nulls.
+        let real = self.outputs(id)[2] - c;
+        // Whole rows: every real fragment and the nulls that fill its last row; the rest of
+        // the nulls are not composited.
+        let total = real.div_ceil(c) * c;
+        self.stats.fragments += real as u64;
         let chunk = self.r.chunk;
         let chunks: Vec<(usize, usize)> = (0..total)
             .step_by(chunk)
@@ -625,7 +642,12 @@ fn batch_size(triangles: usize, clusters: usize, rows: usize) -> usize {
         .max(clusters)
 }
 
-fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, RenderError> {
+fn plan(
+    desc: &MachineDesc,
+    batch: usize,
+    state: usize,
+    params: usize,
+) -> Result<Regions, RenderError> {
     let c = desc.cluster.count;
     let mut p = SrfPlan {
         next: 0,
@@ -644,6 +666,7 @@ fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, Rend
     };
     let unit = c / gcd(c, desc.srf.block_words) * desc.srf.block_words;
     let chunk = 96usize.div_ceil(unit) * unit;
+    let state = p.take(state)?;
     let vertex_params = p.take(params * c)?;
     let setup_params = p.take(5 * c)?;
     let vertices = p.take(3 * batch * VERTEX_WORDS)?;
@@ -682,6 +705,7 @@ fn plan(desc: &MachineDesc, batch: usize, params: usize) -> Result<Regions, Rend
     }
     let frags = [(); 5].map(|_| p.take(share).expect("shares fit"));
     Ok(Regions {
+        state,
         vertex_params,
         setup_params,
         vertices,
@@ -732,8 +756,10 @@ fn vertex_words(scene: &Scene, batch: usize, clusters: usize) -> Vec<u32> {
     out
 }
 
-fn vertex_params(scene: &Scene) -> Vec<u32> {
-    let mut p: Vec<f32> = scene.mvp.to_vec();
+/// The words of the vertex program's parameters that `perbegin` passes through after the
+/// model-view-projection matrix: the lit program's eye, lights and material.
+fn passthrough(scene: &Scene) -> Vec<u32> {
+    let mut p: Vec<f32> = Vec::new();
     if let Shading::Lit(l) = &scene.shading {
         p.extend(l.eye);
         for (pos, colour) in &l.lights {
@@ -745,6 +771,20 @@ fn vertex_params(scene: &Scene) -> Vec<u32> {
         p.extend(l.ambient);
     }
     p.iter().map(|x| x.to_bits()).collect()
+}
+
+/// The OpenGL state as `perbegin` reads it: the model-view and projection matrices and the
+/// passthrough words, padded with zeros to whole rows of `clusters` words.
+fn state_words(scene: &Scene, clusters: usize) -> Vec<u32> {
+    let mut words: Vec<u32> = scene
+        .modelview
+        .iter()
+        .chain(&scene.projection)
+        .map(|x| x.to_bits())
+        .collect();
+    words.extend(passthrough(scene));
+    words.resize(words.len().div_ceil(clusters) * clusters, 0);
+    words
 }
 
 /// Renders `scene` on a processor built from `desc`; `progress(done, total)` is called
@@ -775,8 +815,9 @@ pub fn render(
         batch,
     };
     let k = compile_all(scene, desc, shape)?;
-    let vparams = vertex_params(scene);
-    let regions = plan(desc, batch, vparams.len())?;
+    let state = state_words(scene, clusters);
+    let params = kernels::STATE_MATRIX_WORDS / 2 + passthrough(scene).len();
+    let regions = plan(desc, batch, state.len(), params)?;
     let verts = vertex_words(scene, batch, clusters);
     let pixels = (scene.width * scene.height) as usize + 1;
     let mut fb = Vec::with_capacity(pixels * PIXEL_WORDS);
@@ -785,11 +826,13 @@ pub fn render(
     }
     let align = |x: u64| x.div_ceil(1024) * 1024;
     let interp = align(verts.len() as u64);
+    let state_at = align(interp + (batch * INTERP_WORDS) as u64);
     let memory = Memory {
         vertices: 0,
+        state: state_at,
         interp,
         interp_records: batch as u64,
-        framebuffer: align(interp + (batch * INTERP_WORDS) as u64),
+        framebuffer: align(state_at + state.len() as u64),
         pixels: pixels as u64,
     };
     let capacity_words = imagine_units::dram::DramParams::of(desc).capacity_bytes() / 4;
@@ -806,13 +849,13 @@ pub fn render(
             .map(|p| StreamInstr::LoadMicrocode { program: p })
             .collect(),
     };
-    let param_words: Vec<u32> = vparams
-        .iter()
-        .flat_map(|&w| std::iter::repeat_n(w, clusters))
-        .collect();
+    let state_len = state.len();
     let opts = ProcessorOptions {
-        dram_init: vec![(memory.vertices, verts), (memory.framebuffer, fb)],
-        srf_init: vec![(regions.vertex_params, param_words)],
+        dram_init: vec![
+            (memory.vertices, verts),
+            (memory.state, state),
+            (memory.framebuffer, fb),
+        ],
         on_start,
         ..ProcessorOptions::default()
     };
@@ -836,6 +879,7 @@ pub fn render(
             ..FrameStats::default()
         },
     };
+    host.begin(state_len);
     let batches = triangles.div_ceil(batch);
     // Two batches in flight: batch b+1's vertices are loaded while batch b is set up and
     // shaded while its first fragments are composited.
