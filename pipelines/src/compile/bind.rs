@@ -8,13 +8,15 @@
 //! LRFs (a result has two switch destinations) gets `mov` copies: it keeps its most-read
 //! LRF and a copy on an adder serves the rest (recursively). This is the copy insertion of
 //! communication scheduling on distributed register files (Mattson et al., MICRO 2000), in
-//! its simplest greedy form.
+//! its simplest greedy form. A lifetime copy in the loop goes to the least-loaded adder or
+//! multiplier: on a multiplier it is `imul_lo(x, 1)`, which copies `x` exactly, so a loop
+//! that fills its adders can still carry values through an idle multiplier.
 
 use std::collections::HashMap;
 
-use imagine_units::ops::UnitClass;
+use imagine_units::ops::{Op, UnitClass};
 
-use super::graph::{Arg, CopyKind, Graph, Kind, Loc, MOp, Source, commutative};
+use super::graph::{Arg, CopyKind, Graph, Input, Kind, Loc, MOp, Source, commutative};
 use super::schedule::{Schedule, Slots};
 use crate::kernel::Region;
 
@@ -43,9 +45,34 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
     for &o in &ops {
         groups.insert(o, g.ops[o].seeded.clone());
     }
+    // A lifetime copy in the loop may go through a multiplier (`imul_lo(x, 1)`) when the
+    // adders are busier: it reads the constant 1, kept before the loop.
+    let mul_copies = ii.is_some()
+        && slots.shape.multipliers > 0
+        && ops
+            .iter()
+            .any(|&o| g.ops[o].copy_kind == Some(CopyKind::Lifetime));
+    let one = mul_copies.then(|| g.copy_multiplicand());
+    let mut one_used = false;
+    let mul_extra = slots.mul_copy_extra;
     for &u in &ops {
+        let through_mul = one.filter(|_| g.ops[u].copy_kind == Some(CopyKind::Lifetime));
+        if let Some(one) = through_mul {
+            // Bound as a `mov` first; a multiplier slot below makes it an `imul_lo`.
+            let op = &mut g.ops[u];
+            if op.kind == Kind::Fu(Op::IMulLo) {
+                op.kind = Kind::Fu(Op::Mov);
+                op.args.retain(|a| a.src != Source::Earlier(one));
+                op.deadline = op.deadline.map(|d| d + mul_extra);
+            }
+        }
         let op = &g.ops[u];
         let options: Vec<(usize, bool)> = match op.kind {
+            Kind::Fu(_) if through_mul.is_some() => slots
+                .fu_slots(UnitClass::Adder)
+                .chain(slots.fu_slots(UnitClass::Multiplier))
+                .map(|k| (k, false))
+                .collect(),
             Kind::Fu(o) => {
                 let units: Vec<usize> = match op.fixed_slot {
                     Some(s) => vec![s],
@@ -75,8 +102,19 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
             Kind::Comm(_) => Some(nfu + k),
             _ => None,
         };
+        let is_mul =
+            |k: usize| through_mul.is_some() && slots.fu_slots(UnitClass::Multiplier).contains(&k);
         let cost = |&(k, swap): &(usize, bool)| -> usize {
             let mut c = load_index(k).map_or(0, |i| load[i] * 2);
+            if let (true, Some(one)) = (is_mul(k), through_mul) {
+                // The constant's entry, and the longer latency.
+                let l = slots.fu_inputs[k][1];
+                if !kept_at.contains(&(one, Loc::Lrf(l))) {
+                    let room = slots.shape.lrf_sizes[l as usize];
+                    c += 8 + 96 * kept[l as usize] / room.max(1);
+                }
+                c += 4;
+            }
             for a in &op.args {
                 if let Source::Earlier(p) = a.src
                     && let Loc::Lrf(l) = slots.operand_loc(op.kind, k, swap, a)
@@ -108,6 +146,17 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
         if let Some(i) = load_index(slot) {
             load[i] += weight;
         }
+        if let (true, Some(one)) = (is_mul(slot), through_mul) {
+            let op = &mut g.ops[u];
+            op.kind = Kind::Fu(Op::IMulLo);
+            op.args.push(Arg {
+                src: Source::Earlier(one),
+                input: Input::B,
+            });
+            op.deadline = op.deadline.map(|d| d - mul_extra);
+            one_used = true;
+        }
+        let op = &g.ops[u];
         let reads: Vec<(usize, Loc)> = op
             .args
             .iter()
@@ -132,6 +181,9 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
                 v.push(loc);
             }
         }
+    }
+    if let (Some(one), false) = (one, one_used) {
+        g.ops[one].dead = true;
     }
     // Values read from more than two places get copies.
     loop {

@@ -186,6 +186,9 @@ pub struct Graph {
     /// Issue cycles of the loop's ops in its straight-line schedule (indexed by op; empty
     /// when there is none): the order the modulo scheduler places them in.
     pub hint: Vec<i64>,
+    /// The modulo scheduler breaks ties between ops of equal priority towards the later op
+    /// in program order (the earlier by default).
+    pub late_ties: bool,
 }
 
 impl Graph {
@@ -223,6 +226,21 @@ impl Graph {
         self.ops.push(mov);
         self.ops[user].args[arg].src = Source::Local(copy);
         copy
+    }
+
+    /// The constant 1 made before the loop for copies through a multiplier (`imul_lo(x, 1)`
+    /// copies `x` exactly), made on first use.
+    pub fn copy_multiplicand(&mut self) -> usize {
+        let one = Kind::Imm(ImmValue::Const(1));
+        if let Some(o) = (0..self.ops.len()).find(|&o| {
+            let op = &self.ops[o];
+            op.region == Region::Pre && op.kind == one && op.ir.is_none() && op.args.is_empty()
+        }) {
+            self.ops[o].dead = false;
+            return o;
+        }
+        self.ops.push(MOp::new(one, vec![], Region::Pre, None));
+        self.ops.len() - 1
     }
 
     /// Gives loop readers of constants their own immediates in the loop, issued just before
@@ -431,6 +449,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
             params_stream,
             main_loop: kernel.main_loop,
             hint: Vec::new(),
+            late_ties: false,
         },
         op_of: vec![None; n],
         carried_mov: vec![None; n],

@@ -187,12 +187,24 @@ fn search(
     } else {
         max_ii
     };
+    // (Each interval near the bound with ties between equal priorities broken both ways:
+    // in a full reservation table, which op gets the earlier free slots decides whether
+    // values outlive the interval.)
+    let mut late = base.clone();
+    late.late_ties = true;
     for ii in mii..=near {
-        match with_repairs(base, LoopMode::Modulo(ii as i64), MAX_REPAIRS) {
-            Ok(a) => return Ok(compiled(a)),
-            Err(Retry::Fatal(e)) => return Err(e),
-            Err(Retry::Larger(e) | Retry::Repair(_, e)) => {
-                last_error = Some(e);
+        let orders: &[(&Graph, usize)] = if ii <= mii + LATE_TIES_ABOVE_BOUND {
+            &[(base, MAX_REPAIRS), (&late, WIDE_REPAIRS)]
+        } else {
+            &[(base, MAX_REPAIRS)]
+        };
+        for &(b, repairs) in orders {
+            match with_repairs(b, LoopMode::Modulo(ii as i64), repairs) {
+                Ok(a) => return Ok(compiled(a)),
+                Err(Retry::Fatal(e)) => return Err(e),
+                Err(Retry::Larger(e) | Retry::Repair(_, e)) => {
+                    last_error = Some(e);
+                }
             }
         }
     }
@@ -262,7 +274,12 @@ const RELIEF_SLACK: usize = 4;
 /// Repairs of a full LRF tried at one initiation interval before a larger one.
 const MAX_REPAIRS: usize = 96;
 
-/// Repairs tried at each interval far from the bound (see [`search`]).
+/// Intervals above the lower bound at which the modulo scheduler also breaks ties the
+/// other way (see [`search`]).
+const LATE_TIES_ABOVE_BOUND: u32 = 3;
+
+/// Repairs tried at each interval far from the bound, and with ties broken late (see
+/// [`search`]).
 const WIDE_REPAIRS: usize = 16;
 
 enum Retry {

@@ -34,6 +34,8 @@ pub struct Slots {
     pub stream_words: usize,
     pub conditional_words: usize,
     pub dsq_interval: usize,
+    /// How much later a copy through a multiplier lands than a `mov`.
+    pub mul_copy_extra: i64,
 }
 
 impl Slots {
@@ -71,6 +73,8 @@ impl Slots {
             stream_words: desc.srf.cluster_words_per_cycle,
             conditional_words: desc.srf.conditional_words_per_cycle,
             dsq_interval: desc.latency.divsqrt_issue_interval.max(1) as usize,
+            mul_copy_extra: i64::from(Op::IMulLo.latency(&desc.latency))
+                - i64::from(Op::Mov.latency(&desc.latency)),
             shape,
         }
     }
@@ -541,10 +545,18 @@ fn attempt_modulo(
     } else {
         height
     };
+    // Ties go to the earlier op in program order, or with `late_ties` to the later one.
+    let tie = |o: usize| {
+        if g.late_ties {
+            std::cmp::Reverse(usize::MAX - o)
+        } else {
+            std::cmp::Reverse(o)
+        }
+    };
     let mut queue: std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)> = ops
         .iter()
         .filter(|&&o| !jit(o) || succs[o].is_empty())
-        .map(|&o| (height[o], std::cmp::Reverse(o)))
+        .map(|&o| (height[o], tie(o)))
         .collect();
     let mut previous: Vec<Option<i64>> = vec![None; n];
     let mut moved_for_lifetime = vec![false; n];
@@ -562,9 +574,10 @@ fn attempt_modulo(
                 }
             }
             // (A constant waiting for a reader is queued again when the reader is placed.)
-            queue.push((height[v], std::cmp::Reverse(v)));
+            queue.push((height[v], tie(v)));
         };
-    while let Some((_, std::cmp::Reverse(u))) = queue.pop() {
+    while let Some((_, std::cmp::Reverse(key))) = queue.pop() {
+        let u = if g.late_ties { usize::MAX - key } else { key };
         if sched.place[u].is_some()
             || (jit(u) && succs[u].iter().any(|e| sched.place[e.to].is_none()))
         {
@@ -744,7 +757,7 @@ fn attempt_modulo(
         // Its constants can go now.
         for e in &preds[u] {
             if e.distance == 0 && jit(e.from) && sched.place[u].is_some() {
-                queue.push((height[e.from], std::cmp::Reverse(e.from)));
+                queue.push((height[e.from], tie(e.from)));
             }
         }
     }
