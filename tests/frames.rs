@@ -127,7 +127,11 @@ fn stacked_scene() -> Scene {
             }
         };
         let j = (i % 3) as f32 * 0.25;
-        let colour = [(i * 5 % 7) as f32 / 6.0, (i % 2) as f32, (i * 3 % 5) as f32 / 4.0];
+        let colour = [
+            (i * 5 % 7) as f32 / 6.0,
+            (i % 2) as f32,
+            (i * 3 % 5) as f32 / 4.0,
+        ];
         let [r, g, bl] = colour;
         text.push_str(&format!(
             "{} 1 {a} {r} {g} {bl}  23 {} {b} {r} {g} {bl}  {} 23 {c} {r} {g} {bl}\n",

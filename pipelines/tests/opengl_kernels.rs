@@ -418,7 +418,8 @@ fn merge_round(n: usize, shape: FrameShape, seed: u32) -> Round {
         }
         let null = i % 13 == 12;
         r.conflict.push(u32::from(!null && a % 8 != 0));
-        r.addr.push(if null { shape.trash() } else { (a >> 8) % 12 });
+        r.addr
+            .push(if null { shape.trash() } else { (a >> 8) % 12 });
         let depths = [0.25f32, 0.5, 0.75, 1.0, 0.0, -0.0, 1.5, -0.5];
         r.z.push(match b % 16 {
             _ if null => kernels::NULL_DEPTH,
@@ -567,8 +568,7 @@ fn sort32_and_mergefrag_keep_the_fragment_zcompare_would_keep_per_pixel_and_grou
                 compiled.program.code.len(),
                 compiled.report.loop_ops
             );
-            let _ = (
-            );
+            let _ = ();
             let r = imagine_pipelines::run::check(k, &compiled, &desc, inputs).unwrap();
             assert!(r.mismatch.is_none(), "{name} {}: {:?}", k.name, r.mismatch);
         }
