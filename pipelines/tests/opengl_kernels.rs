@@ -29,6 +29,8 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             kernels::hash(&desc, shape),
             kernels::zcompare(&desc, shape),
             kernels::compact_recycle(&desc, [0, 1]),
+            imagine_pipelines::opengl::mergefrag::sort32(&desc, shape),
+            imagine_pipelines::opengl::mergefrag::mergefrag(&desc, shape),
         ] {
             let c = compile(&k, &desc).unwrap_or_else(|e| panic!("{name}: {e}"));
             println!(
@@ -409,8 +411,10 @@ fn hash_holds_back_exactly_the_fragments_an_earlier_one_shares_a_stamp_key_with(
             params: vec![],
         };
         let golden = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
-        let want = conflicts(&addrs, width, shape.trash());
+        let mut want = conflicts(&addrs, width, shape.trash());
         let held: u32 = want.iter().sum();
+        // Then rows of zeros up to a whole group of 32 for sort32.
+        want.resize(addrs.len() + 32 - c, 0);
         assert!(
             held as usize > addrs.len() / 8 && (held as usize) < addrs.len() / 2,
             "{name}: {held} of {} conflict",
@@ -420,5 +424,201 @@ fn hash_holds_back_exactly_the_fragments_an_earlier_one_shares_a_stamp_key_with(
         assert_eq!(golden[2], vec![held; c], "{name}: the count row");
         let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
         assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
+    }
+}
+
+/// Fragments for the merge stage: `n` slots (whole rows) of a round's streams, conflict
+/// flags, addresses, depths, colours and primitives, with many fragments per pixel, equal
+/// depths, depths outside [0, 1] and nulls; then `hash`'s rows of zeros and garbage in
+/// the other streams up to whole groups of 32.
+struct Round {
+    conflict: Vec<u32>,
+    addr: Vec<u32>,
+    z: Vec<u32>,
+    colour: Vec<u32>,
+    prim: Vec<u32>,
+}
+
+fn merge_round(n: usize, shape: FrameShape, seed: u32) -> Round {
+    let groups = n.next_multiple_of(32);
+    let mut state = seed;
+    let mut next = || {
+        state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        state >> 4
+    };
+    let mut r = Round {
+        conflict: vec![],
+        addr: vec![],
+        z: vec![],
+        colour: vec![],
+        prim: vec![],
+    };
+    for i in 0..groups {
+        let (a, b, c) = (next(), next(), next());
+        if i >= n {
+            // Past the stream: hash's zeros, anything else.
+            r.conflict.push(0);
+            r.addr.push(a % 64);
+            r.z.push(b);
+            r.colour.push(c);
+            r.prim.push(a);
+            continue;
+        }
+        let null = i % 13 == 12;
+        r.conflict.push(u32::from(!null && a % 8 != 0));
+        r.addr
+            .push(if null { shape.trash() } else { (a >> 8) % 12 });
+        let depths = [0.25f32, 0.5, 0.75, 1.0, 0.0, -0.0, 1.5, -0.5];
+        r.z.push(match b % 16 {
+            _ if null => kernels::NULL_DEPTH,
+            0..=7 => depths[(b >> 8) as usize % 8].to_bits(),
+            8 => kernels::NULL_DEPTH,
+            _ => (((b >> 8) % 1000) as f32 / 1000.0).to_bits(),
+        });
+        r.colour.push(c);
+        r.prim.push(if null { 0 } else { 1 + (c >> 8) % 6 });
+    }
+    r
+}
+
+/// What `sort32` must write: per group of `n`, the keys `addr·32 + position` (the trash address
+/// for slots not held back) ascending, and each key's depth and primitive.
+fn sorted_model(r: &Round, trash: u32, n: usize) -> [Vec<u32>; 3] {
+    let mut out = [vec![], vec![], vec![]];
+    for g in (0..r.conflict.len()).step_by(n) {
+        let mut keys: Vec<u32> = (0..n)
+            .map(|p| {
+                let addr = if r.conflict[g + p] != 0 {
+                    r.addr[g + p]
+                } else {
+                    trash
+                };
+                addr << 5 | p as u32
+            })
+            .collect();
+        keys.sort_unstable();
+        for key in keys {
+            let p = g + (key & 31) as usize;
+            out[0].push(key);
+            out[1].push(r.z[p]);
+            out[2].push(r.prim[p]);
+        }
+    }
+    out
+}
+
+/// What `mergefrag` must write: per group of `n`, per address held back (ascending), the
+/// fragment with the smallest (depth, primitive) as unsigned words (the first of equal
+/// ones in stream order): z, colour, addr, prim; then a row of nulls.
+fn merged_model(r: &Round, trash: u32, clusters: usize, n: usize) -> [Vec<u32>; 4] {
+    let mut out = [vec![], vec![], vec![], vec![]];
+    for g in (0..r.conflict.len()).step_by(n) {
+        let mut best: std::collections::BTreeMap<u32, usize> = Default::default();
+        for p in g..g + n {
+            if r.conflict[p] == 0 {
+                continue;
+            }
+            let e = best.entry(r.addr[p]).or_insert(p);
+            if (r.z[p], r.prim[p]) < (r.z[*e], r.prim[*e]) {
+                *e = p;
+            }
+        }
+        for (addr, p) in best {
+            assert_ne!(addr, trash);
+            out[0].push(r.z[p]);
+            out[1].push(r.colour[p]);
+            out[2].push(addr);
+            out[3].push(r.prim[p]);
+        }
+    }
+    for (s, null) in out.iter_mut().zip([kernels::NULL_DEPTH, 0, trash, 0]) {
+        s.extend(std::iter::repeat_n(null, clusters));
+    }
+    out
+}
+
+#[test]
+fn sort32_and_mergefrag_keep_the_fragment_zcompare_would_keep_per_pixel_and_group() {
+    use imagine_pipelines::kernel::KernelInputs;
+    use imagine_pipelines::opengl::mergefrag;
+    for name in ["gold1", "gold8", "gold32"] {
+        let desc = MachineDesc::resolve(name).unwrap();
+        let c = desc.cluster.count;
+        let shape = FrameShape {
+            width: 40,
+            height: 30,
+            clusters: c,
+            cull_back: false,
+            batch: c,
+        };
+        let trash = shape.trash();
+        // Not whole groups: the last group is part stream, part padding.
+        let n = (200usize).next_multiple_of(c).max(c) + if c < 32 { c } else { 0 };
+        let round = merge_round(n, shape, 0x1234_5678 + c as u32);
+        let groups = round.conflict.len();
+        assert!(groups > n || c == 32);
+        let sort = mergefrag::sort32(&desc, shape);
+        let merge = mergefrag::mergefrag(&desc, shape);
+        let sort_inputs = KernelInputs {
+            streams: vec![
+                round.conflict.clone(),
+                round.addr.clone(),
+                round.z.clone(),
+                round.prim.clone(),
+                vec![],
+                vec![],
+                vec![],
+            ],
+            params: vec![],
+        };
+        let sorted = imagine_pipelines::kernel::interpret(&sort, &sort_inputs, &desc).unwrap();
+        let group = mergefrag::group(c);
+        let want = sorted_model(&round, trash, group);
+        for (s, w) in sorted[4..].iter().zip(&want) {
+            assert_eq!(s, w, "{name}: sort32");
+        }
+        let merge_inputs = KernelInputs {
+            streams: vec![
+                want[0].clone(),
+                want[1].clone(),
+                want[2].clone(),
+                round.colour.clone(),
+                vec![],
+                vec![],
+                vec![],
+                vec![],
+            ],
+            params: vec![],
+        };
+        let merged = imagine_pipelines::kernel::interpret(&merge, &merge_inputs, &desc).unwrap();
+        let want_merged = merged_model(&round, trash, c, group);
+        let held: u32 = round.conflict.iter().sum();
+        let kept = want_merged[0].len() - c;
+        // Groups of 32 merge most of the fragments held back (12 pixels); groups of 8 some.
+        let most = if group == 32 { 2 } else { 1 };
+        assert!(
+            kept * (1 + most) < 2 * held as usize && kept > 20,
+            "{name}: {kept} of {held} kept"
+        );
+        for (s, w) in merged[4..].iter().zip(&want_merged) {
+            assert_eq!(s, w, "{name}: mergefrag");
+        }
+        for (k, inputs) in [(&sort, &sort_inputs), (&merge, &merge_inputs)] {
+            let compiled = compile(k, &desc).unwrap();
+            println!(
+                "{name} {}: II {:?} (bound {} {}, recurrence {}), {} stages, {} instructions, {:?}",
+                k.name,
+                compiled.report.ii,
+                compiled.report.res_mii,
+                compiled.report.res_limit,
+                compiled.report.rec_mii,
+                compiled.report.stages,
+                compiled.program.code.len(),
+                compiled.report.loop_ops
+            );
+            let _ = ();
+            let r = imagine_pipelines::run::check(k, &compiled, &desc, inputs).unwrap();
+            assert!(r.mismatch.is_none(), "{name} {}: {:?}", k.name, r.mismatch);
+        }
     }
 }

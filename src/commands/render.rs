@@ -140,8 +140,14 @@ fn print_stats(f: &Frame, m: &Metrics) {
         100.0 * s.cluster_occupancy_without_stalls
     );
     println!(
-        "batches            {} of {} triangles, {} spills, {} composite rounds",
-        s.batches, s.batch_triangles, s.spills, s.composite_rounds
+        "batches            {} of {} triangles, {} spills, {} composite rounds ({} merged, \
+         {} fragments dropped)",
+        s.batches,
+        s.batch_triangles,
+        s.spills,
+        s.composite_rounds,
+        s.merge_rounds,
+        s.merged_fragments
     );
     println!(
         "DRAM               {:.3} GB/s, row hits {:.1} %",

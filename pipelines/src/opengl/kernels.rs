@@ -11,6 +11,8 @@
 //! | [`hash`] | fragment: conflict with an earlier fragment of the round (32×32 stamp) | addr → conflict |
 //! | [`zcompare`] | fragment: depth test LESS with primitive-order ties | z, colour, addr, prim, pixel, conflict → new pixel, its address |
 //! | [`compact_recycle`] | fragment: keeps the conflicting fragments for the next round | conflict, a, b → a', b' (conditional) |
+//! | [`sort32`](super::mergefrag::sort32) | group of 32 fragments: the conflicting ones sorted by address | conflict, addr, z, prim → key, z, prim |
+//! | [`mergefrag`](super::mergefrag::mergefrag) | sorted group: one fragment per address, the one `zcompare` would keep | key, z, prim, colour → z, colour, addr, prim (conditional) |
 //!
 //! **Rasterization** is homogeneous (Olano and Greer, "Triangle Scan Conversion using 2D
 //! Homogeneous Coordinates", Graphics Hardware 1997): with `v_k = ((x_k + w_k)·W/2,
@@ -94,7 +96,7 @@ pub fn xyrast_rows(desc: &MachineDesc) -> usize {
     words.saturating_sub(RASTER_WORDS + 1) / RASTER_WORDS
 }
 
-fn finish(b: KernelBuilder) -> Kernel {
+pub(crate) fn finish(b: KernelBuilder) -> Kernel {
     match b.finish() {
         Ok(k) => k,
         Err(e) => panic!("pipeline kernel does not verify: {e}"),
@@ -131,7 +133,7 @@ fn all_reduce(
 
 /// One row of null records after a conditional output: every cluster writes `nulls[i]` to
 /// stream `outs[i]`.
-fn null_row(b: &mut KernelBuilder, outs: &[(StreamId, u32)]) {
+pub(crate) fn null_row(b: &mut KernelBuilder, outs: &[(StreamId, u32)]) {
     let zero = b.i32(0);
     let all = b.ieq(zero, zero);
     for &(s, null) in outs {
@@ -709,8 +711,10 @@ pub fn reciprocal(d: u32) -> (u32, u32) {
 /// the same round (earlier in the stream) has the same key, a hash of its pixel's x and y:
 /// the two might read and write back the same pixel. Outputs:
 /// `conflict`, unconditional: 1 for such a fragment (it waits for the next round), else 0;
-/// after the loop, `count`: a row of the number of conflicts (the same word in every
-/// cluster), for the host. Null fragments (the trash pixel) never conflict.
+/// after the loop, `32 / C − 1` rows of zeros (so that [`sort32`](super::mergefrag::sort32)
+/// can read the flags in whole groups of 32), and `count`: a row of the number of
+/// conflicts (the same word in every cluster), for the host. Null fragments (the trash
+/// pixel) never conflict.
 ///
 /// The key of pixel (x, y) is row `(y + ⌊5x / 32⌋) mod 32`, bit `x mod 32` of a 32×32
 /// stamp ([`STAMP_SKEW`] = 5). Within a 32×32 window the keys are those of the low five
@@ -805,6 +809,9 @@ pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let count = b.iadd(count0, conflict);
     b.set_next(count0, count);
     b.end_loop();
+    for _ in 1..crate::kernels::sort32::CHUNK / c {
+        b.write(conflict_out, zero);
+    }
     let total = all_reduce(&mut b, c, count0, KernelBuilder::iadd);
     b.write(count_out, total);
     finish(b)

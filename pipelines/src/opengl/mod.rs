@@ -2,4 +2,5 @@
 //! host that drives the stream processor batch by batch.
 
 pub mod kernels;
+pub mod mergefrag;
 pub mod render;

@@ -47,6 +47,7 @@ use imagine_units::stream_controller::StreamInstr;
 use serde::Serialize;
 
 use super::kernels::{self, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS};
+use super::mergefrag::{self, GROUP};
 use crate::compile::{Compiled, compile};
 use crate::kernel::Kernel;
 use crate::scene::{Scene, Shading};
@@ -104,6 +105,12 @@ pub struct FrameStats {
     /// Scissor splits made because a batch's fragments overflowed the SRF.
     pub spills: u64,
     pub composite_rounds: u64,
+    /// Composite rounds whose conflicting fragments were sorted and merged (`sort32`,
+    /// `mergefrag`) rather than recycled as they were.
+    pub merge_rounds: u64,
+    /// Conflicting fragments `mergefrag` dropped (another fragment of the same pixel in
+    /// their group beats them).
+    pub merged_fragments: u64,
     pub dram_gbs: f64,
     pub dram_row_hit_rate: f64,
     pub dram_bytes: u64,
@@ -138,6 +145,8 @@ struct Kernels {
     zcompare: usize,
     recycle_zc: usize,
     recycle_ap: usize,
+    sort32: usize,
+    mergefrag: usize,
     compiled: Vec<(Kernel, Compiled)>,
 }
 
@@ -160,6 +169,8 @@ fn compile_all(
         kernels::zcompare(desc, shape),
         kernels::compact_recycle(desc, [NULL_DEPTH, 0]),
         kernels::compact_recycle(desc, [shape.trash(), 0]),
+        mergefrag::sort32(desc, shape),
+        mergefrag::mergefrag(desc, shape),
     ];
     let compiled = list
         .into_iter()
@@ -179,6 +190,8 @@ fn compile_all(
         zcompare: 6,
         recycle_zc: 7,
         recycle_ap: 8,
+        sort32: 9,
+        mergefrag: 10,
         compiled,
     })
 }
@@ -228,8 +241,11 @@ struct Regions {
     /// Two buffers of gathered interpolation records: the next chunk's are gathered while
     /// this one is composited.
     gathered: [usize; 2],
-    /// irast outputs, then two recycle sets: z, colour, addr, prim.
+    /// irast outputs, then two recycle sets: z, colour, addr, prim (room for a chunk
+    /// rounded up to whole groups of 32 and a row of nulls).
     zcap: [[usize; 4]; 3],
+    /// `sort32`'s outputs: key, z, prim (in `pixel`'s words).
+    sorted: [usize; 3],
     pixel: usize,
     new_pixel: usize,
     newaddr: usize,
@@ -262,6 +278,8 @@ struct Host {
     stats: FrameStats,
     /// The vertex set whose vertex program is still to be queued, with its triangles.
     pending_vertex: Option<(usize, usize)>,
+    /// [`RenderOptions::merge_min_conflicts`].
+    merge_min_conflicts: Option<usize>,
 }
 
 fn bind(start: usize, words: usize) -> StreamBinding {
@@ -554,6 +572,9 @@ impl Host {
         let mut current = [z, colour, addr, prim];
         let mut len = len;
         let mut set = 1;
+        // Whether a merge of this chunk dropped fragments.
+        let mut stacked = false;
+        let mut fruitless = false;
         loop {
             self.stats.composite_rounds += 1;
             let r = &self.r;
@@ -573,7 +594,7 @@ impl Host {
                 self.k.hash,
                 vec![
                     bind(addr, len),
-                    bind(conflict, len),
+                    bind(conflict, len + GROUP),
                     bind(self.r.conflicts, self.clusters),
                 ],
                 None,
@@ -600,32 +621,83 @@ impl Host {
             if conflicts == 0 {
                 return Ok(());
             }
-            let cap = self.r.chunk + self.clusters;
-            self.kernel(
-                self.k.recycle_zc,
-                vec![
-                    bind(conflict, len),
-                    bind(z, len),
-                    bind(colour, len),
-                    bind(next[0], cap),
-                    bind(next[1], cap),
-                ],
-                None,
-            );
-            self.kernel(
-                self.k.recycle_ap,
-                vec![
-                    bind(conflict, len),
-                    bind(addr, len),
-                    bind(prim, len),
-                    bind(next[2], cap),
-                    bind(next[3], cap),
-                ],
-                None,
-            );
-            // The conflicting fragments, then `compact_recycle`'s row of nulls: whole rows.
             let c = self.clusters;
-            len = (conflicts + c) / c * c;
+            let cap = self.r.chunk.next_multiple_of(GROUP) + c;
+            // Merge on many conflicts, and after a merge of this chunk that found a pixel's
+            // fragments together, on any that could merge; not again after a merge of this
+            // chunk that dropped nothing.
+            let merge = !fruitless
+                && self
+                    .merge_min_conflicts
+                    .is_some_and(|m| conflicts >= m || (stacked && conflicts >= 2));
+            if merge {
+                // Sort the conflicting fragments by address in groups of 32 and keep one
+                // per address: whole groups, `hash`'s rows of zeros after its flags.
+                self.stats.merge_rounds += 1;
+                let groups = len.next_multiple_of(GROUP);
+                let sorted = self.r.sorted;
+                self.kernel(
+                    self.k.sort32,
+                    vec![
+                        bind(conflict, groups),
+                        bind(addr, groups),
+                        bind(z, groups),
+                        bind(prim, groups),
+                        bind(sorted[0], groups),
+                        bind(sorted[1], groups),
+                        bind(sorted[2], groups),
+                    ],
+                    None,
+                );
+                let merged = self.kernel(
+                    self.k.mergefrag,
+                    vec![
+                        bind(sorted[0], groups),
+                        bind(sorted[1], groups),
+                        bind(sorted[2], groups),
+                        bind(colour, groups),
+                        bind(next[0], cap),
+                        bind(next[1], cap),
+                        bind(next[2], cap),
+                        bind(next[3], cap),
+                    ],
+                    None,
+                );
+                // The next round needs the survivors' count.
+                self.wait_for(merged)?;
+                let written = self.outputs(merged)[4];
+                let dropped = conflicts + c - written;
+                self.stats.merged_fragments += dropped as u64;
+                stacked |= dropped > 0;
+                fruitless = dropped == 0;
+                len = written / c * c;
+            } else {
+                self.kernel(
+                    self.k.recycle_zc,
+                    vec![
+                        bind(conflict, len),
+                        bind(z, len),
+                        bind(colour, len),
+                        bind(next[0], cap),
+                        bind(next[1], cap),
+                    ],
+                    None,
+                );
+                self.kernel(
+                    self.k.recycle_ap,
+                    vec![
+                        bind(conflict, len),
+                        bind(addr, len),
+                        bind(prim, len),
+                        bind(next[2], cap),
+                        bind(next[3], cap),
+                    ],
+                    None,
+                );
+                // The conflicting fragments, then `compact_recycle`'s row of nulls: whole
+                // rows.
+                len = (conflicts + c) / c * c;
+            }
             current = next;
             set = if set == 1 { 2 } else { 1 };
         }
@@ -682,15 +754,21 @@ fn plan(
     let gathered = [p.take(chunk * INTERP_WORDS)?, p.take(chunk * INTERP_WORDS)?];
     let tickets = gathered[0];
     let mut zcap = [[0; 4]; 3];
+    let groups = chunk.next_multiple_of(GROUP);
     for set in &mut zcap {
         for s in set.iter_mut() {
-            *s = p.take(chunk + c)?;
+            *s = p.take(groups + c)?;
         }
     }
-    let pixel = p.take(chunk * PIXEL_WORDS)?;
+    // `sort32`'s outputs reuse the gathered pixels' words, which the round's `zcompare`
+    // has read by then (the scoreboard sees to it): SRF words left for fragments mean
+    // fewer scissor splits.
+    let pixel = p.take((chunk * PIXEL_WORDS).max(3 * groups))?;
+    let sorted = [0, 1, 2].map(|i| pixel + i * groups);
     let new_pixel = p.take(chunk * PIXEL_WORDS)?;
     let newaddr = p.take(chunk)?;
-    let conflict = p.take(chunk)?;
+    // `hash`'s flags and the rows of zeros after them.
+    let conflict = p.take(chunk + GROUP)?;
     let conflicts = p.take(c)?;
     let tickets_words = p.next - tickets;
     // What is left: the five xyrast outputs, equal shares.
@@ -719,6 +797,7 @@ fn plan(
         frag_capacity,
         gathered,
         zcap,
+        sorted,
         pixel,
         new_pixel,
         newaddr,
@@ -787,12 +866,48 @@ fn state_words(scene: &Scene, clusters: usize) -> Vec<u32> {
     words
 }
 
+/// How the host runs the pipeline (choices that change the cycles, never the image).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RenderOptions {
+    /// Sort and merge a round's conflicting fragments (`sort32`, `mergefrag`) when `hash`
+    /// holds back at least this many; else, or when `None`, recycle them as they are
+    /// (`compact_recycle`).
+    pub merge_min_conflicts: Option<usize>,
+}
+
+/// Conflicts from which the host sorts and merges. The stage costs more cycles than the
+/// recycling it replaces (on gold8, chunks of 96 fragments of a stacked scene: `sort32`
+/// about 600 cycles a call and `mergefrag` 540, against 300 each, the least a kernel
+/// holds the clusters, for `compact_recycle`), and
+/// saves rounds only when fragments of one pixel share a group; few conflicts are more
+/// often stamp aliases (different pixels, the same stamp key) than a pixel's stack.
+pub const MERGE_MIN_CONFLICTS: usize = 24;
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            merge_min_conflicts: Some(MERGE_MIN_CONFLICTS),
+        }
+    }
+}
+
 /// Renders `scene` on a processor built from `desc`; `progress(done, total)` is called
 /// after each batch; `on_start` sees the simulation before the first cycle (to attach a
 /// waveform tracer).
 pub fn render(
     scene: &Scene,
     desc: &MachineDesc,
+    on_start: Option<imagine_units::runner::OnStart>,
+    progress: impl FnMut(usize, usize),
+) -> Result<Frame, RenderError> {
+    render_with(scene, desc, RenderOptions::default(), on_start, progress)
+}
+
+/// [`render`] with the host's choices in `options`.
+pub fn render_with(
+    scene: &Scene,
+    desc: &MachineDesc,
+    options: RenderOptions,
     on_start: Option<imagine_units::runner::OnStart>,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Frame, RenderError> {
@@ -868,6 +983,7 @@ pub fn render(
         m: memory,
         clusters,
         pending_vertex: None,
+        merge_min_conflicts: options.merge_min_conflicts,
         stats: FrameStats {
             scene: scene.name.clone(),
             machine: desc.name.clone(),
