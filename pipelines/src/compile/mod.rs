@@ -192,34 +192,25 @@ fn search(
     // values outlive the interval.)
     let mut late = base.clone();
     late.late_ties = true;
-    for ii in mii..=near {
-        let orders: &[(&Graph, usize)] = if ii <= mii + LATE_TIES_ABOVE_BOUND {
-            &[(base, MAX_REPAIRS), (&late, WIDE_REPAIRS)]
-        } else {
-            &[(base, MAX_REPAIRS)]
-        };
-        for &(b, repairs) in orders {
-            match with_repairs(b, LoopMode::Modulo(ii as i64), repairs) {
-                Ok(a) => return Ok(compiled(a)),
-                Err(Retry::Fatal(e)) => return Err(e),
-                Err(Retry::Larger(e) | Retry::Repair(_, e)) => {
-                    last_error = Some(e);
-                }
-            }
-        }
-    }
+    let near_attempts = (mii..=near).flat_map(|ii| {
+        let late_too = ii <= mii + LATE_TIES_ABOVE_BOUND;
+        std::iter::once((ii, base, MAX_REPAIRS)).chain(late_too.then_some((
+            ii,
+            &late,
+            WIDE_REPAIRS,
+        )))
+    });
     // … then up to the straight-line interval, in the order of the straight-line schedule
     // (which keeps the dense part of the body as the list scheduler packed it, and fills
     // the rest of the interval with the next iteration's serial tail), with fewer repairs.
-    if !hinted.hint.is_empty() {
-        for ii in near + 1..=max_ii {
-            match with_repairs(&hinted, LoopMode::Modulo(ii as i64), WIDE_REPAIRS) {
-                Ok(a) => return Ok(compiled(a)),
-                Err(Retry::Fatal(e)) => return Err(e),
-                Err(Retry::Larger(e) | Retry::Repair(_, e)) => {
-                    last_error = Some(e);
-                }
-            }
+    let far_attempts = (near + 1..=max_ii)
+        .filter(|_| !hinted.hint.is_empty())
+        .map(|ii| (ii, &hinted, WIDE_REPAIRS));
+    for (ii, graph, repairs) in near_attempts.chain(far_attempts) {
+        match with_repairs(graph, LoopMode::Modulo(ii as i64), repairs) {
+            Ok(a) => return Ok(compiled(a)),
+            Err(Retry::Fatal(e)) => return Err(e),
+            Err(Retry::Larger(e) | Retry::Repair(_, e)) => last_error = Some(e),
         }
     }
     line.ok_or_else(|| last_error.unwrap_or(("schedule".into(), "no schedule found".into())))

@@ -83,7 +83,6 @@ impl Slots {
         self.shape.lrf_names.len()
     }
 
-    /// FU slots of a unit class.
     /// Cycles an op holds its unit's issue slot: the divide/sqrt unit's issue interval,
     /// one for every other unit.
     fn issue_cycles(&self, op: Op) -> i64 {
@@ -94,6 +93,7 @@ impl Slots {
         }
     }
 
+    /// FU slots of a unit class.
     pub fn fu_slots(&self, class: UnitClass) -> std::ops::Range<usize> {
         let s = &self.shape;
         match class {
@@ -545,39 +545,32 @@ fn attempt_modulo(
     } else {
         height
     };
-    // Ties go to the earlier op in program order, or with `late_ties` to the later one.
-    let tie = |o: usize| {
-        if g.late_ties {
-            std::cmp::Reverse(usize::MAX - o)
-        } else {
-            std::cmp::Reverse(o)
-        }
-    };
-    let mut queue: std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)> = ops
+    // The queue pops the greatest (height, tie): ties go to the earlier op in program order,
+    // or with `late_ties` to the later one.
+    let tie = |o: usize| if g.late_ties { o as i64 } else { -(o as i64) };
+    let mut queue: std::collections::BinaryHeap<(i64, i64, usize)> = ops
         .iter()
         .filter(|&&o| !jit(o) || succs[o].is_empty())
-        .map(|&o| (height[o], tie(o)))
+        .map(|&o| (height[o], tie(o), o))
         .collect();
     let mut previous: Vec<Option<i64>> = vec![None; n];
     let mut moved_for_lifetime = vec![false; n];
     let mut budget = ops.len() * BUDGET_RATIO + 64;
     // Takes `v` out of the schedule (with the constants made just for it) and queues it.
-    let evict =
-        |v: usize,
-         sched: &mut Schedule,
-         table: &mut Table,
-         queue: &mut std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)>| {
-            unplace(g, sched, table, v, slots, desc);
-            for e in &preds[v] {
-                if e.distance == 0 && jit(e.from) && sched.place[e.from].is_some() {
-                    unplace(g, sched, table, e.from, slots, desc);
-                }
+    let evict = |v: usize,
+                 sched: &mut Schedule,
+                 table: &mut Table,
+                 queue: &mut std::collections::BinaryHeap<(i64, i64, usize)>| {
+        unplace(g, sched, table, v, slots, desc);
+        for e in &preds[v] {
+            if e.distance == 0 && jit(e.from) && sched.place[e.from].is_some() {
+                unplace(g, sched, table, e.from, slots, desc);
             }
-            // (A constant waiting for a reader is queued again when the reader is placed.)
-            queue.push((height[v], tie(v)));
-        };
-    while let Some((_, std::cmp::Reverse(key))) = queue.pop() {
-        let u = if g.late_ties { usize::MAX - key } else { key };
+        }
+        // (A constant waiting for a reader is queued again when the reader is placed.)
+        queue.push((height[v], tie(v), v));
+    };
+    while let Some((_, _, u)) = queue.pop() {
         if sched.place[u].is_some()
             || (jit(u) && succs[u].iter().any(|e| sched.place[e.to].is_none()))
         {
@@ -757,7 +750,7 @@ fn attempt_modulo(
         // Its constants can go now.
         for e in &preds[u] {
             if e.distance == 0 && jit(e.from) && sched.place[u].is_some() {
-                queue.push((height[e.from], tie(e.from)));
+                queue.push((height[e.from], tie(e.from), e.from));
             }
         }
     }

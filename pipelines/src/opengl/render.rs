@@ -931,7 +931,7 @@ pub fn render_with(
     };
     let k = compile_all(scene, desc, shape)?;
     let state = state_words(scene, clusters);
-    let params = kernels::STATE_MATRIX_WORDS / 2 + passthrough(scene).len();
+    let params = k.compiled[k.vertex].0.params.len();
     let regions = plan(desc, batch, state.len(), params)?;
     let verts = vertex_words(scene, batch, clusters);
     let pixels = (scene.width * scene.height) as usize + 1;
