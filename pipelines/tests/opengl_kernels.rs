@@ -23,7 +23,10 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
         for k in [
             kernels::perbegin(&desc, 27),
             kernels::vertex_unlit(&desc),
-            kernels::setup(&desc, shape),
+            kernels::assemble_clip(&desc),
+            kernels::viewport_cull(&desc, shape),
+            kernels::xyprep(&desc, shape),
+            kernels::baryprep(&desc),
             kernels::xyrast(&desc, shape),
             kernels::irast(&desc),
             kernels::hash(&desc, shape),
@@ -44,7 +47,7 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
     }
 }
 
-/// A raster record as `setup` writes it: box `w × h` at `(x0, y0)` (empty if `w` or `h` is
+/// A raster record as `xyprep` writes it: box `w × h` at `(x0, y0)` (empty if `w` or `h` is
 /// 0), triangle `t` with top-left flags `top_left` (bit i: edge i), edge coefficients
 /// `edges[i] = [A, B, C]`.
 fn raster_record(
@@ -207,10 +210,34 @@ fn xyrast_covers_exactly_the_pixels_the_edges_cover() {
     }
 }
 
+/// Runs `k` on `inputs` in the interpreter, checks the machine's output equals it word for
+/// word, and returns the interpreter's streams.
+fn run_checked(
+    k: &imagine_pipelines::kernel::Kernel,
+    desc: &MachineDesc,
+    inputs: &imagine_pipelines::kernel::KernelInputs,
+) -> Vec<Vec<u32>> {
+    let compiled = compile(k, desc).unwrap();
+    let golden = imagine_pipelines::kernel::interpret(k, inputs, desc).unwrap();
+    let r = imagine_pipelines::run::check(k, &compiled, desc, inputs).unwrap();
+    assert!(
+        r.mismatch.is_none(),
+        "{} on {}: {:?}",
+        k.name,
+        desc.name,
+        r.mismatch
+    );
+    golden
+}
+
+/// The setup kernels in a chain, on the shaded vertices of SPHERE triangles (about half
+/// face away): `assemble_clip` gathers each triangle's corners into one cluster, `viewport_cull` and `xyprep` count the boxes as
+/// `xyrast` walks them, `baryprep` numbers the primitives; the machine matches the
+/// interpreter at every step.
 #[test]
-fn setup_machine_matches_interpreter_on_sphere_triangles() {
+fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
     use imagine_pipelines::kernel::KernelInputs;
-    for name in ["gold1", "gold8"] {
+    for name in ["gold1", "gold8", "gold32"] {
         let desc = MachineDesc::resolve(name).unwrap();
         let c = desc.cluster.count;
         let scene = imagine_pipelines::scene::sphere(3, 128);
@@ -221,47 +248,107 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
             cull_back: true,
             batch: 8 * c,
         };
-        let k = kernels::setup(&desc, shape);
-        let compiled = compile(&k, &desc).unwrap();
-        let tris = 8 * c;
-        let mut records = Vec::new();
+        let tris = 64.max(8 * c);
+        let m = scene.mvp();
+        // Shaded vertices in drawing order: clip position, then a colour that names the
+        // vertex.
+        let vertices: Vec<Vec<u32>> = (0..3 * tris)
+            .map(|v| {
+                let p = scene.positions[v];
+                let mut rec: Vec<u32> = (0..4)
+                    .map(|r| {
+                        (m[4 * r] * p[0] + m[4 * r + 1] * p[1] + m[4 * r + 2] * p[2] + m[4 * r + 3])
+                            .to_bits()
+                    })
+                    .collect();
+                rec.extend([v as f32, 0.5, 0.25].map(f32::to_bits));
+                rec
+            })
+            .collect();
+        let assembled = run_checked(
+            &kernels::assemble_clip(&desc),
+            &desc,
+            &KernelInputs {
+                streams: vec![records_to_stream(&vertices, c), vec![], vec![]],
+                params: vec![],
+            },
+        );
+        let clipped = stream_to_records(&assembled[1], kernels::CLIPPED_WORDS, c);
+        let attribs = stream_to_records(&assembled[2], kernels::ATTRIB_WORDS, c);
+        assert_eq!((clipped.len(), attribs.len()), (tris, tris), "{name}");
         for t in 0..tris {
-            let mut rec = Vec::new();
-            for kk in 0..3 {
-                let p = scene.positions[3 * t + kk];
-                let m = scene.mvp();
-                for r in 0..4 {
-                    rec.push(
-                        (m[4 * r] * p[0]
-                            + m[4 * r + 1] * p[1]
-                            + m[4 * r + 2] * p[2]
-                            + m[4 * r + 3])
-                            .to_bits(),
-                    );
-                }
-                rec.extend([0.5f32; 3].map(f32::to_bits));
-            }
-            records.push(rec);
+            let corner = |k: usize| &vertices[3 * t + k];
+            let xyw: Vec<u32> = (0..3)
+                .flat_map(|k| [corner(k)[0], corner(k)[1], corner(k)[3]])
+                .collect();
+            assert_eq!(clipped[t][..9], xyw[..], "{name}: triangle {t}'s corners");
+            let z: Vec<u32> = (0..3).map(|k| corner(k)[2]).collect();
+            let colours: Vec<u32> = (0..3).flat_map(|k| corner(k)[4..7].to_vec()).collect();
+            assert_eq!(attribs[t][..3], z[..], "{name}: triangle {t}'s depths");
+            assert_eq!(
+                attribs[t][3..],
+                colours[..],
+                "{name}: triangle {t}'s colours"
+            );
         }
-        let stream = records_to_stream(&records, c);
-        let inputs = KernelInputs {
-            streams: vec![stream, vec![], vec![], vec![]],
-            params: vec![0, 0, 127, 127, 0],
-        };
-        let golden = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
-        assert_eq!(
-            golden[1].len(),
-            tris * kernels::RASTER_WORDS,
-            "raster records"
+        // SPHERE at this size: about half the triangles face away, none lies wholly
+        // outside one clip plane.
+        assert!(clipped.iter().all(|r| r[9] == 1), "{name}: trivial reject");
+        let viewed = run_checked(
+            &kernels::viewport_cull(&desc, shape),
+            &desc,
+            &KernelInputs {
+                streams: vec![assembled[1].clone(), vec![], vec![]],
+                params: vec![],
+            },
         );
-        assert_eq!(
-            golden[2].len(),
-            tris * kernels::INTERP_WORDS,
-            "interp records"
+        let window = stream_to_records(&viewed[1], kernels::WINDOW_WORDS, c);
+        let kept = window.iter().filter(|r| r[13] & 1 == 1).count();
+        assert!(
+            kept > tris / 8 && kept < 7 * tris / 8,
+            "{name}: {kept} of {tris} triangles face the eye"
         );
+        let bary = run_checked(
+            &kernels::baryprep(&desc),
+            &desc,
+            &KernelInputs {
+                streams: vec![assembled[2].clone(), viewed[2].clone(), vec![]],
+                params: vec![1000],
+            },
+        );
+        let interp = stream_to_records(&bary[2], kernels::INTERP_WORDS, c);
+        for (t, rec) in interp.iter().enumerate() {
+            assert_eq!(rec[12], 1001 + t as u32, "{name}: triangle {t}'s primitive");
+            assert_eq!(
+                rec[3..12],
+                attribs[t][3..],
+                "{name}: triangle {t}'s colours"
+            );
+        }
+        let prepped = run_checked(
+            &kernels::xyprep(&desc, shape),
+            &desc,
+            &KernelInputs {
+                streams: vec![viewed[1].clone(), vec![], vec![]],
+                params: vec![0, 0, 127, 127],
+            },
+        );
+        let records = stream_to_records(&prepped[1], kernels::RASTER_WORDS, c);
+        assert_eq!(records.len(), tris, "{name}: raster records");
+        // Only kept triangles have boxes; every record names its triangle.
+        for (t, rec) in records.iter().enumerate() {
+            assert_eq!(
+                rec[2] as usize & ((1 << kernels::TRI_BITS) - 1),
+                t,
+                "{name}"
+            );
+            if window[t][13] & 1 == 0 {
+                assert!(rec[0] > rec[1], "{name}: triangle {t} is culled");
+            }
+        }
         // The counts: the iterations in every cluster, then candidates whose sum is the
         // boxes' total area (the host's bound on xyrast's fragments).
-        let box_area: u64 = stream_to_records(&golden[1], kernels::RASTER_WORDS, c)
+        let box_area: u64 = records
             .iter()
             .map(|rec| {
                 let (lo, hi) = (rec[0], rec[1]);
@@ -273,11 +360,10 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
                 }
             })
             .sum();
-        let counts = &golden[3];
+        let counts = &prepped[2];
         assert_eq!(counts.len(), 2 * c, "{name}: two rows of counts");
         assert!(counts[..c].iter().all(|&w| w == counts[0]), "{name}");
         // xyrast's iterations: the most runs of box pixels any cluster has.
-        let records = stream_to_records(&golden[1], kernels::RASTER_WORDS, c);
         let runs = (0..c)
             .map(|t| {
                 records
@@ -298,8 +384,6 @@ fn setup_machine_matches_interpreter_on_sphere_triangles() {
         let candidates: u64 = counts[c..].iter().map(|&w| u64::from(w)).sum();
         assert!(box_area > 0, "{name}: some triangles are kept");
         assert_eq!(candidates, box_area, "{name}: candidate pixels");
-        let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
-        assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
     }
 }
 

@@ -5,7 +5,10 @@
 //! |---|---|---|
 //! | [`perbegin`] | once per frame: the vertex program's parameters from the OpenGL state | state → params |
 //! | `vertex` / [`vertex_unlit`] | vertex: clip position and colour | 6 words → 7 words |
-//! | [`setup`] | triangle: assemble, clip (trivial reject), viewport, cull, xyprep, baryprep | 21 words → raster (12), interp (13), counts |
+//! | [`assemble_clip`] | triangle: its three vertices gathered into one cluster (comms), trivial reject | shaded vertices → clipped (10), attribs (12) |
+//! | [`viewport_cull`] | triangle: window-homogeneous corners, edge functions, facing, cull, bounding box, top-left flags | clipped → window (14), \|det\| |
+//! | [`baryprep`] | triangle: the interpolation record | attribs, \|det\| → interp (13) |
+//! | [`xyprep`] | triangle, per scissor tile: box clamped to the tile, the raster record, `xyrast`'s cost | window → raster (12), counts |
 //! | [`xyrast`] | run of 4 candidate pixels: coverage by three edge functions | raster → addr, tri, E0, E1, E2 (conditional) |
 //! | [`irast`] | fragment: perspective-correct colour and depth | E0..E2, interp → z, colour, prim |
 //! | [`hash`] | fragment: conflict with an earlier fragment of the round (32×32 stamp) | addr → conflict |
@@ -26,10 +29,10 @@
 //! outside depth [0, 1] are discarded (near and far clipping).
 //!
 //! **Layouts.** Multi-word records in the SRF are in the cluster-row layout the kernels
-//! read (see [`crate::kernel`]); conditional outputs are one-word streams. A triangle is
-//! read as one 21-word record: the host orders the vertex buffer so that triangle `t`'s
-//! corner `k` is vertex `(3·⌊t/C⌋ + k)·C + t mod C`. Conditional outputs end with one row
-//! of null records (`C` of them) so that the host can read them back in whole rows.
+//! read (see [`crate::kernel`]); conditional outputs are one-word streams. Vertices are in
+//! drawing order (triangle `t` is vertices `3t..3t + 3`); from `assemble_clip` on, a
+//! batch's triangle `t` is in cluster `t mod C`. Conditional outputs end with one row of
+//! null records (`C` of them) so that the host can read them back in whole rows.
 //!
 //! **xyrast** keeps a batch's raster records in the scratchpads: cluster `c` copies its own
 //! (triangles `c`, `c + C`, …; empty boxes left out) before the loop, then walks their
@@ -39,7 +42,7 @@
 //! recurrences are the position's and the record pointer's, a few integer ops each); the
 //! loop's interval is set by the scratchpad port, which the twelve record words and the
 //! conditional writes share. The loop runs over a `tickets` stream whose length the host
-//! takes from `setup`'s count: the most runs any cluster has, exactly what the busiest
+//! takes from `xyprep`'s count: the most runs any cluster has, exactly what the busiest
 //! cluster needs. The scratchpad bounds the batch: [`xyrast_rows`] triangles per cluster.
 
 use imagine_units::desc::MachineDesc;
@@ -47,7 +50,7 @@ use imagine_units::ops::Op;
 
 use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, StreamId, Ty, Value};
 
-/// Words of a `setup` raster record: the bounding box's first and last pixel (`lo`, `hi`,
+/// Words of a raster record (`xyprep` → `xyrast`): the bounding box's first and last pixel (`lo`, `hi`,
 /// packed `y·2^16 + x`), the tag (the triangle's index in the batch and its three top-left
 /// flags) and the nine edge coefficients.
 pub const RASTER_WORDS: usize = 12;
@@ -200,40 +203,75 @@ pub fn vertex_unlit(_desc: &MachineDesc) -> Kernel {
     finish(b)
 }
 
-/// `setup`: per triangle (21 words: three shaded vertices) — trivial reject against the
-/// six clip planes, viewport, facing and culling, the bounding box (clamped to the
-/// scissor rectangle given as parameters `sx0, sy0, sx1, sy1`, inclusive), the edge
-/// functions and top-left flags (xyprep) and the interpolation record (baryprep).
-///
-/// Outputs: `raster` ([`RASTER_WORDS`] per triangle, every triangle: a rejected one gets an
-/// empty box), `interp` (13 words per triangle; its primitive number is
-/// `prim_base + index + 1`) and, after the loop, `rows`: a row of the iterations `xyrast`
-/// needs (the most runs of [`XYRAST_RUN`] box pixels of any cluster, at least one; the
-/// same word in every cluster), then a row of each cluster's candidate pixels, whose sum
-/// bounds the fragments `xyrast` writes.
-pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
-    let mut b = KernelBuilder::new("setup");
-    let tris = b.input("triangles");
-    let raster = b.output("raster");
-    let interp = b.output("interp");
-    let rows_out = b.output("rows");
-    let scissor: [Value; 4] = ["sx0", "sy0", "sx1", "sy1"].map(|n| b.param(n, Ty::I32));
-    let prim_base = b.param("prim_base", Ty::I32);
-    let clusters = shape.clusters;
-    let (zero_f, one_f) = (b.f32(0.0), b.f32(1.0));
-    let (zero, one) = (b.i32(0), b.i32(1));
-    let half_w = b.f32(shape.width as f32 / 2.0);
-    let half_h = b.f32(shape.height as f32 / 2.0);
-    let (lo_clamp, hi_clamp) = (b.f32(-2.0), b.f32(8192.0));
-    let row_c = b.i32(clusters as i32);
-    let cluster = b.cluster_id();
+/// Words of a `clipped` record (`assemble_clip` → `viewport_cull`): clip-space x, y and w
+/// of each corner, then 1 if no clip plane rejects the triangle, else 0.
+pub const CLIPPED_WORDS: usize = 10;
+/// Words of an `attribs` record (`assemble_clip` → `baryprep`): clip-space z of each
+/// corner, then r, g, b of each.
+pub const ATTRIB_WORDS: usize = 12;
+/// Words of a `window` record (`viewport_cull` → `xyprep`): the nine edge coefficients
+/// (counter-clockwise), the bounding box's first and last pixel `x0, y0, x1, y1` (int32,
+/// `i32::MIN`/`MAX` where a corner has w ≤ 0), and flags: bit 0 keep, the top bits the
+/// edges' top-left flags as in a raster record's tag.
+pub const WINDOW_WORDS: usize = 14;
 
-    b.begin_loop(LoopSpec::OverStream(tris));
-    let index0 = b.carried(cluster);
-    let candidates0 = b.carried(zero);
-    let runs0 = b.carried(zero);
-    let v: Vec<[Value; 7]> = (0..3)
-        .map(|_| std::array::from_fn(|_| b.read_f32(tris)))
+/// `assemble_clip`: triangle assembly and trivial reject. Input `shaded`: vertices in
+/// drawing order (7 words each: clip x, y, z, w, then r, g, b), so triangle `t` is vertices
+/// `3t..3t + 3`, spread over the clusters; each iteration reads three rows of vertices and
+/// assembles the `C` triangles they hold, triangle `c` of the row in cluster `c`. Its corner
+/// `k` (vertex `3c + k` of the three rows) sits in row `⌊(3c + k)/C⌋` of cluster
+/// `(3c + k) mod C`; since 3 is invertible modulo `C`, the map from `c` to that cluster is
+/// a permutation, so each corner word is one comm (the sender picks the row its receiver
+/// needs). Trivial reject: all three corners outside one of the six clip planes (what is
+/// left is rasterized homogeneously, with no clipping).
+///
+/// Outputs per triangle: `clipped` ([`CLIPPED_WORDS`]) and `attribs` ([`ATTRIB_WORDS`]).
+pub fn assemble_clip(desc: &MachineDesc) -> Kernel {
+    let clusters = desc.cluster.count;
+    let mut b = KernelBuilder::new("assemble_clip");
+    let shaded = b.input("shaded");
+    let clipped = b.output("clipped");
+    let attribs = b.output("attribs");
+    // 3⁻¹ mod C (C is a power of two).
+    let inverse_of_3 = (0..clusters).find(|x| 3 * x % clusters == 1 % clusters);
+    let inverse_of_3 = b.i32(inverse_of_3.expect("C is a power of two") as i32);
+    let mask = b.i32(clusters as i32 - 1);
+    let log2_c = b.i32(clusters.trailing_zeros() as i32);
+    let (zero, one, three) = (b.i32(0), b.i32(1), b.i32(3));
+    let zero_f = b.f32(0.0);
+    let cluster = b.cluster_id();
+    let three_c = b.imul(cluster, three);
+    // Per corner k: the cluster this one receives from, and the row this one sends (that of
+    // the cluster whose corner k it holds, (s - k)·3⁻¹ mod C), as two conditions.
+    let corners: Vec<(Value, Value, Value)> = (0..3)
+        .map(|k| {
+            let k = b.i32(k);
+            let vertex = b.iadd(three_c, k);
+            let source = b.and(vertex, mask);
+            let d = b.isub(cluster, k);
+            let d = b.imul(d, inverse_of_3);
+            let receiver = b.and(d, mask);
+            let v = b.imul(receiver, three);
+            let v = b.iadd(v, k);
+            let v = b.isub(v, cluster);
+            let row = b.shr(v, log2_c);
+            (source, b.ieq(row, zero), b.ieq(row, one))
+        })
+        .collect();
+
+    b.begin_loop(LoopSpec::OverStream(shaded));
+    let rows: Vec<[Value; 7]> = (0..3)
+        .map(|_| std::array::from_fn(|_| b.read_f32(shaded)))
+        .collect();
+    let v: Vec<[Value; 7]> = corners
+        .iter()
+        .map(|&(source, row0, row1)| {
+            std::array::from_fn(|j| {
+                let later = b.select(row1, rows[1][j], rows[2][j]);
+                let sent = b.select(row0, rows[0][j], later);
+                b.comm(sent, Perm::PerCluster(source))
+            })
+        })
         .collect();
     // Trivial reject: all three corners outside one clip plane.
     let mut worst = None;
@@ -263,15 +301,56 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
         let f = flag(&mut b, outside);
         b.xor(f, one)
     };
+    for c in &v {
+        for w in [c[0], c[1], c[3]] {
+            b.write(clipped, w);
+        }
+    }
+    b.write(clipped, not_rejected);
+    for c in &v {
+        b.write(attribs, c[2]);
+    }
+    for c in &v {
+        for &channel in &c[4..7] {
+            b.write(attribs, channel);
+        }
+    }
+    b.end_loop();
+    finish(b)
+}
+
+/// `viewport_cull`: per `clipped` record — the viewport transform to window-homogeneous
+/// corners, the edge functions and the determinant (whose sign is the facing), culling
+/// (degenerate triangles, and back faces when the frame culls them), and the window
+/// position of each corner when every w > 0 (for the bounding box).
+///
+/// Outputs per triangle: `window` ([`WINDOW_WORDS`]) and `det` (`|det|`, one word).
+pub fn viewport_cull(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
+    let mut b = KernelBuilder::new("viewport_cull");
+    let clipped = b.input("clipped");
+    let window = b.output("window");
+    let det_out = b.output("det");
+    let (zero_f, one_f) = (b.f32(0.0), b.f32(1.0));
+    let one = b.i32(1);
+    let (lo_clamp, hi_clamp) = (b.f32(-2.0), b.f32(8192.0));
+    let half_w = b.f32(shape.width as f32 / 2.0);
+    let half_h = b.f32(shape.height as f32 / 2.0);
+
+    b.begin_loop(LoopSpec::OverStream(clipped));
+    // Clip x, y, w per corner.
+    let v: Vec<[Value; 3]> = (0..3)
+        .map(|_| std::array::from_fn(|_| b.read_f32(clipped)))
+        .collect();
+    let not_rejected = b.read_i32(clipped);
     // Window-homogeneous corners and the edge functions.
     let hv: Vec<[Value; 3]> = v
         .iter()
         .map(|c| {
-            let x = b.fadd(c[0], c[3]);
+            let x = b.fadd(c[0], c[2]);
             let x = b.fmul(x, half_w);
-            let y = b.fadd(c[1], c[3]);
+            let y = b.fadd(c[1], c[2]);
             let y = b.fmul(y, half_h);
-            [x, y, c[3]]
+            [x, y, c[2]]
         })
         .collect();
     let cross = |b: &mut KernelBuilder, p: [Value; 3], q: [Value; 3]| -> [Value; 3] {
@@ -295,15 +374,13 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
         b.fadd(s, d)
     };
     let front = b.flt(zero_f, det);
-    let edges: Vec<[Value; 3]> = edges
-        .iter()
-        .map(|e| {
-            e.map(|c| {
-                let n = b.fneg(c);
-                b.select(front, c, n)
-            })
-        })
-        .collect();
+    // Counter-clockwise: a clockwise triangle's edges change sign (a multiply by -1 is
+    // exact, and leaves the adders to the rest).
+    let sign = {
+        let minus_one = b.f32(-1.0);
+        b.select(front, one_f, minus_one)
+    };
+    let edges: Vec<[Value; 3]> = edges.iter().map(|e| e.map(|c| b.fmul(c, sign))).collect();
     let abs_det = b.fabs(det);
     let degenerate = b.feq(det, zero_f);
     let mut keep = {
@@ -315,23 +392,26 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
         let f = flag(&mut b, front);
         keep = b.and(keep, f);
     }
-    // Bounding box: projected corners when every w > 0, else the scissor rectangle.
-    let w01 = b.fmul(v[0][3], v[1][3]);
-    let w012 = b.fmul(w01, v[2][3]);
+    // Bounding box: the window corners (X/w, Y/w, one divide for all three) when every
+    // w > 0, else unbounded (the scissor rectangle bounds it in `xyprep`).
+    let w = [v[0][2], v[1][2], v[2][2]];
+    let w01 = b.fmul(w[0], w[1]);
+    let w012 = b.fmul(w01, w[2]);
     let inv_w012 = b.fdiv(one_f, w012);
-    let w12 = b.fmul(v[1][3], v[2][3]);
-    let w02 = b.fmul(v[0][3], v[2][3]);
+    let w12 = b.fmul(w[1], w[2]);
+    let w02 = b.fmul(w[0], w[2]);
     let inv_w = [
         b.fmul(w12, inv_w012),
         b.fmul(w02, inv_w012),
         b.fmul(w01, inv_w012),
     ];
     let w_min = {
-        let m = b.fmin(v[0][3], v[1][3]);
-        b.fmin(m, v[2][3])
+        let m = b.fmin(w[0], w[1]);
+        b.fmin(m, w[2])
     };
     let all_in_front = b.flt(zero_f, w_min);
-    let mut bounds = [zero; 4];
+    let (unbounded_lo, unbounded_hi) = (b.i32(i32::MIN), b.i32(i32::MAX));
+    let mut bounds = [unbounded_lo; 4];
     for axis in 0..2 {
         let p: Vec<Value> = hv
             .iter()
@@ -359,14 +439,68 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
             let c = b.fmax(c, lo_clamp);
             let c = b.fmin(c, hi_clamp);
             let i = b.ftoi_trunc(c);
-            let projected = if slot < 2 {
-                b.imax(i, scissor[slot])
-            } else {
-                b.imin(i, scissor[slot])
-            };
-            bounds[slot] = b.select(all_in_front, projected, scissor[slot]);
+            let unbounded = if slot < 2 { unbounded_lo } else { unbounded_hi };
+            bounds[slot] = b.select(all_in_front, i, unbounded);
         }
     }
+    // Top-left flags: A > 0, or A = 0 and B < 0.
+    let mut flags = keep;
+    for (i, e) in edges.iter().enumerate() {
+        let a_pos = b.flt(zero_f, e[0]);
+        let a_zero = b.feq(e[0], zero_f);
+        let b_neg = b.flt(e[1], zero_f);
+        let bn = flag(&mut b, b_neg);
+        let az = flag(&mut b, a_zero);
+        let horizontal_top = b.and(az, bn);
+        let t = b.select(a_pos, one, horizontal_top);
+        let shift = b.i32((TRI_BITS + i as u32) as i32);
+        let t = b.shl(t, shift);
+        flags = b.or(flags, t);
+    }
+    for w in edges.iter().flatten().chain(&bounds) {
+        b.write(window, *w);
+    }
+    b.write(window, flags);
+    b.write(det_out, abs_det);
+    b.end_loop();
+    finish(b)
+}
+
+/// `xyprep`: per `window` record and scissor tile (parameters `sx0, sy0, sx1, sy1`,
+/// inclusive) — the triangle's box clamped to the tile, its raster record and what
+/// `xyrast` will cost.
+///
+/// Outputs: `raster` ([`RASTER_WORDS`] per triangle, every triangle: one not kept, or whose
+/// box misses the tile, gets an empty box) and, after the loop, `rows`: a row of the
+/// iterations `xyrast` needs (the most runs of [`XYRAST_RUN`] box pixels of any cluster, at
+/// least one; the same word in every cluster), then a row of each cluster's candidate
+/// pixels, whose sum bounds the fragments `xyrast` writes.
+pub fn xyprep(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
+    let mut b = KernelBuilder::new("xyprep");
+    let window = b.input("window");
+    let raster = b.output("raster");
+    let rows_out = b.output("rows");
+    let scissor: [Value; 4] = ["sx0", "sy0", "sx1", "sy1"].map(|n| b.param(n, Ty::I32));
+    let clusters = shape.clusters;
+    let (zero, one) = (b.i32(0), b.i32(1));
+    let row_c = b.i32(clusters as i32);
+    let top_left_bits = b.word(!((1 << TRI_BITS) - 1));
+    let cluster = b.cluster_id();
+
+    b.begin_loop(LoopSpec::OverStream(window));
+    let index0 = b.carried(cluster);
+    let candidates0 = b.carried(zero);
+    let runs0 = b.carried(zero);
+    let edges: [Value; 9] = std::array::from_fn(|_| b.read(window));
+    let bounds: [Value; 4] = std::array::from_fn(|slot| {
+        let v = b.read_i32(window);
+        if slot < 2 {
+            b.imax(v, scissor[slot])
+        } else {
+            b.imin(v, scissor[slot])
+        }
+    });
+    let flags = b.read_i32(window);
     let [x0, y0, x1, y1] = bounds;
     let x_ok = b.ile(x0, x1);
     let y_ok = b.ile(y0, y1);
@@ -375,7 +509,10 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
         let c = flag(&mut b, y_ok);
         b.and(a, c)
     };
-    keep = b.and(keep, nonempty);
+    let keep = {
+        let k = b.and(flags, one);
+        b.and(k, nonempty)
+    };
     let kept = cond(&mut b, keep);
     let sixteen = b.i32(16);
     let pack = |b: &mut KernelBuilder, x: Value, y: Value| {
@@ -411,36 +548,48 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     };
     let runs_total = b.iadd(runs0, runs);
     b.set_next(runs0, runs_total);
-    // Top-left flags: A > 0, or A = 0 and B < 0.
-    let mut tag = index0;
-    for (i, e) in edges.iter().enumerate() {
-        let a_pos = b.flt(zero_f, e[0]);
-        let a_zero = b.feq(e[0], zero_f);
-        let b_neg = b.flt(e[1], zero_f);
-        let bn = flag(&mut b, b_neg);
-        let az = flag(&mut b, a_zero);
-        let horizontal_top = b.and(az, bn);
-        let t = b.select(a_pos, one, horizontal_top);
-        let shift = b.i32((TRI_BITS + i as u32) as i32);
-        let t = b.shl(t, shift);
-        tag = b.or(tag, t);
-    }
-    let words = [lo, hi, tag]
-        .into_iter()
-        .chain(edges.iter().flatten().copied());
-    for w in words {
+    // The tag: the triangle's index and the top-left flags.
+    let top_left = b.and(flags, top_left_bits);
+    let tag = b.or(index0, top_left);
+    for w in [lo, hi, tag].into_iter().chain(edges) {
         b.write(raster, w);
     }
-    // Interpolation record.
+    let next_index = b.iadd(index0, row_c);
+    b.set_next(index0, next_index);
+    b.end_loop();
+    // Each cluster walks its own boxes in `xyrast`: the busiest one sets the iterations.
+    let most = all_reduce(&mut b, clusters, runs0, KernelBuilder::imax);
+    let iterations = b.imax(most, one);
+    b.write(rows_out, iterations);
+    b.write(rows_out, candidates0);
+    finish(b)
+}
+
+/// `baryprep`: per triangle, the interpolation record `irast` reads ([`INTERP_WORDS`]):
+/// `z_k / |det|` of each corner, the corners' colours and the primitive number
+/// `prim_base + index + 1` (parameter `prim_base`). Inputs: `attribs` and `det`.
+pub fn baryprep(desc: &MachineDesc) -> Kernel {
+    let mut b = KernelBuilder::new("baryprep");
+    let attribs = b.input("attribs");
+    let det = b.input("det");
+    let interp = b.output("interp");
+    let prim_base = b.param("prim_base", Ty::I32);
+    let one_f = b.f32(1.0);
+    let one = b.i32(1);
+    let row_c = b.i32(desc.cluster.count as i32);
+    let cluster = b.cluster_id();
+    b.begin_loop(LoopSpec::OverStream(attribs));
+    let index0 = b.carried(cluster);
+    let z: [Value; 3] = std::array::from_fn(|_| b.read_f32(attribs));
+    let colours: [Value; 9] = std::array::from_fn(|_| b.read_f32(attribs));
+    let abs_det = b.read_f32(det);
     let inv_det = b.fdiv(one_f, abs_det);
-    for c in &v {
-        let q = b.fmul(c[2], inv_det);
+    for z in z {
+        let q = b.fmul(z, inv_det);
         b.write(interp, q);
     }
-    for c in &v {
-        for &channel in &c[4..7] {
-            b.write(interp, channel);
-        }
+    for c in colours {
+        b.write(interp, c);
     }
     let prim = {
         let p = b.iadd(prim_base, index0);
@@ -450,11 +599,6 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let next_index = b.iadd(index0, row_c);
     b.set_next(index0, next_index);
     b.end_loop();
-    // Each cluster walks its own boxes in `xyrast`: the busiest one sets the iterations.
-    let most = all_reduce(&mut b, clusters, runs0, KernelBuilder::imax);
-    let iterations = b.imax(most, one);
-    b.write(rows_out, iterations);
-    b.write(rows_out, candidates0);
     finish(b)
 }
 
@@ -467,7 +611,7 @@ pub fn setup(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
 /// of the batch) into its scratchpad, leaving out empty boxes, and ends them with a
 /// sentinel; the loop reads the current record from there. So every cluster walks its own
 /// boxes at its own pace: no conditional reads, and no cluster waits for the largest box
-/// of a row. The loop runs for as many iterations as the busiest cluster needs (`setup`
+/// of a row. The loop runs for as many iterations as the busiest cluster needs (`xyprep`
 /// counts them); a cluster that is done sits on the sentinel, which covers nothing.
 pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let mut b = KernelBuilder::new("xyrast");
@@ -534,7 +678,7 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let next_lo = b.sp_read(RASTER_WORDS as u16 + LO, Some(at0));
     let (hi, tag) = (b.cast(rec[0], Ty::I32), b.cast(rec[1], Ty::I32));
     let coefficient = |edge: usize, k: usize| rec[2 + 3 * edge + k];
-    // Positions are packed y·2^16 + x (setup clamps both to 8192). This run is pixels
+    // Positions are packed y·2^16 + x (`xyprep` clamps both to the scissor tile, inside the window). This run is pixels
     // pos .. pos + RUN - 1, `row0` the first pixel of its box row. When the run reaches x1
     // the next run starts the next row, or, on row y1 (hi <= end), the next record's box.
     let end = b.iadd(pos0, run_end);
@@ -600,7 +744,7 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Kernel {
         };
         let mut e_values = [zero_f; 3];
         for (i, e_value) in e_values.iter_mut().enumerate() {
-            // E = (A·fx + B·fy) + C, rounded as setup's edge functions were. B·fy is the
+            // E = (A·fx + B·fy) + C, rounded in this order. B·fy is the
             // same for the run's pixels but is made per pixel: one product read by all of
             // them would have to wait in its register for the last.
             let by = b.fmul(coefficient(i, 1), fy);

@@ -4,9 +4,10 @@
 //!
 //! Per batch of `B` triangles (`B` a multiple of the cluster count, 64 unless the
 //! scratchpads cannot hold that many raster records for `xyrast`): load the vertices
-//! (records laid out in cluster rows), run the vertex program, then for each scissor tile
-//! (the whole window unless the batch overflows) run `setup`, store its interpolation
-//! records to memory and run `xyrast` for as many iterations as `setup` counted. Fragments
+//! (records laid out in cluster rows, in drawing order), run the vertex program,
+//! `assemble_clip`, `viewport_cull` and `baryprep`, and store the interpolation records to
+//! memory; then for each scissor tile (the whole window unless the batch overflows) run
+//! `xyprep` and `xyrast` for as many iterations as `xyprep` counted. Fragments
 //! then go through in chunks: gather their interpolation records by triangle index, run
 //! `irast`, and composite in rounds — gather the fragments' pixels while `hash` marks
 //! the fragments that share a pixel (their stamp key) with an earlier one, run `zcompare`
@@ -22,18 +23,17 @@
 //! (two SRF buffers); the gathers and the framebuffer's scatters carry bounds, so the
 //! scoreboard knows they touch different memory and lets them overlap.
 //!
-//! **Spilling.** `setup` also counts each cluster's candidate pixels (its boxes' areas),
+//! **Spilling.** `xyprep` also counts each cluster's candidate pixels (its boxes' areas),
 //! which bound the fragments `xyrast` can write. When they would overflow their SRF region,
-//! the host splits the scissor tile in two and runs `setup` and `xyrast` once per half,
+//! the host splits the scissor tile in two and runs `xyprep` and `xyrast` once per half,
 //! recursively: a triangle larger than the SRF is drawn tile by tile, never dropped.
 //!
 //! The host waits for the processor where it needs a number the machine computed (the
-//! iteration count from `setup`, the length of a conditional output stream), and then only
+//! iteration count from `xyprep`, the length of a conditional output stream), and then only
 //! for the instruction that computes it: the memory operations queued before it (such as a
 //! round's pixel scatter) go on while the host queues more work. Everything else is
-//! queued and ordered by the stream controller's scoreboard. Kernel parameters are
-//! written into the SRF by the host between cycles (the microcontroller's scalar registers
-//! on Imagine).
+//! queued and ordered by the stream controller's scoreboard. Kernel parameters
+//! reach the SRF through the host interface (`WriteSrf`, ordered like any instruction).
 
 use std::time::Instant;
 
@@ -46,7 +46,10 @@ use imagine_units::processor::{self, ProcessorOptions, StreamProgram};
 use imagine_units::stream_controller::StreamInstr;
 use serde::Serialize;
 
-use super::kernels::{self, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS};
+use super::kernels::{
+    self, ATTRIB_WORDS, CLIPPED_WORDS, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS,
+    RASTER_WORDS, WINDOW_WORDS,
+};
 use super::mergefrag::{self, GROUP};
 use crate::compile::{Compiled, compile};
 use crate::kernel::Kernel;
@@ -138,7 +141,10 @@ impl std::error::Error for RenderError {}
 struct Kernels {
     perbegin: usize,
     vertex: usize,
-    setup: usize,
+    assemble_clip: usize,
+    viewport_cull: usize,
+    xyprep: usize,
+    baryprep: usize,
     xyrast: usize,
     irast: usize,
     hash: usize,
@@ -162,7 +168,10 @@ fn compile_all(
     let list = vec![
         kernels::perbegin(desc, passthrough(scene).len()),
         vertex,
-        kernels::setup(desc, shape),
+        kernels::assemble_clip(desc),
+        kernels::viewport_cull(desc, shape),
+        kernels::xyprep(desc, shape),
+        kernels::baryprep(desc),
         kernels::xyrast(desc, shape),
         kernels::irast(desc),
         kernels::hash(desc, shape),
@@ -183,15 +192,18 @@ fn compile_all(
     Ok(Kernels {
         perbegin: 0,
         vertex: 1,
-        setup: 2,
-        xyrast: 3,
-        irast: 4,
-        hash: 5,
-        zcompare: 6,
-        recycle_zc: 7,
-        recycle_ap: 8,
-        sort32: 9,
-        mergefrag: 10,
+        assemble_clip: 2,
+        viewport_cull: 3,
+        xyprep: 4,
+        baryprep: 5,
+        xyrast: 6,
+        irast: 7,
+        hash: 8,
+        zcompare: 9,
+        recycle_zc: 10,
+        recycle_ap: 11,
+        sort32: 12,
+        mergefrag: 13,
         compiled,
     })
 }
@@ -222,13 +234,21 @@ struct Regions {
     /// The OpenGL state `perbegin` reads, and the vertex program's parameters it writes.
     state: usize,
     vertex_params: usize,
-    setup_params: usize,
+    /// `xyprep`'s scissor rectangle and `baryprep`'s first primitive number.
+    xyprep_params: usize,
+    baryprep_params: usize,
     /// One batch's vertices as loaded: the next batch's load waits (by the scoreboard)
     /// only until the vertex program has read them.
     vertices: usize,
     /// Two sets of shaded vertices, so that one batch is shaded while the previous one is
     /// still being set up.
     shaded: [usize; 2],
+    /// A batch's triangles between the setup kernels: `assemble_clip`'s `clipped` and
+    /// `attribs`, `viewport_cull`'s `det` (its `window` records go over the shaded
+    /// vertices).
+    clipped: usize,
+    attribs: usize,
+    det: usize,
     raster: usize,
     interp: usize,
     rows: usize,
@@ -440,20 +460,53 @@ impl Host {
     ) -> Result<(), RenderError> {
         let c = self.clusters;
         let verts = 3 * triangles;
+        // Once per batch: assembly, clipping, viewport and culling, and the interpolation
+        // records, stored for the fragments' gathers.
+        let r = &self.r;
+        let (clipped, attribs, window, det, interp) =
+            (r.clipped, r.attribs, r.shaded[set], r.det, r.interp);
+        let streams = vec![
+            bind(r.shaded[set], verts * SHADED_WORDS),
+            bind(clipped, triangles * CLIPPED_WORDS),
+            bind(attribs, triangles * ATTRIB_WORDS),
+        ];
+        self.kernel(self.k.assemble_clip, streams, None);
+        let streams = vec![
+            bind(clipped, triangles * CLIPPED_WORDS),
+            bind(window, triangles * WINDOW_WORDS),
+            bind(det, triangles),
+        ];
+        self.kernel(self.k.viewport_cull, streams, None);
+        let bparams = self.r.baryprep_params;
+        self.write_params(bparams, &[first_triangle as u32]);
+        let streams = vec![
+            bind(attribs, triangles * ATTRIB_WORDS),
+            bind(det, triangles),
+            bind(interp, triangles * INTERP_WORDS),
+        ];
+        self.kernel(self.k.baryprep, streams, Some(bparams));
+        self.mem(
+            MemOpKind::Store,
+            self.m.interp,
+            Pattern::Strided {
+                stride: INTERP_WORDS as u64,
+            },
+            INTERP_WORDS,
+            triangles,
+            interp,
+        );
+        // Per scissor tile: the bounding boxes, then rasterization.
         let mut tiles = vec![[0, 0, width as i32 - 1, height as i32 - 1]];
         while let Some(tile) = tiles.pop() {
-            let mut params = tile.map(|v| v as u32).to_vec();
-            params.push(first_triangle as u32);
-            let sparams = self.r.setup_params;
-            self.write_params(sparams, &params);
+            let xparams = self.r.xyprep_params;
+            self.write_params(xparams, &tile.map(|v| v as u32));
             let r = &self.r;
             let streams = vec![
-                bind(r.shaded[set], verts * SHADED_WORDS),
+                bind(window, triangles * WINDOW_WORDS),
                 bind(r.raster, triangles * RASTER_WORDS),
-                bind(r.interp, triangles * INTERP_WORDS),
                 bind(r.rows, 2 * c),
             ];
-            let id = self.kernel(self.k.setup, streams, Some(sparams));
+            let id = self.kernel(self.k.xyprep, streams, Some(xparams));
             self.wait_for(id)?;
             let counts = self.read_srf(self.r.rows, 2 * c)?;
             let rows = counts[0] as usize;
@@ -487,18 +540,7 @@ impl Host {
     fn rasterize(&mut self, triangles: usize, rows: usize) -> Result<(), RenderError> {
         let c = self.clusters;
         let r = &self.r;
-        let (interp, raster, tickets, frags, cap) =
-            (r.interp, r.raster, r.tickets, r.frags, r.frag_capacity);
-        self.mem(
-            MemOpKind::Store,
-            self.m.interp,
-            Pattern::Strided {
-                stride: INTERP_WORDS as u64,
-            },
-            INTERP_WORDS,
-            triangles,
-            interp,
-        );
+        let (raster, tickets, frags, cap) = (r.raster, r.tickets, r.frags, r.frag_capacity);
         let mut streams = vec![
             bind(raster, triangles * RASTER_WORDS),
             bind(tickets, rows * c),
@@ -740,18 +782,35 @@ fn plan(
     let chunk = 96usize.div_ceil(unit) * unit;
     let state = p.take(state)?;
     let vertex_params = p.take(params * c)?;
-    let setup_params = p.take(5 * c)?;
+    let xyprep_params = p.take(4 * c)?;
+    let baryprep_params = p.take(c)?;
     let vertices = p.take(3 * batch * VERTEX_WORDS)?;
     let shaded = [
         p.take(3 * batch * SHADED_WORDS)?,
         p.take(3 * batch * SHADED_WORDS)?,
     ];
     let raster = p.take(batch * RASTER_WORDS)?;
+    // Words only kernels use can be shared by streams whose kernels do not overlap in the
+    // queue (the kernels run one after another): `clipped` lives from `assemble_clip` to
+    // `viewport_cull`, before any `xyprep` writes raster records.
+    const _: () = assert!(CLIPPED_WORDS <= RASTER_WORDS);
+    let clipped = raster;
+    // (`window` goes over the batch's shaded vertices, which `assemble_clip` has read; the
+    // vertex program writes that set again only after the batch's last `xyprep`.)
+    const _: () = assert!(WINDOW_WORDS <= 3 * SHADED_WORDS);
     let interp = p.take(batch * INTERP_WORDS)?;
     let rows = p.take(2 * c)?;
     // The fragment chunk's streams; xyrast, which runs alone, reads its tickets (whose
     // contents do not matter) from the same words.
-    let gathered = [p.take(chunk * INTERP_WORDS)?, p.take(chunk * INTERP_WORDS)?];
+    // `attribs` and `det` live from `assemble_clip` to `baryprep`, in the second buffer of
+    // gathered records: the previous batch's `irast`s have read it, and this batch's first
+    // gather into it comes after `baryprep`.
+    let attribs_words = (batch * ATTRIB_WORDS).next_multiple_of(p.block);
+    let gathered = [
+        p.take(chunk * INTERP_WORDS)?,
+        p.take((chunk * INTERP_WORDS).max(attribs_words + batch))?,
+    ];
+    let (attribs, det) = (gathered[1], gathered[1] + attribs_words);
     let tickets = gathered[0];
     let mut zcap = [[0; 4]; 3];
     let groups = chunk.next_multiple_of(GROUP);
@@ -785,9 +844,13 @@ fn plan(
     Ok(Regions {
         state,
         vertex_params,
-        setup_params,
+        xyprep_params,
+        baryprep_params,
         vertices,
         shaded,
+        clipped,
+        attribs,
+        det,
         raster,
         interp,
         rows,
@@ -807,32 +870,23 @@ fn plan(
     })
 }
 
-/// Vertex records of `scene` in the order `setup` reads them: within each batch, triangle
-/// `t`'s corner `k` at vertex `(3·⌊t/C⌋ + k)·C + t mod C`; the scene is padded with
-/// degenerate triangles to whole batches.
-fn vertex_words(scene: &Scene, batch: usize, clusters: usize) -> Vec<u32> {
+/// Vertex records of `scene` in drawing order (triangle `t` is vertices `3t..3t + 3`),
+/// padded with degenerate triangles to whole batches.
+fn vertex_words(scene: &Scene, batch: usize) -> Vec<u32> {
     let tris = scene.triangles();
-    let batches = tris.div_ceil(batch);
-    let mut out = vec![0u32; batches * batch * 3 * VERTEX_WORDS];
-    for t in 0..batches * batch {
-        let (b, local) = (t / batch, t % batch);
-        let src = t.min(tris.saturating_sub(1));
-        for k in 0..3 {
+    let padded = tris.div_ceil(batch) * batch;
+    let last = tris.saturating_sub(1);
+    (0..3 * padded)
+        .flat_map(|v| {
             // Padding repeats one vertex three times: a degenerate triangle.
-            let v = if t < tris { 3 * src + k } else { 3 * src };
-            let p = scene.positions[v];
+            let v = if v < 3 * tris { v } else { 3 * last };
             let q = match scene.shading {
                 Shading::Lit(_) => scene.normals[v],
                 Shading::Unlit => scene.colours[v],
             };
-            let slot = b * batch * 3 + (3 * (local / clusters) + k) * clusters + local % clusters;
-            let words = p.iter().chain(&q).map(|x| x.to_bits());
-            for (j, w) in words.enumerate() {
-                out[slot * VERTEX_WORDS + j] = w;
-            }
-        }
-    }
-    out
+            scene.positions[v].into_iter().chain(q).map(f32::to_bits)
+        })
+        .collect()
 }
 
 /// The words of the vertex program's parameters that `perbegin` passes through after the
@@ -933,7 +987,7 @@ pub fn render_with(
     let state = state_words(scene, clusters);
     let params = k.compiled[k.vertex].0.params.len();
     let regions = plan(desc, batch, state.len(), params)?;
-    let verts = vertex_words(scene, batch, clusters);
+    let verts = vertex_words(scene, batch);
     let pixels = (scene.width * scene.height) as usize + 1;
     let mut fb = Vec::with_capacity(pixels * PIXEL_WORDS);
     for _ in 0..pixels {
