@@ -112,6 +112,62 @@ fn comm_and_scratchpad_and_conditional_streams_match() {
     }
 }
 
+/// A table lookup read by three ops: each reader gets its own scratchpad read, issued just
+/// before it, and the results still equal the interpreter's.
+#[test]
+fn a_table_lookup_with_several_readers_is_read_again_for_each() {
+    const ENTRIES: u16 = 16;
+    let mut b = KernelBuilder::new("lookup");
+    let (table, input, output) = (b.input("table"), b.input("in"), b.output("out"));
+    let mask = b.i32(i32::from(ENTRIES) - 1);
+    let seven = b.i32(7);
+    for entry in 0..ENTRIES {
+        let word = b.read_i32(table);
+        b.sp_write(entry, None, word);
+    }
+    b.begin_loop(LoopSpec::OverStream(input));
+    let x = b.read_i32(input);
+    let index = b.and(x, mask);
+    let value = b.sp_read(0, Some(index));
+    let product = b.imul(value, x);
+    let sum = b.iadd(value, seven);
+    let mixed = b.xor(value, x);
+    // (Records of eight words: the output slot bounds the interval at 8, which leaves the
+    // scratchpad room for the extra reads.)
+    let more: Vec<_> = (0..5)
+        .map(|i| {
+            let k = b.i32(i + 1);
+            b.iadd(x, k)
+        })
+        .collect();
+    for y in [product, sum, mixed].into_iter().chain(more) {
+        b.write(output, y);
+    }
+    b.end_loop();
+    let k = b.finish().unwrap();
+    for m in ["gold1", "gold8", "gold32"] {
+        let c = machine(m).cluster.count;
+        let words: Vec<u32> = (0..u32::from(ENTRIES))
+            .flat_map(|i| std::iter::repeat_n(i.wrapping_mul(2654435761), c))
+            .collect();
+        let inputs = KernelInputs {
+            streams: vec![
+                words,
+                (0..c as u32 * 20).map(|i| i * 13 + 5).collect(),
+                vec![],
+            ],
+            params: vec![],
+        };
+        let compiled = assert_matches(&k, m, &inputs);
+        assert_eq!(
+            compiled.report.loop_ops.scratchpad,
+            3,
+            "{m}\n{}",
+            compiled.report.text()
+        );
+    }
+}
+
 fn compile_error(k: &Kernel) -> imagine_pipelines::compile::CompileError {
     compile(k, &machine("gold8")).expect_err("must not fit")
 }

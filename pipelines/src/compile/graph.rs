@@ -120,7 +120,8 @@ pub struct MOp {
     pub swap: bool,
     /// A copy a later binding made unnecessary.
     pub dead: bool,
-    /// A constant rematerialised in the loop: placed after its reader, just in time.
+    /// A constant or scratchpad read rematerialised in the loop: placed after its readers,
+    /// just in time for them.
     pub just_in_time: bool,
     /// Latest issue cycle (a lifetime copy: where its reader wanted to issue, less the
     /// copy's latency).
@@ -273,6 +274,47 @@ impl Graph {
                 imm.seeded.clear();
                 self.ops.push(imm);
                 self.ops[u].args[i].src = Source::Local(self.ops.len() - 1);
+            }
+        }
+    }
+
+    /// Gives each loop reader of a scratchpad read that has several its own read, issued
+    /// just before it, at most `budget` more reads: the value then waits in no LRF, only
+    /// its address does (in the scratchpad's, which little else uses). Only when the loop
+    /// writes no scratchpad word, so every read of an address gives the same word.
+    pub fn rematerialize_scratchpad_reads(&mut self, budget: usize) {
+        let ops = self.in_region(Region::Loop);
+        if ops
+            .iter()
+            .any(|&o| matches!(self.ops[o].kind, Kind::SpWrite { .. }))
+        {
+            return;
+        }
+        let mut made = 0;
+        for &p in &ops {
+            if !matches!(self.ops[p].kind, Kind::SpRead { .. }) {
+                continue;
+            }
+            let mut readers: Vec<usize> = ops
+                .iter()
+                .copied()
+                .filter(|&u| self.ops[u].args.iter().any(|a| a.src == Source::Local(p)))
+                .collect();
+            if readers.len() < 2 || made + readers.len() - 1 > budget {
+                continue;
+            }
+            made += readers.len() - 1;
+            self.ops[p].just_in_time = true;
+            readers.remove(0);
+            for u in readers {
+                let read = self.ops[p].clone();
+                self.ops.push(read);
+                let r = self.ops.len() - 1;
+                for a in &mut self.ops[u].args {
+                    if a.src == Source::Local(p) {
+                        a.src = Source::Local(r);
+                    }
+                }
             }
         }
     }

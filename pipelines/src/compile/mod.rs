@@ -1,6 +1,9 @@
 //! The kernel compiler (ARCHITECTURE §5): kernel IR to the machine's microcode.
 //!
-//! 1. [`graph`] lowers the IR to machine operations with their dependences;
+//! 1. [`graph`] lowers the IR to machine operations with their dependences; the loop's
+//!    constants and its scratchpad reads with several readers are then made again just
+//!    before each reader, as far as the immediate slot and the scratchpad have room, so
+//!    that their values do not wait in the small LRFs;
 //! 2. [`schedule`] modulo-schedules the main loop (software pipelining: the hardware squash
 //!    supplies prologue and epilogue) and list-schedules the code before and after it,
 //!    binding every op to a slot and every operand to the LRF that slot reads;
@@ -105,8 +108,21 @@ pub fn compile(kernel: &Kernel, desc: &MachineDesc) -> Result<Compiled, CompileE
     // of each holding an LRF entry for the whole loop, as far as the immediate slot has
     // room in the interval.
     let mut base = base;
-    let room = bounds(&base, desc, &slots).res_mii as usize * 3 / 4;
+    let before = bounds(&base, desc, &slots);
+    let room = before.res_mii as usize * 3 / 4;
     base.rematerialize_constants(room);
+    // Likewise scratchpad reads with several readers, as far as the scratchpad has room
+    // without raising the bound.
+    let sp_used = base
+        .in_region(Region::Loop)
+        .iter()
+        .filter(|&&o| {
+            matches!(base.ops[o].kind, Kind::SpRead { .. } | Kind::SpWrite { .. })
+                || base.ops[o].kind.is_conditional_stream()
+        })
+        .count();
+    let sp_room = (before.res_mii as usize * 3 / 4).saturating_sub(sp_used);
+    base.rematerialize_scratchpad_reads(sp_room);
     let result = search(kernel, &base, desc, &slots, has_loop);
     result.map_err(|(r, m)| err(&r, m))
 }

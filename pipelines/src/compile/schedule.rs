@@ -375,8 +375,9 @@ fn attempt_line(
     // A table longer than any region can be.
     const LINE: i64 = 1 << 14;
     let mut table = Table::new(LINE, slots);
-    // A rematerialised constant is placed after its reader, just in time for it.
-    let just_in_time = |o: usize| g.ops[o].just_in_time;
+    // A rematerialised constant is placed after its reader, just in time for it. (A
+    // rematerialised scratchpad read, which has an operand, goes in order.)
+    let just_in_time = |o: usize| g.ops[o].just_in_time && g.ops[o].args.is_empty();
     let mut indeg = vec![0usize; n];
     for e in &edges {
         if just_in_time(e.from) {
@@ -492,7 +493,9 @@ const BUDGET_RATIO: usize = 8;
 /// the op is forced in (at Estart, or one cycle after where it last went) and evicts the
 /// ops holding the resources it needs and the placed ops whose dependences it breaks,
 /// which are scheduled again. A rematerialised constant is placed once every reader is,
-/// just in time for them, and leaves with any of them.
+/// just in time for them, and leaves with any of them. A rematerialised scratchpad read is
+/// placed the same way, after its address too; it stays when its reader leaves, so that a
+/// read forced in later than the reader takes the reader later with it.
 ///
 /// The loop's values must also be read within one interval of landing: that bounds a
 /// reader's latest cycle by its placed producers and a producer's earliest by its placed
@@ -562,8 +565,14 @@ fn attempt_modulo(
                  table: &mut Table,
                  queue: &mut std::collections::BinaryHeap<(i64, i64, usize)>| {
         unplace(g, sched, table, v, slots, desc);
+        // (A rematerialised read stays: `v` goes back after it, which makes progress when
+        // the read was forced in late.)
         for e in &preds[v] {
-            if e.distance == 0 && jit(e.from) && sched.place[e.from].is_some() {
+            if e.distance == 0
+                && jit(e.from)
+                && g.ops[e.from].args.is_empty()
+                && sched.place[e.from].is_some()
+            {
                 unplace(g, sched, table, e.from, slots, desc);
             }
         }
@@ -585,11 +594,24 @@ fn attempt_modulo(
         budget -= 1;
         let placed_at = |o: usize, sched: &Schedule| sched.place[o].map(|p| p.time);
         let mut estart = i64::MIN;
+        // The latest cycle `u` may issue for the values it reads through a rematerialised
+        // read still to be placed (which must read its address within an interval).
+        let mut through_jit = i64::MAX;
         for e in &preds[u] {
             if let Some(t) = placed_at(e.from, sched) {
                 estart = estart.max(t + e.latency - ii * i64::from(e.distance));
+            } else if jit(e.from) && e.distance == 0 {
+                // The read goes between its address and `u`.
+                for e2 in &preds[e.from] {
+                    if let Some(t2) = placed_at(e2.from, sched) {
+                        let lands = t2 + e2.latency - ii * i64::from(e2.distance);
+                        estart = estart.max(lands + e.latency);
+                        through_jit = through_jit.min(t2 + latency[e2.from] + ii + e.latency);
+                    }
+                }
             }
         }
+        let has_placed_pred = estart != i64::MIN;
         // Placed readers must still find the value in its entry.
         for &r in &readers[u] {
             if let Some(t) = placed_at(r, sched) {
@@ -605,7 +627,7 @@ fn attempt_modulo(
         if estart == i64::MIN {
             estart = if jit(u) { lstart.min(0) } else { 0 };
         }
-        let mut last = estart + ii - 1;
+        let mut last = (estart + ii - 1).min(through_jit.max(estart));
         let mut lifetime: Option<(usize, i64)> = None;
         for (i, a) in g.ops[u].args.iter().enumerate() {
             if let Source::Local(p) = a.src
@@ -622,6 +644,7 @@ fn attempt_modulo(
         if let Some((arg, limit)) = lifetime
             && limit < estart
             && !late
+            && !jit(u)
         {
             // The producer landed too early for `u`. The first time, it moves later (it is
             // evicted once `u` is placed); if it is too early again, the value gets a copy.
@@ -629,7 +652,7 @@ fn attempt_modulo(
             let Source::Local(p) = g.ops[u].args[arg].src else {
                 unreachable!("lifetimes are of local values")
             };
-            if moved_for_lifetime[p] {
+            if moved_for_lifetime[p] && !jit(p) {
                 return Err(Attempt::Copy {
                     user: u,
                     arg,
@@ -647,7 +670,12 @@ fn attempt_modulo(
                 .filter_map(|e| placed_at(e.to, sched))
                 .max()
                 .unwrap_or(0);
-            (reader - ii - latency[u]..=lstart).rev().collect()
+            let lowest = reader - ii - latency[u];
+            if has_placed_pred {
+                (lowest.max(estart)..=lstart.min(last)).rev().collect()
+            } else {
+                (lowest..=lstart).rev().collect()
+            }
         } else if late {
             // A lifetime copy goes as late as it may, to carry its value furthest.
             let d = g.ops[u]
@@ -676,7 +704,13 @@ fn attempt_modulo(
             None => {
                 // Forced: at Estart, or just after its last place so that it makes progress.
                 let mut t = if jit(u) && lstart != i64::MAX {
-                    lstart
+                    // (Between its operands and its readers, later each time so that it
+                    // makes progress: whichever it breaks leaves.)
+                    match previous[u] {
+                        Some(p) if has_placed_pred && p >= estart => p + 1,
+                        _ if has_placed_pred => lstart.min(last).max(estart),
+                        _ => lstart,
+                    }
                 } else {
                     match previous[u] {
                         Some(p) if p >= estart => p + 1,
@@ -689,6 +723,7 @@ fn attempt_modulo(
                 if let Some((arg, limit)) = lifetime
                     && t > limit
                     && !late
+                    && !jit(u)
                 {
                     return Err(Attempt::Copy {
                         user: u,
