@@ -153,6 +153,12 @@ impl MOp {
         }
     }
 
+    /// A constant rematerialised in the loop (a scratchpad read rematerialised there has its
+    /// address as an operand, and is placed after it).
+    pub fn is_rematerialised_constant(&self) -> bool {
+        self.just_in_time && self.args.is_empty()
+    }
+
     /// A `mov` copying `src` (read through an adder's `a` input).
     pub fn copy_of(src: Source, region: Region, ir: Option<Value>, kind: CopyKind) -> MOp {
         let arg = Arg {

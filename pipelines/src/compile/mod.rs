@@ -108,8 +108,7 @@ pub fn compile(kernel: &Kernel, desc: &MachineDesc) -> Result<Compiled, CompileE
     // of each holding an LRF entry for the whole loop, as far as the immediate slot has
     // room in the interval.
     let mut base = base;
-    let before = bounds(&base, desc, &slots);
-    let room = before.res_mii as usize * 3 / 4;
+    let room = bounds(&base, desc, &slots).res_mii as usize * 3 / 4;
     base.rematerialize_constants(room);
     // Likewise scratchpad reads with several readers, as far as the scratchpad has room
     // without raising the bound.
@@ -121,7 +120,7 @@ pub fn compile(kernel: &Kernel, desc: &MachineDesc) -> Result<Compiled, CompileE
                 || base.ops[o].kind.is_conditional_stream()
         })
         .count();
-    let sp_room = (before.res_mii as usize * 3 / 4).saturating_sub(sp_used);
+    let sp_room = room.saturating_sub(sp_used);
     base.rematerialize_scratchpad_reads(sp_room);
     let result = search(kernel, &base, desc, &slots, has_loop);
     result.map_err(|(r, m)| err(&r, m))

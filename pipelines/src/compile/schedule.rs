@@ -377,7 +377,7 @@ fn attempt_line(
     let mut table = Table::new(LINE, slots);
     // A rematerialised constant is placed after its reader, just in time for it. (A
     // rematerialised scratchpad read, which has an operand, goes in order.)
-    let just_in_time = |o: usize| g.ops[o].just_in_time && g.ops[o].args.is_empty();
+    let just_in_time = |o: usize| g.ops[o].is_rematerialised_constant();
     let mut indeg = vec![0usize; n];
     for e in &edges {
         if just_in_time(e.from) {
@@ -569,8 +569,7 @@ fn attempt_modulo(
         // the read was forced in late.)
         for e in &preds[v] {
             if e.distance == 0
-                && jit(e.from)
-                && g.ops[e.from].args.is_empty()
+                && g.ops[e.from].is_rematerialised_constant()
                 && sched.place[e.from].is_some()
             {
                 unplace(g, sched, table, e.from, slots, desc);
