@@ -171,7 +171,8 @@ pub struct StreamController {
     /// Host dispatch overhead: a kernel occupies the clusters for at least this many core
     /// cycles.
     pub min_kernel_cycles: u64,
-    /// Words per core cycle the host interface writes into the SRF (kernel parameters).
+    /// Words per core cycle the host interface moves between the host and the SRF (kernel
+    /// parameters in, counts out).
     pub host_words_per_cycle: usize,
 }
 

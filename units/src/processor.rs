@@ -51,12 +51,18 @@ pub struct ProcessorOptions {
     pub on_start: Option<OnStart>,
 }
 
-/// A host write in progress: its words land in the SRF at cycle `done`.
-struct HostWrite {
+/// A host interface transfer in progress, done at cycle `done`: a write's words land in
+/// the SRF then, a read takes its words then.
+struct HostTransfer {
     id: usize,
     done: u64,
     start: usize,
-    words: Vec<u32>,
+    kind: HostTransferKind,
+}
+
+enum HostTransferKind {
+    Write(Vec<u32>),
+    Read(usize),
 }
 
 struct RunningKernel {
@@ -77,7 +83,7 @@ pub struct Processor {
     kernel: Option<RunningKernel>,
     /// Microcode load in progress: (instruction, done at cycle).
     loader: Option<(usize, u64)>,
-    host_write: Option<HostWrite>,
+    host_transfer: Option<HostTransfer>,
     ag_ops: Vec<Option<usize>>,
     replies: Vec<Reply>,
     /// An error met at a clock edge, reported by the next `eval`.
@@ -154,11 +160,19 @@ impl Processor {
                 self.loader = Some((is.id, cycle + len.max(1)));
             }
             (StreamInstr::WriteSrf { start, words }, Unit::HostInterface) => {
-                self.host_write = Some(HostWrite {
+                self.host_transfer = Some(HostTransfer {
                     id: is.id,
-                    done: cycle + self.sc.host_write_cycles(words.len()),
+                    done: cycle + self.sc.host_transfer_cycles(words.len()),
                     start: *start,
-                    words: words.clone(),
+                    kind: HostTransferKind::Write(words.clone()),
+                });
+            }
+            (StreamInstr::ReadSrf { start, len }, Unit::HostInterface) => {
+                self.host_transfer = Some(HostTransfer {
+                    id: is.id,
+                    done: cycle + self.sc.host_transfer_cycles(*len),
+                    start: *start,
+                    kind: HostTransferKind::Read(*len),
                 });
             }
             _ => unreachable!("the controller picks a unit of the instruction's kind"),
@@ -205,9 +219,15 @@ impl Processor {
             self.sc.complete(id, cycle);
             self.loader = None;
         }
-        if let Some(w) = self.host_write.take_if(|w| cycle >= w.done) {
-            self.machine.srf_mut().load(w.start, &w.words)?;
-            self.sc.complete(w.id, cycle);
+        if let Some(t) = self.host_transfer.take_if(|t| cycle >= t.done) {
+            match t.kind {
+                HostTransferKind::Write(words) => self.machine.srf_mut().load(t.start, &words)?,
+                HostTransferKind::Read(len) => {
+                    let words = self.machine.srf().read_back(t.start, len)?;
+                    self.sc.record_read(t.id, words);
+                }
+            }
+            self.sc.complete(t.id, cycle);
         }
         let issue = self.issue.take();
         if let Some(is) = &issue {
@@ -233,7 +253,7 @@ impl Module for Processor {
             ags.len(),
             self.kernel.is_none(),
             self.loader.is_none(),
-            self.host_write.is_none(),
+            self.host_transfer.is_none(),
         );
         self.replies.clear();
         self.ports.pop_replies(&mut self.replies)?;
@@ -273,7 +293,7 @@ impl Module for Processor {
             self.ids[3],
             self.ags.iter().filter(|a| a.is_busy()).count() as u64,
         );
-        t.value(self.ids[4], self.host_write.is_some() as u64);
+        t.value(self.ids[4], self.host_transfer.is_some() as u64);
     }
 }
 
@@ -304,11 +324,12 @@ pub fn build(
             StreamInstr::WriteSrf { start, words } => {
                 words.is_empty() || start + words.len() > desc.srf.words
             }
+            StreamInstr::ReadSrf { start, len } => *len == 0 || start + len > desc.srf.words,
         };
         if bad {
             return Err(setup(format!(
                 "stream instruction {i} names a kernel that is not in the program, has \
-                 0-word records, or writes no words or past the end of the SRF"
+                 0-word records, or moves no words or words past the end of the SRF"
             )));
         }
     }
@@ -363,7 +384,7 @@ pub fn build(
             bits_for(m.address_generators as u64),
             SignalKind::Reg,
         ),
-        s.signal("host_write_busy", 1, SignalKind::Reg),
+        s.signal("host_busy", 1, SignalKind::Reg),
     ];
     let path = s.path().to_string();
     let n_ags = ags.len();
@@ -377,7 +398,7 @@ pub fn build(
         issue: None,
         kernel: None,
         loader: None,
-        host_write: None,
+        host_transfer: None,
         ag_ops: vec![None; n_ags],
         replies: Vec::new(),
         deferred: None,

@@ -19,10 +19,12 @@
 //!   kernel at a time), and the microcode loader (one program at a time, one VLIW
 //!   instruction per cycle (A), into a store of `microcontroller.store_words`
 //!   instructions; the oldest programs not in use are evicted to make room).
-//! * **Host interface**: a host write (kernel parameters) moves
-//!   `stream_controller.host_words_per_cycle` words per core cycle and lands in the SRF
-//!   when it completes (the scoreboard keeps every reader of those words waiting until
-//!   then, so the write needs no SRF port arbitration).
+//! * **Host interface**: moves `stream_controller.host_words_per_cycle` words per core
+//!   cycle between the host and the SRF, one transfer at a time. A host write (kernel
+//!   parameters) lands in the SRF when it completes (the scoreboard keeps every reader of
+//!   those words waiting until then, so the write needs no SRF port arbitration); a host
+//!   read (a count a kernel computed) takes its words when it completes, after every
+//!   older writer of them (and before any younger one).
 //! * **Host dispatch overhead**: a kernel holds the clusters for at least
 //!   `stream_controller.min_kernel_cycles` core cycles (300 on gold8; Owens 2002 measured
 //!   200–500), however short its microcode run.
@@ -55,6 +57,10 @@ pub enum StreamInstr {
     /// `start`: scalar values for kernels (parameters), as Imagine's host interface
     /// carried them.
     WriteSrf { start: usize, words: Vec<u32> },
+    /// Read `len` SRF words from word `start` back to the host (the words are in the
+    /// instruction's [`InstrRecord::read`] once it completes): how the host learns a
+    /// number the machine computed, such as an iteration count.
+    ReadSrf { start: usize, len: usize },
 }
 
 /// The unit an instruction runs on.
@@ -78,6 +84,8 @@ pub struct InstrRecord {
     /// A kernel's words written per stream (0 for inputs) and statistics, once completed.
     pub outputs: Vec<usize>,
     pub kernel_stats: Option<KernelStats>,
+    /// The words a host read brought back, once completed.
+    pub read: Vec<u32>,
 }
 
 impl InstrRecord {
@@ -90,6 +98,7 @@ impl InstrRecord {
             completed: None,
             outputs: Vec::new(),
             kernel_stats: None,
+            read: Vec::new(),
         }
     }
 
@@ -103,6 +112,7 @@ impl InstrRecord {
                 format!("microcode {}", programs[*program].name)
             }
             StreamInstr::WriteSrf { .. } => "host write".into(),
+            StreamInstr::ReadSrf { .. } => "host read".into(),
         }
     }
 }
@@ -161,6 +171,7 @@ impl Footprint {
             }
             StreamInstr::LoadMicrocode { program } => f.code_write = Some(*program),
             StreamInstr::WriteSrf { start, words } => f.srf_writes.push((*start, words.len())),
+            StreamInstr::ReadSrf { start, len } => f.srf_reads.push((*start, *len)),
         }
         f
     }
@@ -274,8 +285,13 @@ impl StreamController {
         &self.stats
     }
 
-    /// Core cycles the host interface takes to write `words` words into the SRF.
-    pub fn host_write_cycles(&self, words: usize) -> u64 {
+    /// Notes the words a completed host read brought back.
+    pub fn record_read(&mut self, id: usize, words: Vec<u32>) {
+        self.records[id].read = words;
+    }
+
+    /// Core cycles the host interface takes to move `words` words.
+    pub fn host_transfer_cycles(&self, words: usize) -> u64 {
         words.div_ceil(self.host_words_per_cycle).max(1) as u64
     }
 
@@ -322,7 +338,9 @@ impl StreamController {
                 }
                 StreamInstr::Kernel { .. } => clusters_free.then_some(Unit::Clusters),
                 StreamInstr::LoadMicrocode { .. } => loader_free.then_some(Unit::MicrocodeLoader),
-                StreamInstr::WriteSrf { .. } => host_free.then_some(Unit::HostInterface),
+                StreamInstr::WriteSrf { .. } | StreamInstr::ReadSrf { .. } => {
+                    host_free.then_some(Unit::HostInterface)
+                }
             };
             match unit {
                 Some(unit) => {

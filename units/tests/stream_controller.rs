@@ -379,3 +379,94 @@ fn host_writes_land_before_their_reader_and_after_the_previous_one() {
         "the rewrite waits for the reader"
     );
 }
+
+#[test]
+fn host_reads_take_a_kernels_output_after_it_and_before_its_next_writer() {
+    let desc = MachineDesc::gold8();
+    let per_cycle = desc.stream_controller.host_words_per_cycle;
+    let mut rng = Rng(13);
+    let [x, y, w, rewrite]: [Vec<u32>; 4] =
+        std::array::from_fn(|_| (0..N).map(|_| rng.float()).collect());
+    let (sx, sy, sw, sz) = (0, N, 2 * N, 3 * N);
+    let instrs = vec![
+        StreamInstr::LoadMicrocode { program: 0 },
+        StreamInstr::WriteSrf {
+            start: sx,
+            words: x.clone(),
+        },
+        StreamInstr::WriteSrf {
+            start: sy,
+            words: y.clone(),
+        },
+        StreamInstr::WriteSrf {
+            start: sw,
+            words: w.clone(),
+        },
+        StreamInstr::Kernel {
+            program: 0,
+            bindings: [sx, sy, sw, sz]
+                .map(|start| StreamBinding { start, words: N })
+                .to_vec(),
+        },
+        // Reads the kernel's output: it must wait for the kernel.
+        StreamInstr::ReadSrf { start: sz, len: N },
+        // Overwrites what the read takes: it must wait for the read.
+        StreamInstr::WriteSrf {
+            start: sz,
+            words: rewrite.clone(),
+        },
+        StreamInstr::ReadSrf { start: sz, len: 32 },
+    ];
+    let program = StreamProgram {
+        kernels: vec![assemble(include_str!("microcode/madd.uc"), &desc).unwrap()],
+        instrs,
+    };
+    let mut sim = processor::build(&desc, program, ProcessorOptions::default()).expect("builds");
+    let r = processor::run(&mut sim, &desc, 2_000_000).expect("runs");
+    show(&r);
+    let z: Vec<u32> = (0..N)
+        .map(|i| fp32::add(fp32::mul(x[i], y[i], FpMode::IEEE).0, w[i], FpMode::IEEE).0)
+        .collect();
+    assert_eq!(
+        r.records[5].read, z,
+        "the read brings back the kernel's output"
+    );
+    assert_eq!(
+        r.records[7].read,
+        rewrite[..32],
+        "and the next read the rewrite"
+    );
+    assert!(
+        r.records[4].read.is_empty(),
+        "only host reads bring words back"
+    );
+    assert!(
+        span(&r, 5).0 >= span(&r, 4).1,
+        "the read waits for the kernel that writes its words"
+    );
+    assert_eq!(
+        span(&r, 5).1 - span(&r, 5).0,
+        N.div_ceil(per_cycle) as u64,
+        "a host read moves {per_cycle} words per cycle"
+    );
+    assert!(
+        span(&r, 6).0 >= span(&r, 5).1,
+        "the rewrite waits for the read"
+    );
+}
+
+#[test]
+fn a_host_read_past_the_srf_is_refused_before_the_run() {
+    let desc = MachineDesc::gold8();
+    let program = StreamProgram {
+        kernels: Vec::new(),
+        instrs: vec![StreamInstr::ReadSrf {
+            start: desc.srf.words - 32,
+            len: 64,
+        }],
+    };
+    let err = processor::build(&desc, program, ProcessorOptions::default())
+        .err()
+        .expect("refused");
+    assert!(err.to_string().contains("stream instruction 0"), "{err}");
+}

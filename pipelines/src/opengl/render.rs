@@ -28,12 +28,15 @@
 //! the host splits the scissor tile in two and runs `xyprep` and `xyrast` once per half,
 //! recursively: a triangle larger than the SRF is drawn tile by tile, never dropped.
 //!
-//! The host waits for the processor where it needs a number the machine computed (the
-//! iteration count from `xyprep`, the length of a conditional output stream), and then only
-//! for the instruction that computes it: the memory operations queued before it (such as a
-//! round's pixel scatter) go on while the host queues more work. Everything else is
-//! queued and ordered by the stream controller's scoreboard. Kernel parameters
-//! reach the SRF through the host interface (`WriteSrf`, ordered like any instruction).
+//! The host waits for the processor where it needs a number the machine computed, and
+//! then only for what brings it that number: a count a kernel wrote into the SRF
+//! (`xyprep`'s iteration and candidate counts, `hash`'s conflicts) comes back over the
+//! host interface (`ReadSrf`, which the scoreboard orders after the kernel), and the length
+//! of a conditional output stream is the stream controller's once the kernel completes.
+//! Work queued earlier that does not write those words (such as a round's `zcompare` and
+//! pixel scatter) goes on meanwhile. Everything else is queued and ordered by the stream
+//! controller's scoreboard. Kernel parameters reach the SRF through the host interface too
+//! (`WriteSrf`, ordered like any instruction).
 
 use std::time::Instant;
 
@@ -397,12 +400,14 @@ impl Host {
         self.push(StreamInstr::WriteSrf { start, words });
     }
 
-    fn read_srf(&self, start: usize, len: usize) -> Result<Vec<u32>, RenderError> {
-        processor::processor(&self.sim)
-            .machine()
-            .srf()
-            .read_back(start, len)
-            .map_err(|e| RenderError(e.to_string()))
+    /// Reads `len` SRF words from `start` back over the host interface, once every
+    /// instruction queued before that writes them has completed.
+    fn read_srf(&mut self, start: usize, len: usize) -> Result<Vec<u32>, RenderError> {
+        let id = self.push(StreamInstr::ReadSrf { start, len });
+        self.wait_for(id)?;
+        Ok(processor::processor(&self.sim).controller().records()[id]
+            .read
+            .clone())
     }
 
     /// Queues the load of the OpenGL state (`words` words) and `perbegin`, which writes
@@ -506,8 +511,7 @@ impl Host {
                 bind(r.raster, triangles * RASTER_WORDS),
                 bind(r.rows, 2 * c),
             ];
-            let id = self.kernel(self.k.xyprep, streams, Some(xparams));
-            self.wait_for(id)?;
+            self.kernel(self.k.xyprep, streams, Some(xparams));
             let counts = self.read_srf(self.r.rows, 2 * c)?;
             let rows = counts[0] as usize;
             // Each candidate pixel gives at most one fragment; then a row of nulls.
@@ -632,7 +636,7 @@ impl Host {
             };
             // The pixels are gathered while `hash` looks for conflicts.
             self.mem(MemOpKind::Load, fb, by_pixel(addr), PIXEL_WORDS, len, pixel);
-            let hashed = self.kernel(
+            self.kernel(
                 self.k.hash,
                 vec![
                     bind(addr, len),
@@ -658,7 +662,6 @@ impl Host {
             let scatter = by_pixel(newaddr);
             self.mem(MemOpKind::Store, fb, scatter, PIXEL_WORDS, len, new_pixel);
             // The zcompare and the scatter are queued; the host needs only the count.
-            self.wait_for(hashed)?;
             let conflicts = self.read_srf(self.r.conflicts, 1)?[0] as usize;
             if conflicts == 0 {
                 return Ok(());
