@@ -184,14 +184,8 @@ fn compile_all(
         mergefrag::sort32(desc, shape),
         mergefrag::mergefrag(desc, shape),
     ];
-    let compiled = list
-        .into_iter()
-        .map(|k| {
-            compile(&k, desc)
-                .map(|c| (k, c))
-                .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))
-        })
-        .collect::<Result<Vec<_>, _>>()?;
+    let compiled = compile_in_parallel(list, desc)
+        .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))?;
     Ok(Kernels {
         perbegin: 0,
         vertex: 1,
@@ -209,6 +203,47 @@ fn compile_all(
         mergefrag: 13,
         compiled,
     })
+}
+
+/// Compiles `kernels` on as many host threads as there are cores (each kernel on its own;
+/// the microcode does not depend on which thread compiled it), in their order.
+fn compile_in_parallel(
+    kernels: Vec<Kernel>,
+    desc: &MachineDesc,
+) -> Result<Vec<(Kernel, Compiled)>, crate::compile::CompileError> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let next = AtomicUsize::new(0);
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(kernels.len());
+    let mut results: Vec<Option<Result<Compiled, _>>> = vec![None; kernels.len()];
+    let done: Vec<Vec<(usize, Result<Compiled, _>)>> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(k) = kernels.get(i) else { break };
+                        mine.push((i, compile(k, desc)));
+                    }
+                    mine
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| w.join().expect("a compiler thread panicked"))
+            .collect()
+    });
+    for (i, r) in done.into_iter().flatten() {
+        results[i] = Some(r);
+    }
+    kernels
+        .into_iter()
+        .zip(results)
+        .map(|(k, r)| r.expect("every kernel was compiled").map(|c| (k, c)))
+        .collect()
 }
 
 /// SRF regions, block-aligned, bump-allocated once per frame.
