@@ -223,6 +223,10 @@ pub struct StreamController {
     queue: VecDeque<usize>,
     queue_cap: usize,
     scoreboard: Vec<Entry>,
+    /// Per scoreboard entry, whether no older entry blocks it; `None` once the scoreboard
+    /// has changed. (Footprints are fixed, so this changes only when entries come or go:
+    /// the host model need not compare every pair of entries every cycle.)
+    unblocked: Option<Vec<bool>>,
     sb_cap: usize,
     min_kernel: u64,
     host_words_per_cycle: usize,
@@ -250,6 +254,7 @@ impl StreamController {
             queue: VecDeque::new(),
             queue_cap: desc.stream_controller.queue_entries,
             scoreboard: Vec::new(),
+            unblocked: None,
             sb_cap: desc.stream_controller.scoreboard_entries,
             min_kernel: desc.stream_controller.min_kernel_cycles,
             host_words_per_cycle: desc.stream_controller.host_words_per_cycle,
@@ -321,14 +326,18 @@ impl StreamController {
         host_free: bool,
     ) -> Option<Issue> {
         let mut unit_busy = false;
+        let board = &self.scoreboard;
+        let unblocked = self.unblocked.get_or_insert_with(|| {
+            (0..board.len())
+                .map(|k| {
+                    !board[..k]
+                        .iter()
+                        .any(|o| o.footprint.blocks(&board[k].footprint))
+                })
+                .collect()
+        });
         for (k, e) in self.scoreboard.iter().enumerate() {
-            if e.running {
-                continue;
-            }
-            let blocked = self.scoreboard[..k]
-                .iter()
-                .any(|o| o.footprint.blocks(&e.footprint));
-            if blocked {
+            if e.running || !unblocked[k] {
                 continue;
             }
             let instr = &self.records[e.id].instr;
@@ -379,6 +388,7 @@ impl StreamController {
                     footprint,
                     running: false,
                 });
+                self.unblocked = None;
             }
         } else if !self.queue.is_empty() {
             self.stats.scoreboard_full_cycles += 1;
@@ -395,6 +405,7 @@ impl StreamController {
     pub fn complete(&mut self, id: usize, cycle: u64) {
         self.records[id].completed = Some(cycle);
         self.scoreboard.retain(|e| e.id != id);
+        self.unblocked = None;
     }
 
     /// Makes room for and records program `p` in the microcode store; `in_use` is the
