@@ -61,7 +61,7 @@ fn schedules_stay_near_their_bounds() {
             "transform" | "prefix_sum" | "compact" | "hash" | "vertex" | "merge" | "sort32" => {
                 mii + 1
             }
-            "turbulence" => mii + mii * 3 / 8,
+            "turbulence" => mii + mii * 11 / 32,
             _ => mii * 3,
         };
         assert!(ii >= mii, "{}: II {ii} below its bound {mii}", lk.name);

@@ -196,6 +196,10 @@ pub struct Graph {
     /// The modulo scheduler breaks ties between ops of equal priority towards the later op
     /// in program order (the earlier by default).
     pub late_ties: bool,
+    /// Issue cycles of the loop's ops when the modulo scheduler last asked for a lifetime
+    /// copy at this interval (indexed by op; empty at first): the next attempt places them
+    /// in that order, and at those cycles where it can.
+    pub warm: Vec<Option<i64>>,
 }
 
 impl Graph {
@@ -498,6 +502,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
             main_loop: kernel.main_loop,
             hint: Vec::new(),
             late_ties: false,
+            warm: Vec::new(),
         },
         op_of: vec![None; n],
         carried_mov: vec![None; n],

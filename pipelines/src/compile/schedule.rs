@@ -12,7 +12,9 @@
 //! loop, a value must be read within one initiation interval of being written (the entry is
 //! rewritten by the next iteration; there is no rotating register file). When an operand
 //! cannot be delivered (its producer's destinations are taken, or it would live too long),
-//! the scheduler asks for a `mov` copy between producer and consumer and starts over.
+//! the scheduler asks for a `mov` copy between producer and consumer and starts over —
+//! for a big loop, from the places of the attempt that asked, so that the copies add up
+//! in one schedule instead of each perturbing a new one.
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::check::Shape;
@@ -251,9 +253,19 @@ pub fn schedule_region(
         };
         match attempted {
             Ok(()) => return Ok(()),
-            Err(Attempt::Copy { user, arg, wanted }) => {
+            Err(Attempt::Copy {
+                user,
+                arg,
+                wanted,
+                places,
+            }) => {
                 let deadline = wanted - i64::from(desc.latency.int) - 1;
                 g.insert_lifetime_copy(user, arg, deadline);
+                // A big loop placed in the order of its straight-line schedule starts again
+                // from where this attempt got to (small loops fare better starting afresh).
+                if !g.hint.is_empty() {
+                    g.warm = places;
+                }
             }
             Err(Attempt::Fail(f)) => return Err(f),
         }
@@ -264,10 +276,12 @@ pub fn schedule_region(
 
 enum Attempt {
     /// Operand `arg` of `user` lives too long: copy it, the copy issuing by `wanted`.
+    /// `places` holds each op's last issue cycle in this attempt.
     Copy {
         user: usize,
         arg: usize,
         wanted: i64,
+        places: Vec<Option<i64>>,
     },
     Fail(Failure),
 }
@@ -529,13 +543,19 @@ fn attempt_modulo(
     }
     let jit = |o: usize| g.ops[o].just_in_time;
     let latency: Vec<i64> = (0..n).map(|o| g.latency(o, desc)).collect();
-    // Ops go in the order of the loop body's straight-line schedule when there is one
-    // (copies added since then just after what they copy), else in height order.
-    let height = if !g.hint.is_empty() {
+    // Ops go in the order of the last attempt at this interval, if it asked for a copy, or
+    // of the loop body's straight-line schedule when there is one (copies added since then
+    // just after what they copy), else in height order.
+    let hinted: Vec<Option<i64>> = if !g.warm.is_empty() {
+        g.warm.clone()
+    } else {
+        g.hint.iter().map(|&t| (t >= 0).then_some(t)).collect()
+    };
+    let height = if !hinted.is_empty() {
         let mut h = vec![0i64; n];
         for &o in &order {
-            h[o] = match g.hint.get(o) {
-                Some(&t) if t >= 0 => t,
+            h[o] = match hinted.get(o) {
+                Some(&Some(t)) => t,
                 _ => preds[o]
                     .iter()
                     .filter(|e| e.distance == 0)
@@ -656,6 +676,7 @@ fn attempt_modulo(
                     user: u,
                     arg,
                     wanted: estart,
+                    places: last_places(sched, &previous),
                 });
             }
             moved_for_lifetime[p] = true;
@@ -683,7 +704,12 @@ fn attempt_modulo(
                 .clamp(estart, last.max(estart));
             (estart..=d).rev().chain(d + 1..=last).collect()
         } else {
-            (estart..=last).collect()
+            // (Where the last attempt placed it first, if that is still in the window.)
+            let warm = g.warm.get(u).copied().flatten();
+            warm.filter(|&t| t > estart && t <= last)
+                .into_iter()
+                .chain(estart..=last)
+                .collect()
         };
         let dsq_align = match g.ops[u].kind {
             Kind::Fu(o) if o.unit() == UnitClass::DivSqrt => {
@@ -728,6 +754,7 @@ fn attempt_modulo(
                         user: u,
                         arg,
                         wanted: estart.max(last),
+                        places: last_places(sched, &previous),
                     });
                 }
                 loop {
@@ -799,6 +826,23 @@ fn attempt_modulo(
         }));
     }
     Ok(())
+}
+
+/// Each op's issue cycle, or where it last was if it has been evicted.
+fn last_places(sched: &Schedule, previous: &[Option<i64>]) -> Vec<Option<i64>> {
+    previous
+        .iter()
+        .enumerate()
+        .map(|(o, &p)| {
+            sched
+                .place
+                .get(o)
+                .copied()
+                .flatten()
+                .map(|pl| pl.time)
+                .or(p)
+        })
+        .collect()
 }
 
 /// The placed ops holding a resource op `u` needs at cycle `t` (see [`try_place`]).
