@@ -216,8 +216,7 @@ fn compile_in_parallel(
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(kernels.len());
-    let mut results: Vec<Option<Result<Compiled, _>>> = vec![None; kernels.len()];
-    let done: Vec<Vec<(usize, Result<Compiled, _>)>> = std::thread::scope(|scope| {
+    let mut done: Vec<(usize, Result<Compiled, _>)> = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..threads)
             .map(|_| {
                 scope.spawn(|| {
@@ -233,16 +232,14 @@ fn compile_in_parallel(
             .collect();
         workers
             .into_iter()
-            .map(|w| w.join().expect("a compiler thread panicked"))
+            .flat_map(|w| w.join().expect("a compiler thread panicked"))
             .collect()
     });
-    for (i, r) in done.into_iter().flatten() {
-        results[i] = Some(r);
-    }
+    done.sort_by_key(|&(i, _)| i);
     kernels
         .into_iter()
-        .zip(results)
-        .map(|(k, r)| r.expect("every kernel was compiled").map(|c| (k, c)))
+        .zip(done)
+        .map(|(k, (_, r))| r.map(|c| (k, c)))
         .collect()
 }
 
