@@ -16,6 +16,16 @@
 //! conditional streams; a condition loop tests its code at the end of every pass. A loop
 //! whose first pass would do nothing (`N = 0`) is skipped.
 //!
+//! A body may hold several passes: a modulo-scheduled kernel unrolled `K` times for modulo
+//! variable expansion (Lam, "Software pipelining", PLDI 1988), since there is no rotating
+//! register file to rename long-lived values. Every instruction that ends a pass — `end`, or
+//! `pass_end` inside the body — advances the pass counter and runs the loop's test: at
+//! `end`, going on means back to the first instruction; at `pass_end`, the next pass is the
+//! next instruction, and a loop that is done leaves there for the instruction after its
+//! `end`. The squash rule is the same, on the same counter, so prologue and epilogue may
+//! start or stop on any copy. A stream loop's words per pass are counted over its first
+//! pass (the check makes every pass read as many).
+//!
 //! State changes are computed during the cycle and committed at the edge, like every block.
 
 use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
@@ -87,8 +97,9 @@ pub struct Microcontroller {
     /// (itself for a one-instruction body).
     loop_end: Vec<u16>,
     /// For each instruction that begins a stream loop, the words of its stream each pass
-    /// reads per cluster (its unconditional reads of that stream): a record of `k` words is
-    /// `k` rows, so a software-pipelined loop runs `rows / k` iterations.
+    /// reads per cluster (its unconditional reads of that stream, in the first pass: from
+    /// the loop's first instruction to the first that ends a pass of it): a record of `k`
+    /// words is `k` rows, so a software-pipelined loop runs `rows / k` iterations.
     rows_per_pass: Vec<u64>,
     q: State,
     d: State,
@@ -155,21 +166,37 @@ impl Microcontroller {
             ));
         }
         self.loop_end = vec![0; code.len()];
-        let mut open = Vec::new();
+        // For each loop's first instruction, the last of its first pass.
+        let mut first_pass_end = vec![0; code.len()];
+        // Open loops: first instruction, and whether a pass of it has ended.
+        let mut open: Vec<(usize, bool)> = Vec::new();
         for (i, inst) in code.iter().enumerate() {
-            // Begin first: an instruction that begins and ends a loop ends the loop it begins.
-            if inst.control.begin.is_some() {
-                open.push(i);
+            let ctl = inst.control;
+            // Begin first: an instruction that begins and ends a loop (or a pass of one)
+            // ends the loop it begins (or a pass of it).
+            if ctl.begin.is_some() {
+                open.push((i, false));
             }
-            if inst.control.end {
-                let b = open
-                    .pop()
-                    .ok_or_else(|| self.malformed(i, "`end` without a loop"))?;
+            if ctl.pass_end && ctl.end {
+                return Err(self.malformed(i, "`pass` and `end` on one instruction"));
+            }
+            if ctl.ends_pass() {
+                let what = if ctl.end { "`end`" } else { "`pass`" };
+                let (b, passed) = open
+                    .last_mut()
+                    .ok_or_else(|| self.malformed(i, &format!("{what} without a loop")))?;
+                if !*passed {
+                    *passed = true;
+                    first_pass_end[*b] = i;
+                }
+            }
+            if ctl.end {
+                let (b, _) = open.pop().expect("an open loop, found above");
                 self.loop_end[b] = i as u16;
             }
         }
-        if !open.is_empty() {
-            return Err(self.malformed(open[0], "loop without an end"));
+        if let Some(&(b, _)) = open.first() {
+            return Err(self.malformed(b, "loop without an end"));
         }
         self.rows_per_pass = vec![1; code.len()];
         for (b, inst) in code.iter().enumerate() {
@@ -178,7 +205,7 @@ impl Microcontroller {
                 ..
             }) = inst.control.begin
             {
-                let reads = code[b..=self.loop_end[b] as usize]
+                let reads = code[b..=first_pass_end[b]]
                     .iter()
                     .flat_map(|i| i.sin.iter().flatten())
                     .filter(|r| r.stream == s && r.cond.is_none())
@@ -283,13 +310,22 @@ impl Microcontroller {
     ) -> Result<(), ContractError> {
         let pc = self.d.pc;
         self.d.looped_back = false;
-        let Control { end, done, .. } = code[pc as usize].control;
+        let Control {
+            end,
+            pass_end,
+            done,
+            ..
+        } = code[pc as usize].control;
         if done {
             self.d.phase = Phase::Finishing;
             return Ok(());
         }
-        if end {
-            let f = self.d.frames.last_mut().expect("an `end` closes a frame");
+        if end || pass_end {
+            let f = self
+                .d
+                .frames
+                .last_mut()
+                .expect("an `end` or `pass` ends a pass of a frame");
             f.pass += 1;
             let again = match (f.kind, f.iterations) {
                 (_, Some(n)) => f.pass < n + f.stages as u64 - 1,
@@ -299,13 +335,20 @@ impl Microcontroller {
                     unreachable!("counted loops know their iterations")
                 }
             };
-            if again {
+            if again && end {
                 // Back to the first instruction (this one, for a one-instruction body).
                 self.d.pc = f.begin;
                 self.d.looped_back = true;
                 return Ok(());
             }
-            self.d.frames.pop();
+            if !again {
+                // Out of the loop, from its last instruction or from the middle of its body.
+                let exit = f.end;
+                self.d.frames.pop();
+                self.d.pc = exit + 1;
+                return Ok(());
+            }
+            // Going on at a `pass_end`: the next pass starts on the next instruction.
         }
         self.d.pc = pc + 1;
         Ok(())

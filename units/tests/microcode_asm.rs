@@ -302,6 +302,7 @@ done",
                 stages: 5
             }),
             end: true,
+            pass_end: false,
             done: false,
         }
     );
@@ -810,4 +811,150 @@ fn the_same_text_fits_some_machines_and_not_others() {
     )
     .unwrap_err();
     assert!(e.message.contains("the machine has 1 cluster"), "{e}");
+}
+
+#[test]
+fn pass_lines_end_passes_of_the_innermost_loop() {
+    // Two copies of a kernel (modulo variable expansion): `pass` marks the first's last
+    // instruction.
+    let p = asm(&body(
+        "loop count 4, stages 2:
+             add0 iadd a[0], b[0] -> add0.a[1]
+             nop
+         pass
+             add0 iadd a[1], b[0] -> add0.a[0] @1
+         end
+         done",
+    ));
+    let kinds: Vec<Control> = p.code.iter().map(|i| i.control).collect();
+    assert_eq!(
+        kinds,
+        [
+            Control::begin(LoopKind::Counted(4), 2),
+            Control::PASS_END,
+            Control::END,
+            Control::DONE
+        ]
+    );
+    let text = disassemble(&p, &gold8());
+    assert!(
+        text.contains("        nop\npass\n        add0 iadd a[1], b[0] -> add0.a[0] @1\nend\n"),
+        "{text}"
+    );
+    round_trips(&p);
+    // A first pass of one instruction, passes of one instruction, and a `pass` of an inner
+    // loop (indented with it).
+    let p = asm(&body(
+        "loop stream x:
+             sin0 x -> stream y
+         pass
+             sin0 x -> stream y
+         pass
+             loop count 3:
+                 nop
+             pass
+                 nop
+             end
+             sin1 x -> stream y
+         end
+         done",
+    ));
+    let kinds: Vec<Control> = p.code.iter().map(|i| i.control).collect();
+    assert_eq!(
+        kinds,
+        [
+            Control::begin_pass_end(LoopKind::UntilStreamEmpty(0), 1),
+            Control::PASS_END,
+            Control::begin_pass_end(LoopKind::Counted(3), 1),
+            Control::END,
+            Control::END,
+            Control::DONE
+        ]
+    );
+    let text = disassemble(&p, &gold8());
+    assert!(
+        text.contains("    loop count 3:\n            nop\n    pass\n            nop\n    end\n"),
+        "{text}"
+    );
+    round_trips(&p);
+    // In the binary word too.
+    let layout = InstructionLayout::new(&gold8());
+    for ins in &p.code {
+        assert_eq!(&layout.decode(&layout.encode(ins)).unwrap(), ins);
+    }
+}
+
+#[test]
+fn pass_errors() {
+    fails(
+        &body("nop\npass\ndone"),
+        6,
+        1,
+        "`pass` outside a loop; it ends a pass of the innermost loop's body",
+    );
+    fails(
+        &body("loop count 2:\nnop\nend\npass\ndone"),
+        8,
+        1,
+        "`pass` outside a loop",
+    );
+    fails(
+        &body("loop count 2:\npass\nnop\nend\ndone"),
+        6,
+        1,
+        "`pass` right after the `loop` at line 5: the pass has no instruction",
+    );
+    fails(
+        &body("loop count 2:\nnop\npass\npass\nnop\nend\ndone"),
+        8,
+        1,
+        "no instruction since the `pass` at line 7: a pass holds at least one instruction",
+    );
+    fails(
+        &body("loop count 2:\nnop\npass\nend\ndone"),
+        8,
+        1,
+        "`end` right after the `pass` at line 7: the loop's last pass would be empty, and one \
+         instruction would end both a pass and the loop; drop that `pass`",
+    );
+    // An inner loop's `pass` then its `end`: the same, for the inner loop.
+    fails(
+        &body("loop count 2:\nnop\nloop count 3:\nnop\npass\nend\nnop\nend\ndone"),
+        10,
+        1,
+        "`end` right after the `pass` at line 9",
+    );
+    fails(
+        &body("loop count 2:\nnop\nloop count 3:\nnop\nend\npass\nnop\nend\ndone"),
+        10,
+        1,
+        "the previous instruction ends an inner loop, so it cannot end a pass of this one too",
+    );
+    fails(
+        &body("loop count 2:\nnop\npass 2\nnop\nend\ndone"),
+        7,
+        6,
+        "expected the end of the line, found `2`",
+    );
+    fails(
+        &body("loop count 2:\nnop\npass\nnop\ndone"),
+        9,
+        1,
+        "`done` inside the loop at line 5",
+    );
+    // Check errors about passes point at the `pass` or `end` line of the pass.
+    let e = fails(
+        &body("loop stream x, stages 2:\nsin0 x\nsin1 x\npass\nsin0 x\nend\ndone"),
+        10,
+        1,
+        "instruction 2, `ctl.end`: the pass of instructions 2..=2 reads 1 unconditional word \
+         of stream `x` per cluster, but the loop's first pass (instructions 0..=1) reads 2",
+    );
+    assert_eq!(e.check.unwrap().field.as_deref(), Some("ctl.end"));
+    fails(
+        &body("loop stream x, stages 2:\nsin0 x\npass\nsin0 x | sin1 x\npass\nsin0 x\nend\ndone"),
+        9,
+        1,
+        "instruction 1, `ctl.pass`: the pass of instructions 1..=1 reads 2 unconditional words",
+    );
 }

@@ -1015,3 +1015,195 @@ fn errors_are_std_errors() {
         "{e}"
     );
 }
+
+#[test]
+fn pass_ends_are_inside_a_loop_and_never_with_end_or_done() {
+    let d = gold8();
+    let at = |control| Instruction {
+        control,
+        ..empty(&d)
+    };
+    let begin = || at(Control::begin(LoopKind::Counted(2), 1));
+    let with_pass = |mut c: Control| {
+        c.pass_end = true;
+        at(c)
+    };
+    let mut p = program(&d, empty(&d));
+    // Where a pass may end: inside the body, on the first instruction (a first pass of one
+    // instruction), several times, and in an inner loop (whose pass it ends).
+    for code in [
+        vec![begin(), at(Control::PASS_END), empty(&d), at(Control::END)],
+        vec![
+            at(Control::begin_pass_end(LoopKind::Counted(2), 1)),
+            at(Control::END),
+        ],
+        vec![
+            at(Control::begin_pass_end(LoopKind::Counted(2), 1)),
+            at(Control::PASS_END),
+            at(Control::PASS_END),
+            at(Control::END),
+        ],
+        vec![
+            begin(),
+            begin(),
+            at(Control::PASS_END),
+            at(Control::END),
+            at(Control::PASS_END),
+            at(Control::END),
+        ],
+    ] {
+        p.code = code;
+        p.code.push(done(&d));
+        p.check(&d).unwrap();
+    }
+
+    p.code = vec![at(Control::PASS_END), done(&d)];
+    fails(
+        &d,
+        &p,
+        0,
+        "ctl.pass",
+        "`pass` outside every loop; it ends a pass of the innermost loop",
+    );
+    // After the loop has closed.
+    p.code = vec![begin(), at(Control::END), at(Control::PASS_END), done(&d)];
+    fails(&d, &p, 2, "ctl.pass", "`pass` outside every loop");
+    // With `end`: the last pass would be empty.
+    p.code = vec![begin(), with_pass(Control::END), done(&d)];
+    fails(
+        &d,
+        &p,
+        1,
+        "ctl.pass",
+        "`pass` on an instruction that also ends a loop: `end` ends the body's last pass, so \
+         a pass end here too would leave that pass empty",
+    );
+    p.code = vec![
+        with_pass(Control::begin_end(LoopKind::Counted(2), 1)),
+        done(&d),
+    ];
+    fails(&d, &p, 0, "ctl.pass", "also ends a loop");
+    // With `done`.
+    p.code = vec![with_pass(Control::DONE)];
+    fails(
+        &d,
+        &p,
+        0,
+        "ctl.pass",
+        "`pass` on the `done` instruction; the kernel's last instruction is outside every loop",
+    );
+    // Slots after a pass end are still in the loop: their stages are the loop's.
+    let staged = |control, stage| {
+        let mut ins = at(control);
+        ins.fu[0] = Some(FuSlot {
+            stage,
+            ..fu(Op::IAdd)
+        });
+        ins
+    };
+    let b = Control::begin(LoopKind::Counted(2), 3);
+    p.code = vec![
+        staged(b, 0),
+        staged(Control::PASS_END, 2),
+        staged(Control::END, 2),
+        done(&d),
+    ];
+    p.check(&d).unwrap();
+    p.code[2] = staged(Control::END, 3);
+    fails(&d, &p, 2, "add0.stage", "the loop has 3 stages");
+}
+
+#[test]
+fn every_pass_of_a_stream_loop_reads_as_many_words() {
+    let d = gold8();
+    let stream = Control::begin(LoopKind::UntilStreamEmpty(0), 2);
+    // An instruction with `n` unconditional reads of `x` and `c` conditional ones.
+    let reads = |control, n: usize, c: usize| {
+        let mut ins = Instruction {
+            control,
+            ..empty(&d)
+        };
+        for k in 0..n + c {
+            ins.sin[k] = Some(StreamIn {
+                stream: 0,
+                cond: (k >= n).then_some(0),
+                dests: [None; 2],
+                stage: 0,
+            });
+        }
+        ins
+    };
+    let mut p = program(&d, empty(&d));
+    p.code = vec![
+        reads(stream, 1, 0),
+        reads(Control::PASS_END, 1, 0),
+        reads(Control::NEXT, 2, 0),
+        reads(Control::PASS_END, 0, 0),
+        reads(Control::END, 2, 0),
+        done(&d),
+    ];
+    p.check(&d).unwrap();
+    // The last pass reads 1 word, the first 2.
+    p.code[4] = reads(Control::END, 1, 1);
+    fails(
+        &d,
+        &p,
+        4,
+        "ctl.end",
+        "the pass of instructions 4..=4 reads 1 unconditional word of stream `x` per cluster, \
+         but the loop's first pass (instructions 0..=1) reads 2; every pass of a loop over a \
+         stream reads as many",
+    );
+    // A middle pass, at its `pass_end`.
+    p.code[4] = reads(Control::END, 2, 0);
+    p.code[2] = reads(Control::NEXT, 3, 0);
+    fails(
+        &d,
+        &p,
+        3,
+        "ctl.pass",
+        "the pass of instructions 2..=3 reads 3 unconditional words of stream `x`",
+    );
+    // A first pass of one instruction.
+    p.code = vec![
+        reads(
+            Control::begin_pass_end(LoopKind::UntilStreamEmpty(0), 1),
+            1,
+            0,
+        ),
+        reads(Control::END, 0, 1),
+        done(&d),
+    ];
+    fails(
+        &d,
+        &p,
+        1,
+        "ctl.end",
+        "reads 0 unconditional words of stream `x` per cluster, but the loop's first pass \
+         (instructions 0..=0) reads 1",
+    );
+    // Reads inside an inner loop count for the pass they are in (as the microcontroller
+    // counts words per pass).
+    p.code = vec![
+        reads(stream, 1, 0),
+        reads(Control::begin_end(LoopKind::Counted(3), 1), 1, 0),
+        reads(Control::PASS_END, 0, 0),
+        reads(Control::END, 1, 0),
+        done(&d),
+    ];
+    fails(
+        &d,
+        &p,
+        3,
+        "ctl.end",
+        "first pass (instructions 0..=2) reads 2",
+    );
+    // Other loops' passes may differ.
+    p.code = vec![
+        reads(Control::begin(LoopKind::Counted(4), 2), 2, 0),
+        reads(Control::PASS_END, 0, 0),
+        reads(Control::END, 1, 0),
+        done(&d),
+    ];
+    p.check(&d).unwrap();
+}

@@ -280,8 +280,16 @@ impl<'a> Exec<'a> {
                 let (n, until) = match kind {
                     LoopKind::Counted(n) => (u64::from(n), None),
                     LoopKind::UntilStreamEmpty(s) => {
+                        // Rows per pass: the first pass's unconditional reads of the stream.
+                        let words = p.code[pc..=first_pass_end(p, pc)]
+                            .iter()
+                            .flat_map(|i| i.sin.iter().flatten())
+                            .filter(|r| r.stream == s && r.cond.is_none())
+                            .count()
+                            .max(1);
                         let (data, pos) = &self.inputs[usize::from(s)];
-                        (((data.len() - pos) / self.c) as u64, None)
+                        let rows = (data.len() - pos) / self.c;
+                        (rows.div_ceil(words) as u64, None)
                     }
                     LoopKind::UntilCc(k) => (u64::MAX, Some(k)),
                 };
@@ -306,14 +314,20 @@ impl<'a> Exec<'a> {
                 s <= pass && pass < n.saturating_add(s)
             });
             self.t += 1;
-            let Control { end, done, .. } = ins.control;
+            let Control {
+                end,
+                pass_end,
+                done,
+                ..
+            } = ins.control;
             if done {
                 self.apply(true);
                 return self.outputs;
             }
-            if end {
+            // A pass ends at `end` and, in a body of several passes, at `pass_end`.
+            if end || pass_end {
                 let f = frames.last_mut().unwrap();
-                assert_eq!(f.end, pc);
+                assert_eq!(end, f.end == pc);
                 f.pass += 1;
                 let finished = match f.until {
                     Some(k) => {
@@ -323,11 +337,14 @@ impl<'a> Exec<'a> {
                     None => f.pass >= f.n + f.stages - 1,
                 };
                 if finished {
+                    // Leaves from `end` or from the middle of the body.
+                    pc = f.end + 1;
                     frames.pop();
-                    pc += 1;
-                } else {
+                } else if end {
                     pc = f.begin;
                     back = true;
+                } else {
+                    pc += 1;
                 }
             } else {
                 pc += 1;
@@ -352,11 +369,46 @@ fn matching_end(p: &Program, begin: usize) -> usize {
     panic!("unclosed loop at {begin}");
 }
 
+/// The last instruction of the first pass of the loop that begins at `begin`: its first
+/// `pass_end` or its `end`, not counting those of nested loops.
+fn first_pass_end(p: &Program, begin: usize) -> usize {
+    let mut depth = 0;
+    for (i, ins) in p.code.iter().enumerate().skip(begin) {
+        if ins.control.begin.is_some() {
+            depth += 1;
+        }
+        if depth == 1 && (ins.control.end || ins.control.pass_end) {
+            return i;
+        }
+        if ins.control.end {
+            depth -= 1;
+        }
+    }
+    panic!("unclosed loop at {begin}");
+}
+
 /// Runs `name` on `desc` with both landing conventions; both must agree.
 fn run(name: &str, desc: &MachineDesc, inputs: &[Vec<u32>]) -> Vec<Vec<u32>> {
-    let p = assemble(example(name), desc).unwrap_or_else(|e| panic!("{name}: {e}"));
-    let early = Exec::new(desc, &p, inputs, 0).run(&p);
-    let late = Exec::new(desc, &p, inputs, 1).run(&p);
+    run_text(name, example(name), desc, inputs)
+}
+
+/// Runs `text` (kernel `name`) with both landing conventions: (early, late).
+fn run_both(
+    name: &str,
+    text: &str,
+    desc: &MachineDesc,
+    inputs: &[Vec<u32>],
+) -> (Vec<Vec<u32>>, Vec<Vec<u32>>) {
+    let p = assemble(text, desc).unwrap_or_else(|e| panic!("{name}: {e}"));
+    (
+        Exec::new(desc, &p, inputs, 0).run(&p),
+        Exec::new(desc, &p, inputs, 1).run(&p),
+    )
+}
+
+/// [`run`] for a program given as text.
+fn run_text(name: &str, text: &str, desc: &MachineDesc, inputs: &[Vec<u32>]) -> Vec<Vec<u32>> {
+    let (early, late) = run_both(name, text, desc, inputs);
     assert_eq!(
         early, late,
         "{name} on {}: the result depends on whether a result is readable in its landing cycle",
@@ -504,5 +556,53 @@ fn lookup_reads_the_table_from_the_scratchpad() {
             .collect();
         let out = run("lookup", &desc, &[replicated, x.clone()]);
         assert_eq!(out[2], want, "{}", desc.name);
+    }
+}
+
+/// z = x + 1.0 at one iteration per cycle (II 1, 5 stages): x lands 3 cycles after its read
+/// and the add reads it a cycle later, just as the next iteration's x lands. Modulo variable
+/// expansion (Lam 1988): two copies of the kernel, one pass each, alternate `add0.a[0]` and
+/// `add0.a[1]`, so each x is overwritten only 2 cycles after it landed.
+const PLUS_ONE_TWO_PASSES: &str = "\
+kernel plus1
+in x
+out z
+    imm 1.0 -> add0.b[0]
+loop stream x, stages 5:
+    sin0 x -> add0.a[0] | add0 fadd a[0], b[0] -> stream z @4
+pass
+    sin0 x -> add0.a[1] | add0 fadd a[1], b[0] -> stream z @4
+end
+done
+";
+
+#[test]
+fn a_body_of_two_passes_runs_every_iteration_once_whatever_the_parity() {
+    let one = 1.0f32.to_bits();
+    for desc in machines() {
+        let c = desc.cluster.count;
+        // Odd row counts end in the middle of the body (N + 4 passes is odd).
+        for rows in 1..=6 {
+            let x: Vec<u32> = (0..rows * c).map(|i| (i as f32 * 0.75).to_bits()).collect();
+            let want: Vec<u32> = x.iter().map(|&v| fop(Op::FAdd, v, one)).collect();
+            let out = run_text(
+                "plus1",
+                PLUS_ONE_TWO_PASSES,
+                &desc,
+                std::slice::from_ref(&x),
+            );
+            assert_eq!(out[1], want, "{}, {rows} rows", desc.name);
+        }
+        // With one copy, each x is overwritten as it is read: the result then depends on
+        // whether a result is readable in its landing cycle, which is why the body is
+        // unrolled.
+        let one_copy = PLUS_ONE_TWO_PASSES.replace(
+            "pass\n    sin0 x -> add0.a[1] | add0 fadd a[1], b[0] -> stream z @4\n",
+            "",
+        );
+        assert!(!one_copy.contains("pass"));
+        let x: Vec<u32> = (0..4 * c).map(|i| (i as f32).to_bits()).collect();
+        let (early, late) = run_both("plus1", &one_copy, &desc, std::slice::from_ref(&x));
+        assert_ne!(early, late, "{}", desc.name);
     }
 }

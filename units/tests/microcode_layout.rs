@@ -36,7 +36,7 @@ fn set(layout: &InstructionLayout, w: &mut WideWord, name: &str, value: u64) {
 #[test]
 fn gold8_field_table_matches_the_snapshot() {
     let layout = InstructionLayout::new(&MachineDesc::gold8());
-    assert_eq!(layout.width(), 647, "gold8 instruction width");
+    assert_eq!(layout.width(), 648, "gold8 instruction width");
     let table = layout.describe();
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(SNAPSHOT);
     if std::env::var_os("UPDATE_SNAPSHOTS").is_some() {
@@ -47,7 +47,7 @@ fn gold8_field_table_matches_the_snapshot() {
         table, want,
         "field table changed; review and regenerate the snapshot"
     );
-    assert!(table.starts_with("microcode word of machine `gold8`: 647 bits"));
+    assert!(table.starts_with("microcode word of machine `gold8`: 648 bits"));
 }
 
 #[test]
@@ -150,7 +150,7 @@ fn decode_rejects_bad_opcodes_loop_kinds_and_widths() {
     assert_eq!(layout.decode(&w).unwrap(), empty(&desc));
 
     let e = layout.decode(&wide_word(layout.width() - 1)).unwrap_err();
-    assert!(e.to_string().contains("646 bits wide"), "{e}");
+    assert!(e.to_string().contains("647 bits wide"), "{e}");
 }
 
 #[test]
@@ -184,6 +184,7 @@ fn decode_reads_fields_where_describe_says() {
             stages: 3,
         }),
         end: true,
+        pass_end: false,
         done: false,
     };
     want.fu[2] = Some(FuSlot {
@@ -269,6 +270,8 @@ fn control_bits_are_independent() {
         Control::begin(LoopKind::UntilStreamEmpty(3), 8),
         Control::begin_end(LoopKind::UntilCc(15), 1),
         Control::begin_end(LoopKind::Counted(u32::MAX), 5),
+        Control::PASS_END,
+        Control::begin_pass_end(LoopKind::UntilStreamEmpty(1), 2),
     ];
     for control in controls {
         let ins = Instruction {
@@ -283,6 +286,44 @@ fn control_bits_are_independent() {
         };
         assert_eq!(bit("ctl.begin"), control.begin.is_some(), "{control:?}");
         assert_eq!(bit("ctl.end"), control.end, "{control:?}");
+        assert_eq!(bit("ctl.pass"), control.pass_end, "{control:?}");
         assert_eq!(bit("ctl.done"), control.done, "{control:?}");
+    }
+}
+
+#[test]
+fn pass_bit_is_one_bit_after_end_and_decodes_where_describe_says() {
+    let desc = MachineDesc::gold8();
+    let layout = InstructionLayout::new(&desc);
+    let end = layout.field("ctl.end").unwrap();
+    let pass = layout.field("ctl.pass").unwrap();
+    assert_eq!((pass.width, pass.offset), (1, end.offset + 1));
+    assert_eq!(layout.field("ctl.done").unwrap().offset, pass.offset + 1);
+    // The bit alone is a pass end and nothing else.
+    let mut w = wide_word(layout.width());
+    set(&layout, &mut w, "ctl.pass", 1);
+    let ins = layout.decode(&w).unwrap();
+    assert_eq!(ins.control, Control::PASS_END);
+    assert_eq!(layout.encode(&ins), w);
+    // With a loop begin: a first pass of one instruction.
+    set(&layout, &mut w, "ctl.begin", 1);
+    set(&layout, &mut w, "ctl.loop", 1);
+    set(&layout, &mut w, "ctl.stages", 3);
+    set(&layout, &mut w, "ctl.value", 2);
+    let ins = layout.decode(&w).unwrap();
+    assert_eq!(
+        ins.control,
+        Control::begin_pass_end(LoopKind::UntilStreamEmpty(2), 4)
+    );
+    assert_eq!(layout.encode(&ins), w);
+    // Decoding does not judge combinations (the check does): `pass` with `end` reads back.
+    set(&layout, &mut w, "ctl.end", 1);
+    let ins = layout.decode(&w).unwrap();
+    assert!(ins.control.pass_end && ins.control.end);
+    assert_eq!(layout.encode(&ins), w);
+    // Every machine's word has the bit.
+    for name in ["gold1", "gold8+F", "gold8+C", "gold32combo"] {
+        let l = InstructionLayout::new(&MachineDesc::resolve(name).unwrap());
+        assert_eq!(l.field("ctl.pass").map(|f| f.width), Some(1), "{name}");
     }
 }

@@ -277,7 +277,11 @@ impl Gen<'_> {
     }
 
     /// A loop: its first and last instructions are plain (they carry `begin` and `end`), or
-    /// its body is one instruction that carries both.
+    /// its body is one instruction that carries both. Some bodies hold several passes (as
+    /// modulo variable expansion unrolls them): each but the last ends on a plain
+    /// instruction carrying `pass_end`, and the first pass may be the `begin` instruction
+    /// alone. A stream loop's passes are copies of the first, so that each reads as many
+    /// words of its stream; other loops' passes are drawn afresh.
     fn a_loop(&mut self, code: &mut Vec<Instruction>, depth: usize, budget: &mut usize) {
         let mut stages = 1 + self.below(usize::from(MAX_STAGES)) as u8;
         let kind = self.loop_kind(&mut stages);
@@ -289,15 +293,55 @@ impl Gen<'_> {
             *budget = budget.saturating_sub(1);
             return;
         }
+        let passes = if self.chance(35) {
+            2 + self.below(3)
+        } else {
+            1
+        };
         first.control = Control::begin(kind, stages);
+        let begin = code.len();
         code.push(first);
-        if self.chance(60) {
-            self.block(code, depth, stages, budget);
+        *budget = budget.saturating_sub(1);
+        // The first pass: the `begin` instruction alone, or it, a block and a last one.
+        if passes == 1 || !self.chance(30) {
+            if self.chance(60) {
+                self.block(code, depth, stages, budget);
+            }
+            code.push(self.instruction(stages, fullness));
+            *budget = budget.saturating_sub(1);
         }
-        let mut last = self.instruction(stages, fullness);
-        last.control = Control::END;
-        code.push(last);
-        *budget = budget.saturating_sub(2);
+        let first_pass = code[begin..].to_vec();
+        let stream = matches!(kind, LoopKind::UntilStreamEmpty(_));
+        // Copies of copies (nested stream loops) would grow without bound.
+        let passes = if stream && first_pass.len() * passes > 12 {
+            1
+        } else {
+            passes
+        };
+        for pass in 0..passes {
+            if pass > 0 {
+                if stream {
+                    let mut copy = first_pass.clone();
+                    copy[0].control = Control::NEXT;
+                    *budget = budget.saturating_sub(copy.len());
+                    code.extend(copy);
+                } else {
+                    if self.chance(50) {
+                        self.block(code, depth, stages, budget);
+                    }
+                    code.push(self.instruction(stages, fullness));
+                    *budget = budget.saturating_sub(1);
+                }
+            }
+            // The pass's last instruction is plain (or the `begin` instruction itself).
+            let last = code.last_mut().expect("a pass has an instruction");
+            debug_assert!(!last.control.end && !last.control.pass_end);
+            if pass + 1 == passes {
+                last.control.end = true;
+            } else {
+                last.control.pass_end = true;
+            }
+        }
     }
 
     fn program(&mut self) -> Program {
@@ -397,6 +441,11 @@ proptest! {
             prop_assert_eq!(&layout.decode(&layout.encode(&ins)).unwrap(), &ins);
             ins.control.end = true;
             prop_assert_eq!(&layout.decode(&layout.encode(&ins)).unwrap(), &ins);
+            ins.control.end = false;
+            ins.control.pass_end = true;
+            prop_assert_eq!(&layout.decode(&layout.encode(&ins)).unwrap(), &ins);
+            ins.control = Control::PASS_END;
+            prop_assert_eq!(&layout.decode(&layout.encode(&ins)).unwrap(), &ins);
         }
     }
 
@@ -430,6 +479,7 @@ fn every_machine_generates_every_slot_kind() {
         let mut seen_fu = vec![false; sh.fu_count()];
         let (mut sp, mut comm, mut sin, mut sout, mut imm) = (false, false, false, false, false);
         let (mut long_loop, mut one_instruction_loop) = (false, false);
+        let (mut pass_end, mut one_instruction_pass) = (false, false);
         for seed in 0..200 {
             let p = generator(&desc, seed).program();
             for ins in &p.code {
@@ -443,10 +493,13 @@ fn every_machine_generates_every_slot_kind() {
                 imm |= ins.imm.is_some();
                 long_loop |= ins.control.begin.is_some() && !ins.control.end;
                 one_instruction_loop |= ins.control.begin.is_some() && ins.control.end;
+                pass_end |= ins.control.pass_end;
+                one_instruction_pass |= ins.control.begin.is_some() && ins.control.pass_end;
             }
         }
         assert!(seen_fu.iter().all(|&s| s) && sp && comm && sin && sout && imm);
         assert!(long_loop && one_instruction_loop, "{}", desc.name);
+        assert!(pass_end && one_instruction_pass, "{}", desc.name);
         assert!(matches!(sh.fu_class(sh.fu_count() - 1), UnitClass::DivSqrt));
     }
 }

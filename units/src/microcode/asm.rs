@@ -35,6 +35,7 @@
 //! | `loop stream NAME[, stages S]:` | … a loop that runs until input stream `NAME` is exhausted |
 //! | `loop until cc[K]:` | … a loop that runs until condition code `K` is set in every cluster |
 //! | `end` | the previous instruction ends the innermost loop (it may be the loop's only one) |
+//! | `pass` | the previous instruction ends a pass of the innermost loop, not its body (see below) |
 //! | `done` | the kernel ends: the previous instruction, or an empty one after an `end`, is its last; nothing follows |
 //!
 //! An instruction line that ends in `|` continues on the next line. `stages S` is the
@@ -51,6 +52,26 @@
 //! loop) marks that instruction; `done` after an `end` (or with no instruction before it)
 //! adds an empty instruction to carry it. Writing `nop` before that `done` gives the same
 //! program, and [`disassemble`] prints the short form.
+//!
+//! A loop body unrolled for modulo variable expansion (Lam 1988) holds several passes, and
+//! a `pass` line inside it marks where each but the last ends, as `end` marks the last.
+//! Here `z = x + 1.0` starts an iteration every cycle; each `x` lands 3 cycles after its
+//! read and is added a cycle later, as the next iteration's lands, so two copies of the
+//! kernel alternate between two entries of `add0.a`:
+//!
+//! ```text
+//!     imm 1.0 -> add0.b[0]
+//! loop stream x, stages 5:
+//!     sin0 x -> add0.a[0] | add0 fadd a[0], b[0] -> stream z @4
+//! pass
+//!     sin0 x -> add0.a[1] | add0 fadd a[1], b[0] -> stream z @4
+//! end
+//! ```
+//!
+//! A pass has at least one instruction (the loop's first may be the whole of the first
+//! pass); `pass` right after `loop` or another `pass`, or right before `end` (the last pass
+//! would be empty), is an error, and so is `pass` after an `end` of an inner loop (a `nop`
+//! separates them, as for two `end`s).
 //!
 //! # Slots
 //!
@@ -76,7 +97,7 @@
 //!
 //! ```text
 //! program  = "kernel" NAME NL { ("in" | "out") NAME NL } { body NL }
-//! body     = instr | "nop" | "end" | "done"
+//! body     = instr | "nop" | "end" | "pass" | "done"
 //!          | "loop" ("count" INT | "stream" NAME | "until" "cc" "[" INT "]") ["," "stages" INT] ":"
 //! instr    = slot { "|" [NL] slot }
 //! slot     = FU OP operands [dests] [stage]            ; FU = addN | mulN | dsqN
@@ -99,8 +120,9 @@
 //! # Disassembly
 //!
 //! [`disassemble`] prints one instruction per line in slot order (`add…`, `mul…`, `dsq…`,
-//! `sp…`, `comm…`, `sin…`, `sout`, `imm`), loop bodies indented, stages only when not 0,
-//! and immediates in hex with their value as an integer or fp32 in a trailing comment.
+//! `sp…`, `comm…`, `sin…`, `sout`, `imm`), loop bodies indented (`pass` and `end` level
+//! with their `loop`), stages only when not 0, and immediates in hex with their value as an
+//! integer or fp32 in a trailing comment.
 
 use std::fmt::{self, Write as _};
 
@@ -471,6 +493,18 @@ impl Where {
     }
 }
 
+/// A `loop` whose `end` has not been read yet.
+struct OpenLoop {
+    /// Index of its first instruction.
+    begin: usize,
+    /// Where its `loop` line is.
+    line: Pos,
+    /// Index of the first instruction of its current pass.
+    pass_begin: usize,
+    /// Its last `pass` line so far.
+    pass: Option<Pos>,
+}
+
 struct Assembler<'d> {
     desc: &'d MachineDesc,
     shape: Shape,
@@ -541,7 +575,7 @@ impl Assembler<'_> {
         let mut code: Vec<Instruction> = Vec::new();
         let mut wheres: Vec<Where> = Vec::new();
         let mut pending: Option<(LoopBegin, Pos)> = None;
-        let mut open: Vec<(usize, Pos)> = Vec::new();
+        let mut open: Vec<OpenLoop> = Vec::new();
         let mut done: Option<Pos> = None;
         for line in lines {
             let mut c = Cursor {
@@ -591,13 +625,24 @@ impl Assembler<'_> {
                         ));
                     }
                     let begin = self.loop_header(&mut c)?;
-                    open.push((code.len(), start));
+                    open.push(OpenLoop {
+                        begin: code.len(),
+                        line: start,
+                        pass_begin: code.len(),
+                        pass: None,
+                    });
                     pending = Some((begin, start));
                 }
                 "end" => {
                     c.i += 1;
                     end_of_line(&c)?;
-                    let Some((begin, loop_pos)) = open.pop() else {
+                    let Some(OpenLoop {
+                        begin,
+                        line: loop_pos,
+                        pass_begin,
+                        pass,
+                    }) = open.pop()
+                    else {
                         return Err(error(start, "`end` without an open `loop`"));
                     };
                     if pending.is_some() {
@@ -607,6 +652,17 @@ impl Assembler<'_> {
                                 "the loop at line {} has an empty body; a loop body has at \
                                  least one instruction",
                                 loop_pos.line
+                            ),
+                        ));
+                    }
+                    if let (Some(p), true) = (pass, pass_begin == code.len()) {
+                        return Err(error(
+                            start,
+                            format!(
+                                "`end` right after the `pass` at line {}: the loop's last pass \
+                                 would be empty, and one instruction would end both a pass and \
+                                 the loop; drop that `pass` (`end` ends the last pass)",
+                                p.line
                             ),
                         ));
                     }
@@ -624,10 +680,56 @@ impl Assembler<'_> {
                     code[last].control.end = true;
                     wheres[last].parts.push(("ctl.end".into(), start));
                 }
+                "pass" => {
+                    c.i += 1;
+                    end_of_line(&c)?;
+                    let Some(l) = open.last_mut() else {
+                        return Err(error(
+                            start,
+                            "`pass` outside a loop; it ends a pass of the innermost loop's \
+                             body",
+                        ));
+                    };
+                    if pending.is_some() {
+                        return Err(error(
+                            start,
+                            format!(
+                                "`pass` right after the `loop` at line {}: the pass has no \
+                                 instruction; a pass holds at least one",
+                                l.line.line
+                            ),
+                        ));
+                    }
+                    if let (Some(p), true) = (l.pass, l.pass_begin == code.len()) {
+                        return Err(error(
+                            start,
+                            format!(
+                                "no instruction since the `pass` at line {}: a pass holds at \
+                                 least one instruction",
+                                p.line
+                            ),
+                        ));
+                    }
+                    // The pass's last instruction exists and is in this loop (its first
+                    // instruction exists: `pending` was taken).
+                    let last = code.len() - 1;
+                    if code[last].control.end {
+                        return Err(error(
+                            start,
+                            "the previous instruction ends an inner loop, so it cannot end a \
+                             pass of this one too; put an instruction, a `nop` if need be, \
+                             before this `pass`",
+                        ));
+                    }
+                    code[last].control.pass_end = true;
+                    wheres[last].parts.push(("ctl.pass".into(), start));
+                    l.pass_begin = code.len();
+                    l.pass = Some(start);
+                }
                 "done" => {
                     c.i += 1;
                     end_of_line(&c)?;
-                    if let Some(&(_, p)) = open.last() {
+                    if let Some(OpenLoop { line: p, .. }) = open.last() {
                         return Err(error(
                             start,
                             format!(
@@ -680,8 +782,8 @@ impl Assembler<'_> {
                 }
             }
         }
-        if let Some(&(_, p)) = open.last() {
-            return Err(error(p, "this loop is never closed with `end`"));
+        if let Some(OpenLoop { line: p, .. }) = open.last() {
+            return Err(error(*p, "this loop is never closed with `end`"));
         }
         if done.is_none() {
             return Err(error(last_end, "the kernel does not end with `done`"));
@@ -1142,6 +1244,14 @@ pub fn disassemble(program: &Program, desc: &MachineDesc) -> String {
                 "",
                 instruction_text(ins, &sh, &stream),
                 indent = 4 * (depth + 1)
+            );
+        }
+        if ins.control.pass_end {
+            let _ = writeln!(
+                out,
+                "{:indent$}pass",
+                "",
+                indent = 4 * depth.saturating_sub(1)
             );
         }
         if ins.control.end {

@@ -28,8 +28,14 @@
 //!   loop; an instruction with both `begin` and `end` is a one-instruction loop body) and at
 //!   most `microcontroller.loop_depth` deep, `stages` in `1..=`[`MAX_STAGES`], `until cc`
 //!   loops have one stage, every slot's stage is below its innermost loop's `stages` (0
-//!   outside loops); the program ends with exactly one `done`, as its last instruction,
-//!   outside any loop, and that instruction neither begins nor ends a loop; the code fits
+//!   outside loops); `pass_end` (a pass of a body unrolled for modulo variable expansion
+//!   ends there) only inside a loop, never with `end` (the body's last pass would be empty)
+//!   nor with `done`; `begin` with `pass_end` is allowed: a first pass of one instruction.
+//!   In a loop over a stream every pass reads the same number of unconditional words of
+//!   that stream, counting the instructions of nested loops as the microcontroller does
+//!   (its iteration count is the stream's rows divided by the first pass's words). The
+//!   program ends with exactly one `done`, as its last instruction, outside any loop, and
+//!   that instruction neither begins nor ends a loop; the code fits
 //!   `microcontroller.store_words`.
 //!
 //! Not checked here, because it depends on timing: two results landing in one LRF (or on one
@@ -296,6 +302,13 @@ struct Checker<'a> {
 struct Open {
     begin: usize,
     stages: u8,
+    kind: LoopKind,
+    /// First instruction of the current pass.
+    pass_begin: usize,
+    /// Unconditional words of the loop's stream (stream loops) read so far in this pass.
+    reads: usize,
+    /// The first pass's last instruction and words read, once it has ended.
+    first: Option<(usize, usize)>,
 }
 
 impl Checker<'_> {
@@ -375,6 +388,25 @@ impl Checker<'_> {
                     ),
                 ));
             }
+            if ctl.done && ctl.pass_end {
+                return Err(self.error(
+                    i,
+                    "ctl.pass",
+                    "`pass` on the `done` instruction; the kernel's last instruction is \
+                     outside every loop, and a pass ends only inside one"
+                        .into(),
+                ));
+            }
+            if ctl.pass_end && ctl.end {
+                return Err(self.error(
+                    i,
+                    "ctl.pass",
+                    "`pass` on an instruction that also ends a loop: `end` ends the body's \
+                     last pass, so a pass end here too would leave that pass empty; drop \
+                     the `pass`"
+                        .into(),
+                ));
+            }
             // Control first: a loop's first instruction's own slots are inside the loop it
             // opens (and a one-instruction body's are inside the loop it both opens and ends).
             if let Some(LoopBegin { kind, stages }) = ctl.begin {
@@ -391,10 +423,41 @@ impl Checker<'_> {
                         ),
                     ));
                 }
-                open.push(Open { begin: i, stages });
+                open.push(Open {
+                    begin: i,
+                    stages,
+                    kind,
+                    pass_begin: i,
+                    reads: 0,
+                    first: None,
+                });
+            }
+            // With `begin`, `pass_end` ends the first pass (of one instruction) of the loop
+            // just opened.
+            if ctl.pass_end && open.is_empty() {
+                return Err(self.error(
+                    i,
+                    "ctl.pass",
+                    "`pass` outside every loop; it ends a pass of the innermost loop".into(),
+                ));
             }
             let stages = open.last().map_or(1, |l| l.stages);
             self.check_instruction(i, ins, stages)?;
+            for l in &mut open {
+                if let LoopKind::UntilStreamEmpty(s) = l.kind {
+                    l.reads += ins
+                        .sin
+                        .iter()
+                        .flatten()
+                        .filter(|r| r.stream == s && r.cond.is_none())
+                        .count();
+                }
+            }
+            if ctl.ends_pass()
+                && let Some(l) = open.last_mut()
+            {
+                self.check_pass(i, ctl.end, l)?;
+            }
             if ctl.end && open.pop().is_none() {
                 return Err(self.error(i, "ctl.end", "`end` closes no open loop".into()));
             }
@@ -439,6 +502,37 @@ impl Checker<'_> {
             ));
         }
         Ok(())
+    }
+
+    /// Pass `l.pass_begin..=i` of loop `l` has ended (at its `end` if `end`): a loop over a
+    /// stream reads as many of its words in every pass as in the first.
+    fn check_pass(&self, i: usize, end: bool, l: &mut Open) -> Result<(), MicrocodeError> {
+        let reads = std::mem::take(&mut l.reads);
+        let pass_begin = std::mem::replace(&mut l.pass_begin, i + 1);
+        let Some((first_end, first)) = l.first else {
+            l.first = Some((i, reads));
+            return Ok(());
+        };
+        let LoopKind::UntilStreamEmpty(s) = l.kind else {
+            return Ok(());
+        };
+        if reads == first {
+            return Ok(());
+        }
+        let name = &self.program.streams[usize::from(s)].name;
+        Err(self.error(
+            i,
+            if end { "ctl.end" } else { "ctl.pass" },
+            format!(
+                "the pass of instructions {pass_begin}..={i} reads {reads} unconditional \
+                 word{} of stream `{name}` per cluster, but the loop's first pass \
+                 (instructions {}..={first_end}) reads {first}; every pass of a loop over a \
+                 stream reads as many (its iterations are the stream's rows divided by the \
+                 words of one pass)",
+                plural(reads),
+                l.begin
+            ),
+        ))
     }
 
     fn check_loop(&self, i: usize, kind: LoopKind, stages: u8) -> Result<(), MicrocodeError> {

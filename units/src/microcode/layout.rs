@@ -12,9 +12,10 @@
 //! |---|---|---|
 //! | `ctl.begin` | 1 | the instruction begins a loop (the next three fields describe it) |
 //! | `ctl.loop` | 2 | loop begin: 0 counted, 1 until stream empty, 2 until cc |
-//! | `ctl.stages` | 3 | loop begin: software-pipeline stages − 1 |
+//! | `ctl.stages` | 4 | loop begin: software-pipeline stages − 1 |
 //! | `ctl.value` | 32 | loop begin: iteration count, stream or condition code |
 //! | `ctl.end` | 1 | the instruction ends the innermost loop (with `ctl.begin`: the loop it begins) |
+//! | `ctl.pass` | 1 | the instruction ends a pass of the innermost loop but not its body (a body unrolled for modulo variable expansion holds several passes) |
 //! | `ctl.done` | 1 | the kernel's last instruction |
 //! | `U.valid` | 1 | slot `U` issues (every slot) |
 //! | `U.op` | [`Op::OPCODE_BITS`] | arithmetic slots: opcode ([`Op::opcode`]) |
@@ -32,13 +33,13 @@
 //! | `U.destD.kind` | 2 | `D` = 0, 1: 0 none, 1 LRF, 2 condition code, 3 stream |
 //! | `U.destD.lrf` | *l* | LRF index ([`MachineDesc::lrf_names`] order) |
 //! | `U.destD.index` | max(*e*, *c*, *s*) | LRF entry, condition code or stream |
-//! | `U.stage` | 3 | software-pipeline stage (every slot) |
+//! | `U.stage` | 4 | software-pipeline stage (every slot) |
 //!
 //! with *e* = bits of the largest LRF entry index, *c* = bits of the largest condition code,
 //! *s* = bits of the largest stream index (`srf.kernel_streams − 1`), *l* = bits of the
 //! largest LRF index, *w* = bits of the largest scratchpad address, *k* = bits of the largest
 //! cluster index. [`InstructionLayout::describe`] prints the table with offsets for a
-//! machine; the `gold8` word is 647 bits wide (snapshot in `tests/microcode_layout.rs`).
+//! machine; the `gold8` word is 648 bits wide (snapshot in `tests/microcode_layout.rs`).
 //!
 //! [`InstructionLayout::encode`] requires every value to fit its field (a program that
 //! passes [`Program::check`](super::Program::check) always does);
@@ -149,6 +150,7 @@ struct CtlFields {
     stages: F,
     value: F,
     end: F,
+    pass: F,
     done: F,
 }
 
@@ -236,6 +238,11 @@ impl InstructionLayout {
                 "ctl.end".into(),
                 1,
                 "ends the innermost loop (with ctl.begin: the loop it begins)",
+            ),
+            pass: b.add(
+                "ctl.pass".into(),
+                1,
+                "ends a pass of the innermost loop, not its body",
             ),
             done: b.add("ctl.done".into(), 1, "the kernel's last instruction"),
         };
@@ -501,6 +508,7 @@ impl InstructionLayout {
             self.put(&mut w, c.value, value)?;
         }
         self.put(&mut w, c.end, u64::from(ins.control.end))?;
+        self.put(&mut w, c.pass, u64::from(ins.control.pass_end))?;
         self.put(&mut w, c.done, u64::from(ins.control.done))?;
         for (f, slot) in self.fu.iter().zip(&ins.fu) {
             if let Some(s) = slot {
@@ -661,6 +669,7 @@ impl InstructionLayout {
         let control = Control {
             begin,
             end: self.get(w, c.end) == 1,
+            pass_end: self.get(w, c.pass) == 1,
             done: self.get(w, c.done) == 1,
         };
         let mut ins = Instruction {

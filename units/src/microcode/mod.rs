@@ -23,7 +23,11 @@
 //! for free from one copy of the kernel (Rau 1994; Imagine's microcontroller did the same).
 //! A loop body may be a single instruction whose [`Control`] field both begins and ends the
 //! loop, so a modulo-scheduled loop can start an iteration every cycle (initiation interval
-//! 1).
+//! 1). A body may also hold several passes (`pass_end` marks where each but the last ends):
+//! with no rotating register file, modulo variable expansion unrolls the kernel `K` times,
+//! each copy naming different LRF entries for values that live longer than the initiation
+//! interval (Lam 1988), and the microcontroller counts a pass, and may leave the loop, at
+//! every pass boundary.
 //!
 //! [`layout`] packs instructions into bit words whose fields and widths follow from the
 //! machine description; [`asm`] is the text form.
@@ -153,7 +157,15 @@ pub enum LoopKind {
 }
 
 /// The microcontroller's field: which loop, if any, this instruction begins and whether it
-/// ends one or the kernel.
+/// ends one, a pass of one, or the kernel.
+///
+/// A loop body holds one or more *passes*. Ordinarily it is one pass, from `begin` to `end`.
+/// A software-pipelined body unrolled `K` times for modulo variable expansion (Lam 1988:
+/// each copy of the kernel uses its own LRF entries for values that outlive the initiation
+/// interval, as there is no rotating register file) holds `K` passes: `pass_end` marks the
+/// last instruction of each but the last, which ends at `end`. The microcontroller counts a
+/// pass, and tests whether the loop goes on, at every pass end; a loop that is done at a
+/// `pass_end` leaves its body there, for the instruction after its `end`.
 ///
 /// Rules ([`Program::check`] enforces them):
 ///
@@ -161,6 +173,12 @@ pub enum LoopKind {
 ///   loops that would begin (or end) on the same instruction need a `nop` between them;
 /// * `begin` and `end` together make a one-instruction loop body: the instruction ends the
 ///   loop it begins (a software-pipelined loop with an initiation interval of 1);
+/// * `pass_end` is inside a loop and belongs to the innermost one (for an instruction that
+///   begins a loop, the loop it begins: `begin` with `pass_end` is a first pass of one
+///   instruction); it is never with `end`, which already ends the body's last pass (the two
+///   would leave that pass empty), nor with `done`;
+/// * in a loop over a stream, every pass reads the same number of unconditional words of
+///   that stream (the loop's iteration count is the stream's rows divided by that number);
 /// * `done` is exclusive: the kernel's last instruction is outside every loop, so it neither
 ///   begins nor ends one (a loop that would close on the last instruction is followed by an
 ///   empty instruction carrying `done`, which is what the assembler's `done` after `end`
@@ -171,6 +189,9 @@ pub struct Control {
     pub begin: Option<LoopBegin>,
     /// This instruction is the last of the innermost loop body.
     pub end: bool,
+    /// This instruction ends a pass of the innermost loop without ending its body (a body
+    /// unrolled `K` times holds `K` passes; the last ends at `end`).
+    pub pass_end: bool,
     /// This instruction is the kernel's last: output streams are flushed when its results
     /// land.
     pub done: bool,
@@ -189,18 +210,29 @@ impl Control {
     pub const NEXT: Control = Control {
         begin: None,
         end: false,
+        pass_end: false,
         done: false,
     };
     /// The last instruction of the innermost loop body.
     pub const END: Control = Control {
         begin: None,
         end: true,
+        pass_end: false,
+        done: false,
+    };
+    /// The last instruction of a pass of the innermost loop, not of its body: the next
+    /// pass starts on the next instruction.
+    pub const PASS_END: Control = Control {
+        begin: None,
+        end: false,
+        pass_end: true,
         done: false,
     };
     /// The kernel's last instruction.
     pub const DONE: Control = Control {
         begin: None,
         end: false,
+        pass_end: false,
         done: true,
     };
 
@@ -209,6 +241,7 @@ impl Control {
         Control {
             begin: Some(LoopBegin { kind, stages }),
             end: false,
+            pass_end: false,
             done: false,
         }
     }
@@ -218,13 +251,29 @@ impl Control {
         Control {
             begin: Some(LoopBegin { kind, stages }),
             end: true,
+            pass_end: false,
             done: false,
         }
     }
 
-    /// No loop begins or ends here and the kernel goes on.
+    /// The first instruction of a loop body that is also the whole of its first pass.
+    pub const fn begin_pass_end(kind: LoopKind, stages: u8) -> Control {
+        Control {
+            begin: Some(LoopBegin { kind, stages }),
+            end: false,
+            pass_end: true,
+            done: false,
+        }
+    }
+
+    /// A loop's pass ends here (`end` or `pass_end`).
+    pub const fn ends_pass(self) -> bool {
+        self.end || self.pass_end
+    }
+
+    /// No loop begins or ends here, no pass ends, and the kernel goes on.
     pub const fn is_next(self) -> bool {
-        self.begin.is_none() && !self.end && !self.done
+        self.begin.is_none() && !self.end && !self.pass_end && !self.done
     }
 }
 
