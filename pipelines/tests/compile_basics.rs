@@ -228,3 +228,47 @@ fn a_kernel_with_too_many_streams_says_so() {
     let e = compile_error(&b.finish().unwrap());
     assert_eq!(e.resource, "kernel streams", "{e}");
 }
+
+/// A loop whose adders are nearly full at its bound and whose input word is read again after
+/// a chain of a dozen cycles: near the bound no copies fit, so the body is unrolled into
+/// passes that each keep the input in an entry of their own (modulo variable expansion), and the loop
+/// leaves after whichever pass ends the last iteration.
+#[test]
+fn a_value_outliving_the_interval_gets_an_entry_per_pass() {
+    let mut b = KernelBuilder::new("outlive");
+    let (input, output) = (b.input("in"), b.output("out"));
+    let k = b.i32(0x9e37);
+    b.begin_loop(LoopSpec::OverStream(input));
+    let x = b.read_i32(input);
+    let (mut sum, mut mix) = (x, b.read_i32(input));
+    for i in 0..5 {
+        sum = b.iadd(sum, k);
+        if i > 0 {
+            mix = b.xor(mix, k);
+        }
+    }
+    let back = b.isub(sum, x);
+    let y = b.iadd(back, mix);
+    b.write(output, y);
+    b.end_loop();
+    let k = b.finish().unwrap();
+    for m in ["gold1", "gold8"] {
+        let c = machine(m).cluster.count;
+        // Odd and even iteration counts leave after different passes.
+        for rows in 1..=9u32 {
+            let inputs = KernelInputs {
+                streams: vec![
+                    (0..c as u32 * rows * 2)
+                        .map(|i| i.wrapping_mul(2654435761))
+                        .collect(),
+                    vec![],
+                ],
+                params: vec![],
+            };
+            let compiled = assert_matches(&k, m, &inputs);
+            let r = &compiled.report;
+            assert!(r.ii <= Some(r.res_mii + 1), "{m}\n{}", r.text());
+            assert!(r.unroll > 1, "{m}\n{}", r.text());
+        }
+    }
+}

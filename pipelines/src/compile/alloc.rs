@@ -3,8 +3,10 @@
 //! Values live across regions (computed before the loop and read in or after it, and the
 //! loop's carried values) keep their entries for the whole kernel. The other values are
 //! packed first-fit: a value written at cycle `w` and last read at `r` holds its entry over
-//! `[w, r)` — in the loop modulo the initiation interval, where it must fit in one interval
-//! because the next iteration rewrites it.
+//! `[w, r)` — in the loop modulo the length of the loop body. A body of one interval holds
+//! each value in one entry, which the next iteration rewrites; a value that outlives the
+//! interval makes the body a few passes long, and then each pass's copy of the value gets
+//! an entry of its own (modulo variable expansion).
 
 use std::collections::HashMap;
 
@@ -16,6 +18,12 @@ use crate::kernel::Region;
 #[derive(Clone, Debug, Default)]
 pub struct Entries {
     pub entry: HashMap<(usize, Loc), u16>,
+    /// Loop values that outlive the initiation interval: the entry of each copy, copy `c`
+    /// holding the value of the iterations `i` with `i mod unroll == c`.
+    pub instances: HashMap<(usize, Loc), Vec<u16>>,
+    /// Passes the loop body is unrolled into: the longest-lived loop value's lifetime in
+    /// intervals (modulo variable expansion, see [`super::schedule::reach`]).
+    pub unroll: usize,
     /// Entries in use per LRF (highest + 1), then the condition codes.
     pub peak: Vec<usize>,
     pub cc_peak: usize,
@@ -70,8 +78,10 @@ pub fn allocate(
     let index = |loc: Loc| index(slots, loc);
     let mut out = Entries {
         peak: vec![0; nlrf],
+        unroll: ii.map_or(1, |ii| unroll(g, s, &last_read, ii, desc)),
         ..Entries::default()
     };
+    let modulus = ii.map(|ii| ii * out.unroll as i64);
     let mut next_perm = vec![0usize; nlrf + 1];
     // Permanent values first: carried movs, then what their initialising movs share.
     let mut order: Vec<usize> = (0..n)
@@ -144,58 +154,114 @@ pub fn allocate(
             let first = next_perm[k];
             let cap = capacity(loc);
             let o = &mut occ[k];
-            let mut chosen = None;
-            for e in 0..cap {
-                if e < first {
-                    // A kept value's entry, usable before the loop until it is written.
-                    let until = kept_from.get(&(k, e as u16)).copied();
-                    if region != Region::Pre || until.is_none_or(|w0| r > w0) {
-                        continue;
+            // The cycles each entry to choose is held: one entry for every pass of the
+            // unrolled loop body unless the value outlives the interval, when each pass
+            // gets an entry of its own.
+            let held: Vec<Vec<i64>> = match (region, ii, modulus) {
+                (Region::Loop, Some(ii), Some(m)) => {
+                    let passes = (0..out.unroll as i64)
+                        .map(|j| (w + j * ii..r + j * ii).map(|c| c.rem_euclid(m)));
+                    if r - w <= ii {
+                        vec![passes.flatten().collect()]
+                    } else {
+                        passes.map(Iterator::collect).collect()
                     }
                 }
-                let free = match (region, ii) {
-                    (Region::Loop, Some(ii)) => {
-                        let bits = &mut o.modulo[e];
-                        if bits.is_empty() {
-                            bits.resize(ii as usize, false);
-                        }
-                        (w..r).all(|c| !bits[c.rem_euclid(ii) as usize])
-                    }
-                    _ => o.line[e]
-                        .iter()
-                        .all(|&(rg, a, b)| rg != region || r <= a || b <= w),
-                };
-                if free {
-                    chosen = Some(e);
-                    break;
-                }
-            }
-            let Some(e) = chosen else {
-                return Err(Overflow {
-                    loc,
-                    needed: cap + 1,
-                    entries: cap,
-                    region: Some(region),
-                });
+                _ => vec![Vec::new()],
             };
-            match (region, ii) {
-                (Region::Loop, Some(ii)) => {
-                    for c in w..r {
-                        o.modulo[e][c.rem_euclid(ii) as usize] = true;
+            let mut chosen = Vec::with_capacity(held.len());
+            for cycles in &held {
+                let mut found = None;
+                for e in 0..cap {
+                    if e < first {
+                        // A kept value's entry, usable before the loop until it is written.
+                        let until = kept_from.get(&(k, e as u16)).copied();
+                        if region != Region::Pre || until.is_none_or(|w0| r > w0) {
+                            continue;
+                        }
+                    }
+                    let free = match modulus {
+                        Some(m) if region == Region::Loop => {
+                            let bits = &mut o.modulo[e];
+                            if bits.is_empty() {
+                                bits.resize(m as usize, false);
+                            }
+                            cycles.iter().all(|&c| !bits[c as usize])
+                        }
+                        _ => o.line[e]
+                            .iter()
+                            .all(|&(rg, a, b)| rg != region || r <= a || b <= w),
+                    };
+                    if free {
+                        found = Some(e);
+                        break;
                     }
                 }
-                _ => o.line[e].push((region, w, r)),
+                let Some(e) = found else {
+                    return Err(Overflow {
+                        loc,
+                        needed: cap + 1,
+                        entries: cap,
+                        region: Some(region),
+                    });
+                };
+                match modulus {
+                    Some(_) if region == Region::Loop => {
+                        for &c in cycles {
+                            o.modulo[e][c as usize] = true;
+                        }
+                    }
+                    _ => o.line[e].push((region, w, r)),
+                }
+                chosen.push(e as u16);
             }
-            out.entry.insert((u, loc), e as u16);
+            if let [e] = chosen[..] {
+                out.entry.insert((u, loc), e);
+            } else {
+                out.instances.insert((u, loc), chosen);
+            }
         }
     }
-    for (&(_, loc), &e) in &out.entry {
+    let instances = out
+        .instances
+        .iter()
+        .flat_map(|(&(_, loc), es)| es.iter().map(move |&e| (loc, e)));
+    for (loc, e) in out
+        .entry
+        .iter()
+        .map(|(&(_, loc), &e)| (loc, e))
+        .chain(instances)
+    {
         match loc {
             Loc::Lrf(l) => out.peak[l as usize] = out.peak[l as usize].max(e as usize + 1),
             Loc::Cc => out.cc_peak = out.cc_peak.max(e as usize + 1),
         }
     }
     Ok(out)
+}
+
+/// Passes the loop body at interval `ii` is unrolled into: its longest-lived value's
+/// lifetime (landing to last read), in intervals.
+fn unroll(
+    g: &Graph,
+    s: &Schedule,
+    last_read: &HashMap<(usize, Loc), i64>,
+    ii: i64,
+    desc: &imagine_units::desc::MachineDesc,
+) -> usize {
+    let perm = permanent(g);
+    let mut passes = 1;
+    for (u, op) in g.ops.iter().enumerate() {
+        let (Region::Loop, false, Some(pl)) = (op.region, perm[u], s.place[u]) else {
+            continue;
+        };
+        let w = pl.time + g.latency(u, desc);
+        for &loc in &s.dests[u] {
+            let r = live_end(last_read, u, loc, w);
+            passes = passes.max((r - w + ii - 1) / ii);
+        }
+    }
+    passes as usize
 }
 
 /// Values live in each location (LRFs, then the condition codes) in the loop at interval
@@ -233,7 +299,7 @@ impl Liveness {
             let w = pl.time + g.latency(u, desc);
             for &loc in &s.dests[u] {
                 let r = live_end(&last_read, u, loc, w);
-                for c in w..r.min(w + ii) {
+                for c in w..r {
                     rows[index(slots, loc)][c.rem_euclid(ii) as usize] += 1;
                 }
             }

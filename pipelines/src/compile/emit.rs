@@ -2,7 +2,9 @@
 //!
 //! Layout: the code before the loop, padded until its last result has landed; the loop body
 //! (one instruction per cycle of the initiation interval, each slot tagged with its
-//! software-pipeline stage, so the microcontroller's squash makes the prologue and epilogue);
+//! software-pipeline stage, so the microcontroller's squash makes the prologue and epilogue;
+//! repeated once per pass when values outlive the interval, each pass reading and writing
+//! its own entries of them and ending with `pass_end`, so the loop may leave after any);
 //! a drain until the last pass's results have landed, if code follows; the code after the
 //! loop; `done` on the last instruction.
 
@@ -24,6 +26,8 @@ pub struct Layout {
     pub pre: usize,
     pub loop_start: usize,
     pub ii: usize,
+    /// Passes of `ii` instructions in the loop body (see [`super::schedule::reach`]).
+    pub unroll: usize,
     pub stages: usize,
     pub post_start: usize,
     pub len: usize,
@@ -34,7 +38,13 @@ fn done_after(g: &Graph, u: usize, desc: &MachineDesc) -> i64 {
     g.latency(u, desc) + 1
 }
 
-pub fn layout(g: &Graph, s: &Schedule, ii: Option<i64>, desc: &MachineDesc) -> Layout {
+pub fn layout(
+    g: &Graph,
+    s: &Schedule,
+    ii: Option<i64>,
+    unroll: usize,
+    desc: &MachineDesc,
+) -> Layout {
     let end_of = |r: Region| {
         g.in_region(r)
             .iter()
@@ -62,7 +72,9 @@ pub fn layout(g: &Graph, s: &Schedule, ii: Option<i64>, desc: &MachineDesc) -> L
         None => (0, 0, 0),
     };
     let post_len = end_of(Region::Post);
-    let post_start = pre + ii + if post_len > 0 { drain } else { 0 };
+    let unroll = if ii > 0 { unroll.max(1) } else { 1 };
+    // (The loop may leave after any pass: the drain follows the body.)
+    let post_start = pre + ii * unroll + if post_len > 0 { drain } else { 0 };
     // `done` sits on the last instruction outside every loop: after the loop that needs an
     // instruction of its own when nothing follows it.
     let len = if post_len > 0 {
@@ -76,6 +88,7 @@ pub fn layout(g: &Graph, s: &Schedule, ii: Option<i64>, desc: &MachineDesc) -> L
         pre,
         loop_start: pre,
         ii,
+        unroll,
         stages,
         post_start,
         len,
@@ -98,121 +111,138 @@ pub fn emit(
     let empty = Instruction::empty(desc);
     let clusters = desc.cluster.count as u16;
     let mut code = vec![empty; lay.len];
+    // The entry `loc` holds `u`'s value in (of the iterations `i` with `i mod unroll == c`).
+    let entry = |u: usize, loc: Loc, c: usize| -> Option<u16> {
+        e.entry
+            .get(&(u, loc))
+            .or_else(|| e.instances.get(&(u, loc)).map(|es| &es[c]))
+            .copied()
+    };
     // The entry an operand is read from.
-    let entry_of = |src: Source, loc: Loc| -> u16 {
+    let entry_of = |src: Source, loc: Loc, c: usize| -> u16 {
         let producer = match src {
             Source::Local(p) | Source::Carried(p) => p,
             Source::Earlier(p) => providers.get(&(p, loc)).copied().unwrap_or(p),
         };
-        *e.entry
-            .get(&(producer, loc))
-            .unwrap_or_else(|| panic!("no entry for op {producer} in {loc:?}"))
+        entry(producer, loc, c).unwrap_or_else(|| panic!("no entry for op {producer} in {loc:?}"))
+    };
+    let passes = |op: &super::graph::MOp| {
+        if op.region == Region::Loop {
+            lay.unroll
+        } else {
+            1
+        }
     };
     for (u, op) in g.ops.iter().enumerate() {
         let Some(pl) = s.place[u] else { continue };
-        let (at, stage) = match op.region {
-            Region::Pre => (pl.time as usize, 0u8),
-            Region::Loop => {
-                let ii = lay.ii as i64;
-                (
-                    lay.loop_start + pl.time.rem_euclid(ii) as usize,
-                    (pl.time / ii) as u8,
-                )
-            }
-            Region::Post => (lay.post_start + pl.time as usize, 0),
-        };
-        let mut dests: Dests = [None; 2];
-        for (k, &loc) in s.dests[u].iter().enumerate() {
-            let Some(&entry) = e.entry.get(&(u, loc)) else {
-                continue;
-            };
-            dests[k] = Some(match loc {
-                Loc::Lrf(l) => Dest::Lrf { lrf: l, entry },
-                Loc::Cc => Dest::Cc { index: entry },
-            });
-        }
-        let arg = |input: Input| -> Option<u16> {
-            op.args
-                .iter()
-                .find(|a| a.input == input)
-                .map(|a| entry_of(a.src, slots.operand_loc(op.kind, pl.slot, pl.swap, a)))
-        };
-        let ins = &mut code[at];
-        match op.kind {
-            Kind::Fu(o) => {
-                let (mut a, mut b) = (arg(Input::A).unwrap_or(0), arg(Input::B).unwrap_or(0));
-                if pl.swap {
-                    std::mem::swap(&mut a, &mut b);
+        for pass in 0..passes(op) {
+            let (at, stage) = match op.region {
+                Region::Pre => (pl.time as usize, 0u8),
+                Region::Loop => {
+                    let ii = lay.ii as i64;
+                    (
+                        lay.loop_start + pass * lay.ii + pl.time.rem_euclid(ii) as usize,
+                        (pl.time / ii) as u8,
+                    )
                 }
-                ins.fu[pl.slot] = Some(FuSlot {
-                    op: o,
-                    a,
-                    b: if o.arity() >= 2 { b } else { 0 },
-                    cc: if o == Op::Select {
-                        arg(Input::Cc).unwrap_or(0)
-                    } else {
-                        0
-                    },
-                    dests,
-                    stage,
-                });
-            }
-            Kind::SpRead { base } | Kind::SpWrite { base } => {
-                ins.sp[pl.slot] = Some(SpSlot {
-                    write: matches!(op.kind, Kind::SpWrite { .. }),
-                    base,
-                    offset: arg(Input::SpAddr),
-                    data: arg(Input::SpData).unwrap_or(0),
-                    dests: if matches!(op.kind, Kind::SpRead { .. }) {
-                        dests
-                    } else {
-                        [None; 2]
-                    },
-                    stage,
-                });
-            }
-            Kind::Comm(p) => {
-                let perm = match p {
-                    Permutation::PerCluster(_) => {
-                        Permutation::PerCluster(arg(Input::CommPerm).unwrap_or(0))
-                    }
-                    Permutation::Rotate(k) => Permutation::Rotate(k % clusters),
-                    other => other,
+                Region::Post => (lay.post_start + pl.time as usize, 0),
+            };
+            // Pass `pass` of the body runs stage `stage` of iteration `pass − stage` (modulo
+            // the unrolling), whose copies of the loop's values it reads and writes.
+            let copy = (pass + lay.unroll - usize::from(stage) % lay.unroll) % lay.unroll;
+            let mut dests: Dests = [None; 2];
+            for (k, &loc) in s.dests[u].iter().enumerate() {
+                let Some(entry) = entry(u, loc, copy) else {
+                    continue;
                 };
-                ins.comm[pl.slot] = Some(CommSlot {
-                    data: arg(Input::CommData).unwrap_or(0),
-                    perm,
-                    dests,
-                    stage,
+                dests[k] = Some(match loc {
+                    Loc::Lrf(l) => Dest::Lrf { lrf: l, entry },
+                    Loc::Cc => Dest::Cc { index: entry },
                 });
             }
-            Kind::StreamIn { stream, cond } => {
-                let k = ins
-                    .sin
+            let arg = |input: Input| -> Option<u16> {
+                op.args
                     .iter()
-                    .position(Option::is_none)
-                    .expect("the scheduler counts stream words");
-                ins.sin[k] = Some(StreamIn {
-                    stream,
-                    cond: if cond { arg(Input::Cc) } else { None },
-                    dests,
-                    stage,
-                });
-            }
-            Kind::StreamOut { stream, cond } => {
-                ins.sout = Some(StreamOut {
-                    stream,
-                    data: arg(Input::SoutData).unwrap_or(0),
-                    cond: if cond { arg(Input::Cc) } else { None },
-                    stage,
-                });
-            }
-            Kind::Imm(value) => {
-                ins.imm = Some(Immediate {
-                    value,
-                    dests,
-                    stage,
-                });
+                    .find(|a| a.input == input)
+                    .map(|a| entry_of(a.src, slots.operand_loc(op.kind, pl.slot, pl.swap, a), copy))
+            };
+            let ins = &mut code[at];
+            match op.kind {
+                Kind::Fu(o) => {
+                    let (mut a, mut b) = (arg(Input::A).unwrap_or(0), arg(Input::B).unwrap_or(0));
+                    if pl.swap {
+                        std::mem::swap(&mut a, &mut b);
+                    }
+                    ins.fu[pl.slot] = Some(FuSlot {
+                        op: o,
+                        a,
+                        b: if o.arity() >= 2 { b } else { 0 },
+                        cc: if o == Op::Select {
+                            arg(Input::Cc).unwrap_or(0)
+                        } else {
+                            0
+                        },
+                        dests,
+                        stage,
+                    });
+                }
+                Kind::SpRead { base } | Kind::SpWrite { base } => {
+                    ins.sp[pl.slot] = Some(SpSlot {
+                        write: matches!(op.kind, Kind::SpWrite { .. }),
+                        base,
+                        offset: arg(Input::SpAddr),
+                        data: arg(Input::SpData).unwrap_or(0),
+                        dests: if matches!(op.kind, Kind::SpRead { .. }) {
+                            dests
+                        } else {
+                            [None; 2]
+                        },
+                        stage,
+                    });
+                }
+                Kind::Comm(p) => {
+                    let perm = match p {
+                        Permutation::PerCluster(_) => {
+                            Permutation::PerCluster(arg(Input::CommPerm).unwrap_or(0))
+                        }
+                        Permutation::Rotate(k) => Permutation::Rotate(k % clusters),
+                        other => other,
+                    };
+                    ins.comm[pl.slot] = Some(CommSlot {
+                        data: arg(Input::CommData).unwrap_or(0),
+                        perm,
+                        dests,
+                        stage,
+                    });
+                }
+                Kind::StreamIn { stream, cond } => {
+                    let k = ins
+                        .sin
+                        .iter()
+                        .position(Option::is_none)
+                        .expect("the scheduler counts stream words");
+                    ins.sin[k] = Some(StreamIn {
+                        stream,
+                        cond: if cond { arg(Input::Cc) } else { None },
+                        dests,
+                        stage,
+                    });
+                }
+                Kind::StreamOut { stream, cond } => {
+                    ins.sout = Some(StreamOut {
+                        stream,
+                        data: arg(Input::SoutData).unwrap_or(0),
+                        cond: if cond { arg(Input::Cc) } else { None },
+                        stage,
+                    });
+                }
+                Kind::Imm(value) => {
+                    ins.imm = Some(Immediate {
+                        value,
+                        dests,
+                        stage,
+                    });
+                }
             }
         }
     }
@@ -222,11 +252,14 @@ pub fn emit(
             LoopSpec::Counted(n) => LoopKind::Counted(n),
         };
         let stages = lay.stages as u8;
-        if lay.ii == 1 {
+        if lay.ii * lay.unroll == 1 {
             code[lay.loop_start].control = Control::begin_end(kind, stages);
         } else {
             code[lay.loop_start].control = Control::begin(kind, stages);
-            code[lay.loop_start + lay.ii - 1].control = Control::END;
+            for pass in 1..lay.unroll {
+                code[lay.loop_start + pass * lay.ii - 1].control.pass_end = true;
+            }
+            code[lay.loop_start + lay.unroll * lay.ii - 1].control = Control::END;
         }
     }
     code[lay.len - 1].control.done = true;

@@ -196,6 +196,10 @@ pub struct Graph {
     /// The modulo scheduler breaks ties between ops of equal priority towards the later op
     /// in program order (the earlier by default).
     pub late_ties: bool,
+    /// The loop's values may outlive the initiation interval, up to
+    /// [`super::schedule::reach`], each pass of the unrolled body holding them in entries of
+    /// its own (modulo variable expansion); otherwise each is read within one interval.
+    pub expand: bool,
     /// Issue cycles of the loop's ops when the modulo scheduler last asked for a lifetime
     /// copy at this interval (indexed by op; empty at first): the next attempt places them
     /// in that order, and at those cycles where it can.
@@ -502,6 +506,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
             main_loop: kernel.main_loop,
             hint: Vec::new(),
             late_ties: false,
+            expand: false,
             warm: Vec::new(),
         },
         op_of: vec![None; n],

@@ -16,8 +16,11 @@
 //! (the longest dependence cycle through carried values and scratchpad order), and rises
 //! until the loop schedules, fits the stage field and its values fit the LRFs (a full LRF
 //! first gets copies into the adders' LRFs around the schedule as it is, then a schedule
-//! with a copy). A kernel that cannot fit fails with a [`CompileError`] naming the kernel
-//! and the resource.
+//! with a copy). Each interval is tried first with every loop value read within the
+//! interval, then with values free to wait a few intervals, the body unrolled into as many
+//! passes as they need (modulo variable expansion: copies cost unit slots, which a loop
+//! near its bound lacks). A kernel that cannot fit fails with a [`CompileError`] naming the
+//! kernel and the resource.
 
 pub mod alloc;
 pub mod bind;
@@ -221,11 +224,18 @@ fn search(
     let far_attempts = (near + 1..=max_ii)
         .filter(|_| !hinted.hint.is_empty())
         .map(|ii| (ii, &hinted, WIDE_REPAIRS));
+    // Each interval is tried with every value read within the interval first, then with
+    // the body unrolled so that values may wait longer (see [`schedule::reach`]).
     for (ii, graph, repairs) in near_attempts.chain(far_attempts) {
-        match with_repairs(graph, LoopMode::Modulo(ii as i64), repairs) {
-            Ok(a) => return Ok(compiled(a)),
-            Err(Retry::Fatal(e)) => return Err(e),
-            Err(Retry::Larger(e) | Retry::Repair(_, e)) => last_error = Some(e),
+        let mut expanded = graph.clone();
+        expanded.expand = true;
+        let few = repairs.min(WIDE_REPAIRS);
+        for (graph, repairs) in [(graph, repairs), (&expanded, few)] {
+            match with_repairs(graph, LoopMode::Modulo(ii as i64), repairs) {
+                Ok(a) => return Ok(compiled(a)),
+                Err(Retry::Fatal(e)) => return Err(e),
+                Err(Retry::Larger(e) | Retry::Repair(_, e)) => last_error = Some(e),
+            }
         }
     }
     line.ok_or_else(|| last_error.unwrap_or(("schedule".into(), "no schedule found".into())))
@@ -418,9 +428,15 @@ fn try_ii(
             Retry::Fatal((name, message))
         }
     })?;
-    let lay = emit::layout(&g, &s, ii, desc);
+    let lay = emit::layout(&g, &s, ii, entries.unroll, desc);
     if lay.len > desc.microcontroller.store_words {
-        return Err(Retry::Fatal((
+        // (An unrolled body may fit at a larger interval, with fewer passes.)
+        let retry = if lay.unroll > 1 {
+            Retry::Larger
+        } else {
+            Retry::Fatal
+        };
+        return Err(retry((
             "microcode store".into(),
             format!(
                 "it needs {} instructions; the store holds {} (`microcontroller.store_words`)",

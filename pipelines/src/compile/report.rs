@@ -60,6 +60,9 @@ pub struct Report {
     /// Achieved initiation interval (`None`: no loop).
     pub ii: Option<u32>,
     pub stages: u32,
+    /// Passes of `ii` instructions in the loop body: more than one when values outlive the
+    /// interval and each pass holds them in entries of its own (modulo variable expansion).
+    pub unroll: u32,
     /// Arithmetic ops per cycle across all clusters in the loop (copies not counted).
     pub ops_per_cycle: f64,
     pub instructions: usize,
@@ -176,6 +179,7 @@ pub fn build(
         rec_mii: bounds.rec_mii,
         ii: has_loop.then_some(lay.ii as u32),
         stages: lay.stages as u32,
+        unroll: lay.unroll as u32,
         ops_per_cycle,
         instructions: program.code.len(),
         before_loop: lay.pre,
@@ -246,10 +250,15 @@ impl Report {
         }
         let _ = writeln!(
             s,
-            "{} instructions: {} before the loop, {} in it, {} after",
+            "{} instructions: {} before the loop, {} in it{}, {} after",
             self.instructions,
             self.before_loop,
-            self.ii.unwrap_or(0),
+            self.ii.unwrap_or(0) * self.unroll,
+            if self.unroll > 1 {
+                format!(" ({} passes: values outlive the interval)", self.unroll)
+            } else {
+                String::new()
+            },
             self.after_loop
         );
         let _ = write!(s, "LRF use:");

@@ -10,11 +10,12 @@
 //! written to that LRF by its producer, which has one switch result port with two
 //! destinations and needs the LRF's single write port in the cycle its result lands. In a
 //! loop, a value must be read within one initiation interval of being written (the entry is
-//! rewritten by the next iteration; there is no rotating register file). When an operand
-//! cannot be delivered (its producer's destinations are taken, or it would live too long),
-//! the scheduler asks for a `mov` copy between producer and consumer and starts over —
-//! for a big loop, from the places of the attempt that asked, so that the copies add up
-//! in one schedule instead of each perturbing a new one.
+//! rewritten by the next iteration; there is no rotating register file) — or, when the
+//! body is unrolled into passes that each rename it ([`reach`]), within a few intervals.
+//! When an operand cannot be delivered (its producer's destinations are taken, or it would
+//! live too long), the scheduler asks for a `mov` copy between producer and consumer and
+//! starts over — for a big loop, from the places of the attempt that asked, so that the
+//! copies add up in one schedule instead of each perturbing a new one.
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::check::Shape;
@@ -242,8 +243,15 @@ pub fn schedule_region(
     slots: &Slots,
     desc: &MachineDesc,
 ) -> Result<(), Failure> {
-    // (Only a loop asks for copies; one that needs too many is tried at the next interval.)
-    for _ in 0..MAX_LOOP_COPIES {
+    // (Only a loop asks for copies; one that needs too many is tried at the next interval.
+    // With the body unrolled, a value that outlives even that has drifted with the
+    // schedule, which copies seldom mend.)
+    let copies = if g.expand {
+        EXPANDED_LOOP_COPIES
+    } else {
+        MAX_LOOP_COPIES
+    };
+    for _ in 0..copies {
         sched.grow(g.ops.len());
         super::bind::bind(g, sched, region, ii, slots);
         sched.grow(g.ops.len());
@@ -496,8 +504,29 @@ fn shift_to_cycle_zero(sched: &mut Schedule, ops: &[usize], step: i64) {
     }
 }
 
+/// How long a loop value may wait in its LRF entry at interval `ii`: `ii` cycles for each
+/// pass of the body. The body is unrolled into as many passes as its longest-lived value
+/// needs, each with its own entries for it (modulo variable expansion, Lam, "Software
+/// pipelining", PLDI 1988: with no rotating register file, the entry is renamed in the code
+/// instead), as far as half the microcode store holds them and up to [`MAX_PASSES`].
+pub fn reach(g: &Graph, ii: i64, desc: &MachineDesc) -> i64 {
+    if !g.expand || ii <= 1 {
+        return ii;
+    }
+    let passes = (desc.microcontroller.store_words as i64 / 2 / ii).clamp(1, MAX_PASSES);
+    ii * passes
+}
+
+/// Passes a loop body may be unrolled into. (Letting values wait longer lets the schedule
+/// drift later: up to 16, as many as the stages, vertex_unlit and viewport_cull came out an
+/// interval longer on gold8.)
+pub const MAX_PASSES: i64 = 4;
+
 /// Lifetime copies one attempt at an initiation interval may ask for.
 const MAX_LOOP_COPIES: usize = 64;
+
+/// Lifetime copies one attempt may ask for when the loop body is unrolled.
+const EXPANDED_LOOP_COPIES: usize = 8;
 
 /// Ops Rau's scheduler may place per op of the loop before it gives up at this interval.
 const BUDGET_RATIO: usize = 8;
@@ -511,7 +540,7 @@ const BUDGET_RATIO: usize = 8;
 /// placed the same way, after its address too; it stays when its reader leaves, so that a
 /// read forced in later than the reader takes the reader later with it.
 ///
-/// The loop's values must also be read within one interval of landing: that bounds a
+/// The loop's values must also be read within one interval (or [`reach`]) of landing: that bounds a
 /// reader's latest cycle by its placed producers and a producer's earliest by its placed
 /// readers. A reader whose producers leave it no cycle at all asks for a copy.
 fn attempt_modulo(
@@ -532,6 +561,7 @@ fn attempt_modulo(
         succs,
     } = Dag::new(g, sched, region, &edges);
     let mut table = Table::new(ii, slots);
+    let reach = reach(g, ii, desc);
     // Local readers of each value.
     let mut readers: Vec<Vec<usize>> = vec![Vec::new(); n];
     for &u in &ops {
@@ -634,7 +664,7 @@ fn attempt_modulo(
         // Placed readers must still find the value in its entry.
         for &r in &readers[u] {
             if let Some(t) = placed_at(r, sched) {
-                estart = estart.max(t - latency[u] - ii);
+                estart = estart.max(t - latency[u] - reach);
             }
         }
         let mut lstart = i64::MAX;
@@ -652,7 +682,7 @@ fn attempt_modulo(
             if let Source::Local(p) = a.src
                 && let Some(t) = placed_at(p, sched)
             {
-                let limit = t + latency[p] + ii;
+                let limit = t + latency[p] + reach;
                 if limit < last {
                     last = limit;
                     lifetime = Some((i, limit));
@@ -792,13 +822,13 @@ fn attempt_modulo(
             }
         }
         for &r in &readers[u] {
-            if placed_at(r, sched).is_some_and(|s| s > t + latency[u] + ii) {
+            if placed_at(r, sched).is_some_and(|s| s > t + latency[u] + reach) {
                 broken.push(r);
             }
         }
         for a in &g.ops[u].args {
             if let Source::Local(p) = a.src
-                && placed_at(p, sched).is_some_and(|s| s + latency[p] + ii < t)
+                && placed_at(p, sched).is_some_and(|s| s + latency[p] + reach < t)
             {
                 broken.push(p);
             }
@@ -1203,6 +1233,7 @@ pub fn relieve(
     let lm = i64::from(Op::Mov.latency(&desc.latency));
     let k = index(slots, loc);
     let adders: Vec<usize> = slots.fu_slots(UnitClass::Adder).collect();
+    let reach = reach(g, ii, desc);
     // (Each copy frees part of a row at least; this only bounds a runaway.)
     for _ in 0..ii.max(64) {
         let ops = g.in_region(Region::Loop);
@@ -1271,7 +1302,7 @@ pub fn relieve(
                 };
                 // The latest cycle a copy may issue before `until`, not in `taken`'s row.
                 let slot = |until: i64, taken: Option<i64>| -> Option<i64> {
-                    (w + 1..=(until - lm - 1).min(w + ii)).rev().find(|&t| {
+                    (w + 1..=(until - lm - 1).min(w + reach)).rev().find(|&t| {
                         taken.is_none_or(|x| table.row(x) != table.row(t))
                             && table.fu[table.row(t) * table.nfu + a] == FREE
                             && table.fu_result[table.row(t + lm) * table.nfu + a] == FREE
