@@ -205,11 +205,10 @@ impl Microcontroller {
                 ..
             }) = inst.control.begin
             {
-                let reads = code[b..=first_pass_end[b]]
+                let reads: usize = code[b..=first_pass_end[b]]
                     .iter()
-                    .flat_map(|i| i.sin.iter().flatten())
-                    .filter(|r| r.stream == s && r.cond.is_none())
-                    .count();
+                    .map(|i| i.unconditional_reads(s))
+                    .sum();
                 self.rows_per_pass[b] = reads.max(1) as u64;
             }
         }

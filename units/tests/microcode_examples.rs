@@ -559,22 +559,8 @@ fn lookup_reads_the_table_from_the_scratchpad() {
     }
 }
 
-/// z = x + 1.0 at one iteration per cycle (II 1, 5 stages): x lands 3 cycles after its read
-/// and the add reads it a cycle later, just as the next iteration's x lands. Modulo variable
-/// expansion (Lam 1988): two copies of the kernel, one pass each, alternate `add0.a[0]` and
-/// `add0.a[1]`, so each x is overwritten only 2 cycles after it landed.
-const PLUS_ONE_TWO_PASSES: &str = "\
-kernel plus1
-in x
-out z
-    imm 1.0 -> add0.b[0]
-loop stream x, stages 5:
-    sin0 x -> add0.a[0] | add0 fadd a[0], b[0] -> stream z @4
-pass
-    sin0 x -> add0.a[1] | add0 fadd a[1], b[0] -> stream z @4
-end
-done
-";
+/// z = x + 1.0 in a loop body of two passes (see the file).
+const PLUS_ONE_TWO_PASSES: &str = include_str!("microcode/plus1_passes.uc");
 
 #[test]
 fn a_body_of_two_passes_runs_every_iteration_once_whatever_the_parity() {

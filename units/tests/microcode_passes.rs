@@ -288,21 +288,9 @@ fn start_rejects_a_pass_end_outside_a_loop_or_with_end() {
 
 // ---- on the machine ---------------------------------------------------------------------
 
-/// z = x + 1.0, one iteration per cycle over 5 stages: x lands 3 cycles after its read and
-/// the add reads it a cycle later, as the next iteration's x lands, so two copies of the
-/// kernel alternate `add0.a[0]` and `add0.a[1]` (modulo variable expansion).
-const PLUS_ONE: &str = "\
-kernel plus1
-in x
-out z
-    imm 1.0 -> add0.b[0]
-loop stream x, stages 5:
-    sin0 x -> add0.a[0] | add0 fadd a[0], b[0] -> stream z @4
-pass
-    sin0 x -> add0.a[1] | add0 fadd a[1], b[0] -> stream z @4
-end
-done
-";
+/// z = x + 1.0, one iteration per cycle over 5 stages, in a body of two passes that keep
+/// x in alternate entries (modulo variable expansion; see the file).
+const PLUS_ONE: &str = include_str!("microcode/plus1_passes.uc");
 
 #[test]
 fn unrolled_pipelined_kernel_runs_on_the_machine() {

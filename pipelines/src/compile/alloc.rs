@@ -78,7 +78,7 @@ pub fn allocate(
     let index = |loc: Loc| index(slots, loc);
     let mut out = Entries {
         peak: vec![0; nlrf],
-        unroll: ii.map_or(1, |ii| unroll(g, s, &last_read, ii, desc)),
+        unroll: ii.map_or(1, |ii| unroll(g, s, &perm, &last_read, ii, desc)),
         ..Entries::default()
     };
     let modulus = ii.map(|ii| ii * out.unroll as i64);
@@ -245,11 +245,11 @@ pub fn allocate(
 fn unroll(
     g: &Graph,
     s: &Schedule,
+    perm: &[bool],
     last_read: &HashMap<(usize, Loc), i64>,
     ii: i64,
     desc: &imagine_units::desc::MachineDesc,
 ) -> usize {
-    let perm = permanent(g);
     let mut passes = 1;
     for (u, op) in g.ops.iter().enumerate() {
         let (Region::Loop, false, Some(pl)) = (op.region, perm[u], s.place[u]) else {

@@ -540,9 +540,9 @@ const BUDGET_RATIO: usize = 8;
 /// placed the same way, after its address too; it stays when its reader leaves, so that a
 /// read forced in later than the reader takes the reader later with it.
 ///
-/// The loop's values must also be read within one interval (or [`reach`]) of landing: that bounds a
-/// reader's latest cycle by its placed producers and a producer's earliest by its placed
-/// readers. A reader whose producers leave it no cycle at all asks for a copy.
+/// The loop's values must also be read within one interval (or [`reach`]) of landing:
+/// that bounds a reader's latest cycle by its placed producers and a producer's earliest by
+/// its placed readers. A reader whose producers leave it no cycle at all asks for a copy.
 fn attempt_modulo(
     g: &Graph,
     sched: &mut Schedule,

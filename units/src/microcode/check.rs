@@ -272,6 +272,16 @@ impl Instruction {
             && self.sout.is_none()
             && self.imm.is_none()
     }
+
+    /// Unconditional words of kernel stream `stream` this instruction reads per cluster
+    /// (what a pass of a loop over the stream consumes).
+    pub fn unconditional_reads(&self, stream: u16) -> usize {
+        self.sin
+            .iter()
+            .flatten()
+            .filter(|r| r.stream == stream && r.cond.is_none())
+            .count()
+    }
 }
 
 impl Program {
@@ -445,12 +455,7 @@ impl Checker<'_> {
             self.check_instruction(i, ins, stages)?;
             for l in &mut open {
                 if let LoopKind::UntilStreamEmpty(s) = l.kind {
-                    l.reads += ins
-                        .sin
-                        .iter()
-                        .flatten()
-                        .filter(|r| r.stream == s && r.cond.is_none())
-                        .count();
+                    l.reads += ins.unconditional_reads(s);
                 }
             }
             if ctl.ends_pass()
