@@ -5,12 +5,16 @@
 //! | bytes | content |
 //! |---|---|
 //! | 4 | magic `IMUC` |
-//! | 1 | format version (1) |
+//! | 1 | format version (2) |
 //! | 2 + n | machine name (length, UTF-8) |
 //! | 2 + n | kernel name |
 //! | 1 | stream count, then per stream: 1 direction (0 in, 1 out), 2 + n name |
 //! | 4 | instruction width in bits |
 //! | 4 | instruction count, then per instruction `ceil(width / 64)` 64-bit words |
+//!
+//! Version 2 added the `ctl.pass` bit (a loop body of several passes), so every
+//! instruction of a version-1 image is one bit narrower; such images are refused by
+//! version rather than by width.
 
 use std::fmt;
 
@@ -21,7 +25,7 @@ use super::{Program, StreamDecl, StreamDir};
 use crate::desc::MachineDesc;
 
 const MAGIC: &[u8; 4] = b"IMUC";
-const VERSION: u8 = 1;
+const VERSION: u8 = 2;
 
 /// An image that cannot be read for this machine.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -118,8 +122,13 @@ pub fn read_image(bytes: &[u8], desc: &MachineDesc) -> Result<Program, ImageErro
     }
     let version = r.u8("version")?;
     if version != VERSION {
+        let hint = if version < VERSION {
+            " (written by an older build: assemble the kernel again)"
+        } else {
+            ""
+        };
         return Err(ImageError(format!(
-            "format version {version}; this build reads {VERSION}"
+            "format version {version}; this build reads {VERSION}{hint}"
         )));
     }
     let machine = r.string("machine name")?;
@@ -211,6 +220,14 @@ mod tests {
                 .unwrap_err()
                 .to_string()
                 .contains("after the last")
+        );
+        // An image of the format before the pass bit is refused by its version.
+        let mut old = image.clone();
+        old[4] = 1;
+        let e = read_image(&old, &gold8).unwrap_err().to_string();
+        assert!(
+            e.contains("format version 1; this build reads 2") && e.contains("again"),
+            "{e}"
         );
         let mut bad = image.clone();
         bad[0] = b'X';
