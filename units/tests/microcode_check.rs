@@ -33,6 +33,19 @@ fn done(desc: &MachineDesc) -> Instruction {
 }
 
 /// Kernel `k` with streams `x` (in) and `y` (out): `ins`, then a `done`.
+/// An empty instruction carrying `control`.
+fn with_control(desc: &MachineDesc, control: Control) -> Instruction {
+    Instruction {
+        control,
+        ..empty(desc)
+    }
+}
+
+/// An empty instruction beginning a two-iteration loop of one stage.
+fn counted_begin(desc: &MachineDesc) -> Instruction {
+    with_control(desc, Control::begin(LoopKind::Counted(2), 1))
+}
+
 fn program(desc: &MachineDesc, ins: Instruction) -> Program {
     Program {
         name: "k".into(),
@@ -828,11 +841,8 @@ fn loop_headers() {
 #[test]
 fn loops_nest_properly_and_not_too_deep() {
     let d = gold8();
-    let at = |control| Instruction {
-        control,
-        ..empty(&d)
-    };
-    let begin = || at(Control::begin(LoopKind::Counted(2), 1));
+    let at = |control| with_control(&d, control);
+    let begin = || counted_begin(&d);
     let mut p = program(&d, empty(&d));
     // Depth 4 fits (`microcontroller.loop_depth`), depth 5 does not.
     let mut code = Vec::new();
@@ -880,16 +890,13 @@ fn loops_nest_properly_and_not_too_deep() {
 #[test]
 fn one_instruction_loops_begin_and_end_on_one_instruction() {
     let d = gold8();
-    let at = |control| Instruction {
-        control,
-        ..empty(&d)
-    };
+    let at = |control| with_control(&d, control);
     let one = |n| at(Control::begin_end(LoopKind::Counted(n), 1));
     let mut p = program(&d, empty(&d));
     // Alone, in sequence, and nested in a longer loop (the loop stack still counts it).
     p.code = vec![one(3), one(0), done(&d)];
     p.check(&d).unwrap();
-    let begin = || at(Control::begin(LoopKind::Counted(2), 1));
+    let begin = || counted_begin(&d);
     let mut code = vec![begin(), begin(), begin(), one(5)];
     code.extend([
         at(Control::END),
@@ -1019,11 +1026,8 @@ fn errors_are_std_errors() {
 #[test]
 fn pass_ends_are_inside_a_loop_and_never_with_end_or_done() {
     let d = gold8();
-    let at = |control| Instruction {
-        control,
-        ..empty(&d)
-    };
-    let begin = || at(Control::begin(LoopKind::Counted(2), 1));
+    let at = |control| with_control(&d, control);
+    let begin = || counted_begin(&d);
     let with_pass = |mut c: Control| {
         c.pass_end = true;
         at(c)

@@ -45,6 +45,26 @@ fn strided(kind: MemOpKind, base: u64, srf_start: usize) -> StreamInstr {
 
 /// The stream program: load the microcode, then per batch three loads, madd, one store.
 /// Batch `b` uses SRF buffer `b % buffers` (each buffer: x, y, w, z of N words).
+/// z = x·y + w word by word, as the madd kernel computes it.
+fn madd_expected(x: &[u32], y: &[u32], w: &[u32]) -> Vec<u32> {
+    x.iter()
+        .zip(y)
+        .zip(w)
+        .map(|((&x, &y), &w)| fp32::add(fp32::mul(x, y, FpMode::IEEE).0, w, FpMode::IEEE).0)
+        .collect()
+}
+
+/// The madd kernel (program 0) over x, y, w and z streams of `N` words starting at these
+/// SRF words.
+fn madd_kernel(starts: [usize; 4]) -> StreamInstr {
+    StreamInstr::Kernel {
+        program: 0,
+        bindings: starts
+            .map(|start| StreamBinding { start, words: N })
+            .to_vec(),
+    }
+}
+
 fn chain(buffers: usize, desc: &MachineDesc) -> StreamProgram {
     let text = include_str!("microcode/madd.uc");
     let madd = assemble(text, desc).expect("madd assembles");
@@ -56,12 +76,7 @@ fn chain(buffers: usize, desc: &MachineDesc) -> StreamProgram {
         instrs.push(strided(MemOpKind::Load, X + off, sx));
         instrs.push(strided(MemOpKind::Load, Y + off, sy));
         instrs.push(strided(MemOpKind::Load, W + off, sw));
-        instrs.push(StreamInstr::Kernel {
-            program: 0,
-            bindings: [sx, sy, sw, sz]
-                .map(|start| StreamBinding { start, words: N })
-                .to_vec(),
-        });
+        instrs.push(madd_kernel([sx, sy, sw, sz]));
         instrs.push(strided(MemOpKind::Store, Z + off, sz));
     }
     StreamProgram {
@@ -76,9 +91,7 @@ fn run(buffers: usize) -> (StreamReport, Vec<u32>, Vec<u32>) {
     let total = N * BATCHES;
     let [x, y, w]: [Vec<u32>; 3] =
         std::array::from_fn(|_| (0..total).map(|_| rng.float()).collect());
-    let expected: Vec<u32> = (0..total)
-        .map(|i| fp32::add(fp32::mul(x[i], y[i], FpMode::IEEE).0, w[i], FpMode::IEEE).0)
-        .collect();
+    let expected = madd_expected(&x, &y, &w);
     let opts = ProcessorOptions {
         dram_init: vec![(X, x), (Y, y), (W, w)],
         record_dram: true,
@@ -310,12 +323,7 @@ fn host_writes_land_before_their_reader_and_after_the_previous_one() {
     let [x, y, w, x2]: [Vec<u32>; 4] =
         std::array::from_fn(|_| (0..N).map(|_| rng.float()).collect());
     let (sx, sy, sw, sz, sz2) = (0, N, 2 * N, 3 * N, 4 * N);
-    let madd = |x: usize, z: usize| StreamInstr::Kernel {
-        program: 0,
-        bindings: [x, sy, sw, z]
-            .map(|start| StreamBinding { start, words: N })
-            .to_vec(),
-    };
+    let madd = |x: usize, z: usize| madd_kernel([x, sy, sw, z]);
     let instrs = vec![
         StreamInstr::LoadMicrocode { program: 0 },
         StreamInstr::WriteSrf {
@@ -349,11 +357,7 @@ fn host_writes_land_before_their_reader_and_after_the_previous_one() {
     let r = processor::run(&mut sim, &desc, 2_000_000).expect("runs");
     show(&r);
     let z = processor::read_dram(&sim, &desc, Z, 2 * N);
-    let madd_of = |x: &[u32]| -> Vec<u32> {
-        (0..N)
-            .map(|i| fp32::add(fp32::mul(x[i], y[i], FpMode::IEEE).0, w[i], FpMode::IEEE).0)
-            .collect()
-    };
+    let madd_of = |x: &[u32]| madd_expected(x, &y, &w);
     assert_eq!(z[..N], madd_of(&x), "the first kernel read the first write");
     assert_eq!(
         z[N..],
@@ -402,12 +406,7 @@ fn host_reads_take_a_kernels_output_after_it_and_before_its_next_writer() {
             start: sw,
             words: w.clone(),
         },
-        StreamInstr::Kernel {
-            program: 0,
-            bindings: [sx, sy, sw, sz]
-                .map(|start| StreamBinding { start, words: N })
-                .to_vec(),
-        },
+        madd_kernel([sx, sy, sw, sz]),
         // Reads the kernel's output: it must wait for the kernel.
         StreamInstr::ReadSrf { start: sz, len: N },
         // Overwrites what the read takes: it must wait for the read.
@@ -424,9 +423,7 @@ fn host_reads_take_a_kernels_output_after_it_and_before_its_next_writer() {
     let mut sim = processor::build(&desc, program, ProcessorOptions::default()).expect("builds");
     let r = processor::run(&mut sim, &desc, 2_000_000).expect("runs");
     show(&r);
-    let z: Vec<u32> = (0..N)
-        .map(|i| fp32::add(fp32::mul(x[i], y[i], FpMode::IEEE).0, w[i], FpMode::IEEE).0)
-        .collect();
+    let z = madd_expected(&x, &y, &w);
     assert_eq!(
         r.records[5].read, z,
         "the read brings back the kernel's output"
