@@ -272,3 +272,41 @@ fn a_value_outliving_the_interval_gets_an_entry_per_pass() {
         }
     }
 }
+
+/// A value read through more than two LRFs needs a copy (a result has two destinations).
+/// Here every adder slot of the interval is taken, so the copy goes on an idle multiplier
+/// (`imul_lo(x, 1)`) and the loop still runs at its bound.
+#[test]
+fn a_fanned_out_value_in_a_full_loop_is_copied_on_a_multiplier() {
+    let mut b = KernelBuilder::new("fanout");
+    let (input, output) = (b.input("in"), b.output("out"));
+    let (k1, k2, k3) = (b.i32(0x1234), b.i32(0x0f0f), b.i32(77));
+    b.begin_loop(LoopSpec::OverStream(input));
+    let x = b.read_i32(input);
+    let p = b.iadd(x, k1);
+    let q = b.xor(x, k2);
+    let r = b.isub(x, k3);
+    let s = b.iadd(p, q);
+    let t = b.isub(s, r);
+    let u = b.xor(t, x);
+    b.write(output, u);
+    b.end_loop();
+    let k = b.finish().unwrap();
+    for m in ["gold1", "gold8"] {
+        let c = machine(m).cluster.count;
+        let inputs = KernelInputs {
+            streams: vec![
+                (0..c as u32 * 20)
+                    .map(|i| i.wrapping_mul(2654435761))
+                    .collect(),
+                vec![],
+            ],
+            params: vec![],
+        };
+        let compiled = assert_matches(&k, m, &inputs);
+        let r = &compiled.report;
+        assert_eq!(r.loop_ops.adder, 6, "{m}\n{}", r.text());
+        assert!(r.loop_ops.copies >= 1, "{m}\n{}", r.text());
+        assert_eq!(r.ii, Some(r.mii()), "{m}\n{}", r.text());
+    }
+}

@@ -6,11 +6,12 @@
 //! Ops are bound in program order to the least-loaded unit of their class, preferring
 //! units whose input LRFs already receive their operands. A value read from more than two
 //! LRFs (a result has two switch destinations) gets `mov` copies: it keeps its most-read
-//! LRF and a copy on an adder serves the rest (recursively). This is the copy insertion of
+//! LRF and a copy serves the rest (recursively). This is the copy insertion of
 //! communication scheduling on distributed register files (Mattson et al., MICRO 2000), in
-//! its simplest greedy form. A lifetime copy in the loop goes to the least-loaded adder or
-//! multiplier: on a multiplier it is `imul_lo(x, 1)`, which copies `x` exactly, so a loop
-//! that fills its adders can still carry values through an idle multiplier.
+//! its simplest greedy form. In the loop such a copy, and a lifetime copy, goes to the
+//! adder or multiplier with most room: on a multiplier it is `imul_lo(x, 1)`, which copies
+//! `x` exactly, so a loop that fills its adders can still copy values through an idle
+//! multiplier.
 
 use std::collections::HashMap;
 
@@ -45,14 +46,9 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
     for &o in &ops {
         groups.insert(o, g.ops[o].seeded.clone());
     }
-    // A lifetime copy in the loop may go through a multiplier (`imul_lo(x, 1)`) when the
-    // adders are busier: it reads the constant 1, kept before the loop.
-    let mul_copies = ii.is_some()
-        && slots.shape.multipliers > 0
-        && ops
-            .iter()
-            .any(|&o| g.ops[o].copy_kind == Some(CopyKind::Lifetime));
-    let one = mul_copies.then(|| g.copy_multiplicand());
+    // A copy in the loop may go through a multiplier (`imul_lo(x, 1)`) when the adders are
+    // busier: it reads the constant 1, kept before the loop.
+    let one = (ii.is_some() && slots.shape.multipliers > 0).then(|| g.copy_multiplicand());
     let mut one_used = false;
     let mul_extra = slots.mul_copy_extra;
     for &u in &ops {
@@ -182,9 +178,6 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
             }
         }
     }
-    if let (Some(one), false) = (one, one_used) {
-        g.ops[one].dead = true;
-    }
     // Values read from more than two places get copies.
     loop {
         let mut over: Vec<usize> = groups
@@ -194,7 +187,11 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
             .collect();
         over.sort_unstable();
         let Some(&q) = over.first() else { break };
-        split(g, &mut groups, &mut load, q, region, slots);
+        let through_mul = split(g, &mut groups, &mut load, q, region, ii, one, slots);
+        one_used |= through_mul;
+    }
+    if let (Some(one), false) = (one, one_used) {
+        g.ops[one].dead = true;
     }
     for r in &mut sched.required {
         r.retain(|&(_, by)| by != region);
@@ -233,16 +230,21 @@ fn local_source(a: &Arg) -> Option<usize> {
     }
 }
 
-/// Gives value `q` a copy: `q` keeps its seeded and most-read location, the copy (on the
-/// least-loaded adder, reading `q` from that adder's `a` LRF) serves the other readers.
+/// Gives value `q` a copy: `q` keeps its seeded and most-read location, the copy (reading
+/// `q` from its unit's `a` LRF) serves the other readers. In a loop the copy may go on a
+/// multiplier, as `imul_lo(q, 1)` (`one` holds the 1), so that a loop whose adders are full
+/// still runs at its bound. Returns whether it went on a multiplier.
+#[allow(clippy::too_many_arguments)]
 fn split(
     g: &mut Graph,
     groups: &mut HashMap<usize, Vec<Loc>>,
     load: &mut [usize],
     q: usize,
     region: Region,
+    ii: Option<i64>,
+    one: Option<usize>,
     slots: &Slots,
-) {
+) -> bool {
     let readers: Vec<(usize, usize, Loc)> = g
         .in_region(region)
         .into_iter()
@@ -256,19 +258,31 @@ fn split(
                 .collect::<Vec<_>>()
         })
         .collect();
-    // The copy reads `q` from an adder's `a` LRF: one `q` is written to already if there is
-    // one, else the least-loaded adder's.
-    let adders = slots.fu_slots(UnitClass::Adder);
     let have = &groups[&q];
-    let copy_slot = adders
-        .clone()
-        .find(|&k| have.contains(&Loc::Lrf(slots.fu_inputs[k][0])))
-        .unwrap_or_else(|| {
-            adders
-                .clone()
-                .min_by_key(|&k| (load[k], k))
-                .expect("machines have adders")
-        });
+    let adders = slots.fu_slots(UnitClass::Adder);
+    let multipliers = slots
+        .fu_slots(UnitClass::Multiplier)
+        .filter(|_| one.is_some());
+    // Lower ranks first. In a loop: a unit with room in the interval, the least loaded
+    // (an adder, or one whose LRF `q` is written to already, counting as a little less
+    // loaded); elsewhere an adder `q` is written to already, else the least-loaded.
+    let rank = |k: usize, mul: bool| {
+        let new_lrf = usize::from(!have.contains(&Loc::Lrf(slots.fu_inputs[k][0])));
+        match ii {
+            Some(ii) => (
+                load[k] as i64 >= ii,
+                load[k] + 2 * new_lrf + usize::from(mul),
+                0,
+                k,
+            ),
+            None => (false, new_lrf, load[k], k),
+        }
+    };
+    let (copy_slot, through_mul) = adders
+        .map(|k| (k, false))
+        .chain(multipliers.map(|k| (k, true)))
+        .min_by_key(|&(k, mul)| rank(k, mul))
+        .expect("machines have adders");
     let copy_loc = Loc::Lrf(slots.fu_inputs[copy_slot][0]);
     let mut keep: Vec<Loc> = g.ops[q].seeded.clone();
     if !keep.contains(&copy_loc) {
@@ -294,6 +308,13 @@ fn split(
     let c = g.ops.len();
     let mut mov = MOp::copy_of(src, region, g.ops[q].ir, CopyKind::Fanout);
     mov.slot = copy_slot;
+    if let (true, Some(one)) = (through_mul, one) {
+        mov.kind = Kind::Fu(Op::IMulLo);
+        mov.args.push(Arg {
+            src: Source::Earlier(one),
+            input: Input::B,
+        });
+    }
     g.ops.push(mov);
     let mut moved: Vec<Loc> = Vec::new();
     for (o, i, loc) in readers {
@@ -307,6 +328,7 @@ fn split(
     }
     groups.insert(q, keep);
     groups.insert(c, moved);
+    through_mul
 }
 
 /// Removes the fan-out copies a previous binding of `region` made: their readers read the

@@ -22,7 +22,7 @@ pub struct OpCounts {
     pub adder: usize,
     pub multiplier: usize,
     pub divsqrt: usize,
-    /// Register copies the compiler added (on the adders, not counted above).
+    /// Register copies the compiler added (on adders or multipliers, not counted above).
     pub copies: usize,
     pub scratchpad: usize,
     pub comm: usize,
