@@ -30,6 +30,14 @@ fn floats(n: usize, seed: u32) -> Vec<u32> {
         .collect()
 }
 
+/// Inputs for a kernel with one input stream of `n` scattered words and one output.
+fn hashed_words(n: u32) -> KernelInputs {
+    KernelInputs {
+        streams: vec![(0..n).map(|i| i.wrapping_mul(2654435761)).collect(), vec![]],
+        params: vec![],
+    }
+}
+
 fn assert_matches(
     k: &Kernel,
     m: &str,
@@ -256,16 +264,7 @@ fn a_value_outliving_the_interval_gets_an_entry_per_pass() {
         let c = machine(m).cluster.count;
         // Odd and even iteration counts leave after different passes.
         for rows in 1..=9u32 {
-            let inputs = KernelInputs {
-                streams: vec![
-                    (0..c as u32 * rows * 2)
-                        .map(|i| i.wrapping_mul(2654435761))
-                        .collect(),
-                    vec![],
-                ],
-                params: vec![],
-            };
-            let compiled = assert_matches(&k, m, &inputs);
+            let compiled = assert_matches(&k, m, &hashed_words(c as u32 * rows * 2));
             let r = &compiled.report;
             assert!(r.ii <= Some(r.res_mii + 1), "{m}\n{}", r.text());
             assert!(r.unroll > 1, "{m}\n{}", r.text());
@@ -294,16 +293,7 @@ fn a_fanned_out_value_in_a_full_loop_is_copied_on_a_multiplier() {
     let k = b.finish().unwrap();
     for m in ["gold1", "gold8"] {
         let c = machine(m).cluster.count;
-        let inputs = KernelInputs {
-            streams: vec![
-                (0..c as u32 * 20)
-                    .map(|i| i.wrapping_mul(2654435761))
-                    .collect(),
-                vec![],
-            ],
-            params: vec![],
-        };
-        let compiled = assert_matches(&k, m, &inputs);
+        let compiled = assert_matches(&k, m, &hashed_words(c as u32 * 20));
         let r = &compiled.report;
         assert_eq!(r.loop_ops.adder, 6, "{m}\n{}", r.text());
         assert!(r.loop_ops.copies >= 1, "{m}\n{}", r.text());
