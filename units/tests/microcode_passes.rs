@@ -13,7 +13,7 @@ use imagine_units::microcode::{
     Control, Instruction, LoopKind, Program, StreamDecl, StreamDir, StreamIn, assemble,
 };
 use imagine_units::microcontroller::{LoopEnv, Microcontroller};
-use imagine_units::runner::{RunOptions, run_kernel};
+use imagine_units::runner::{KernelRun, RunOptions, run_kernel};
 
 /// The rest of the machine as the sequencer sees it: one input stream whose rows the
 /// harness consumes as reads issue, and a condition code that becomes set at a chosen test.
@@ -292,6 +292,12 @@ fn start_rejects_a_pass_end_outside_a_loop_or_with_end() {
 /// x in alternate entries (modulo variable expansion; see the file).
 const PLUS_ONE: &str = include_str!("microcode/plus1_passes.uc");
 
+/// Runs `prog` on one input stream `x`; `what` names the case in a failure.
+fn run_rows(desc: &MachineDesc, prog: &Program, x: &[u32], what: &str) -> KernelRun {
+    run_kernel(desc, prog, &[x.to_vec()], RunOptions::default())
+        .unwrap_or_else(|e| panic!("{what}: {e}"))
+}
+
 #[test]
 fn unrolled_pipelined_kernel_runs_on_the_machine() {
     for m in ["gold8", "gold1"] {
@@ -302,13 +308,7 @@ fn unrolled_pipelined_kernel_runs_on_the_machine() {
             let x: Vec<u32> = (0..rows as usize * c)
                 .map(|i| (i as f32 * 0.5 - 3.0).to_bits())
                 .collect();
-            let run = run_kernel(
-                &desc,
-                &prog,
-                std::slice::from_ref(&x),
-                RunOptions::default(),
-            )
-            .unwrap_or_else(|e| panic!("{m}, {rows} rows: {e}"));
+            let run = run_rows(&desc, &prog, &x, &format!("{m}, {rows} rows"));
             let want: Vec<u32> = x
                 .iter()
                 .map(|&v| (f32::from_bits(v) + 1.0).to_bits())
@@ -348,13 +348,7 @@ done
         );
         for rows in 1..=5u64 {
             let x: Vec<u32> = (0..rows as u32 * c as u32).map(|i| 7000 + i).collect();
-            let run = run_kernel(
-                &desc,
-                &prog,
-                std::slice::from_ref(&x),
-                RunOptions::default(),
-            )
-            .unwrap_or_else(|e| panic!("{m}, {rows} rows: {e}"));
+            let run = run_rows(&desc, &prog, &x, &format!("{m}, {rows} rows"));
             assert_eq!(run.outputs[0], x, "{m}, {rows} rows");
             assert_eq!(run.stats.instructions, rows + 1, "{m}, {rows} rows");
         }

@@ -17,7 +17,7 @@ use std::collections::HashMap;
 
 use imagine_units::ops::{Op, UnitClass};
 
-use super::graph::{Arg, CopyKind, Graph, Input, Kind, Loc, MOp, Source, commutative};
+use super::graph::{Arg, CopyKind, Graph, Kind, Loc, MOp, Source, commutative};
 use super::schedule::{Schedule, Slots};
 use crate::kernel::Region;
 
@@ -144,11 +144,7 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
         }
         if let (true, Some(one)) = (is_mul(slot), through_mul) {
             let op = &mut g.ops[u];
-            op.kind = Kind::Fu(Op::IMulLo);
-            op.args.push(Arg {
-                src: Source::Earlier(one),
-                input: Input::B,
-            });
+            op.copy_through_multiplier(one);
             op.deadline = op.deadline.map(|d| d - mul_extra);
             one_used = true;
         }
@@ -309,11 +305,7 @@ fn split(
     let mut mov = MOp::copy_of(src, region, g.ops[q].ir, CopyKind::Fanout);
     mov.slot = copy_slot;
     if let (true, Some(one)) = (through_mul, one) {
-        mov.kind = Kind::Fu(Op::IMulLo);
-        mov.args.push(Arg {
-            src: Source::Earlier(one),
-            input: Input::B,
-        });
+        mov.copy_through_multiplier(one);
     }
     g.ops.push(mov);
     let mut moved: Vec<Loc> = Vec::new();

@@ -171,6 +171,16 @@ impl MOp {
             ..MOp::new(Kind::Fu(Op::Mov), vec![arg], region, ir)
         }
     }
+
+    /// Makes this `mov` copy a multiplier's `imul_lo(x, one)`, which copies `x` exactly
+    /// (`one` holds the constant 1, read through the multiplier's `b` input).
+    pub fn copy_through_multiplier(&mut self, one: usize) {
+        self.kind = Kind::Fu(Op::IMulLo);
+        self.args.push(Arg {
+            src: Source::Earlier(one),
+            input: Input::B,
+        });
+    }
 }
 
 /// An ordering constraint: `to` issues at least `latency` cycles after `from`, minus
