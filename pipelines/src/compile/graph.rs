@@ -210,6 +210,9 @@ pub struct Graph {
     /// [`super::schedule::reach`], each pass of the unrolled body holding them in entries of
     /// its own (modulo variable expansion); otherwise each is read within one interval.
     pub expand: bool,
+    /// The loop is modulo list-scheduled (see [`super::schedule`]) instead of by Rau's
+    /// iterative scheduler.
+    pub list: bool,
     /// Issue cycles of the loop's ops when the modulo scheduler last asked for a lifetime
     /// copy at this interval (indexed by op; empty at first): the next attempt places them
     /// in that order, and at those cycles where it can.
@@ -517,6 +520,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
             hint: Vec::new(),
             late_ties: false,
             expand: false,
+            list: false,
             warm: Vec::new(),
         },
         op_of: vec![None; n],

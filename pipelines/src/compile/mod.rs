@@ -225,12 +225,23 @@ fn search(
         .filter(|_| !hinted.hint.is_empty())
         .map(|ii| (ii, &hinted, WIDE_REPAIRS));
     // Each interval is tried with every value read within the interval first, then with
-    // the body unrolled so that values may wait longer (see [`schedule::reach`]).
+    // the body unrolled so that values may wait longer (see [`schedule::reach`]); both by
+    // Rau's scheduler and then by modulo list scheduling, which keeps a big body's values
+    // short-lived where Rau's lets it drift through a nearly full table.
+    let mut listed = base.clone();
+    listed.list = true;
+    let mut listed_expanded = listed.clone();
+    listed_expanded.expand = true;
     for (ii, graph, repairs) in near_attempts.chain(far_attempts) {
         let mut expanded = graph.clone();
         expanded.expand = true;
         let few = repairs.min(WIDE_REPAIRS);
-        for (graph, repairs) in [(graph, repairs), (&expanded, few)] {
+        for (graph, repairs) in [
+            (graph, repairs),
+            (&expanded, few),
+            (&listed, repairs),
+            (&listed_expanded, few),
+        ] {
             match with_repairs(graph, LoopMode::Modulo(ii as i64), repairs) {
                 Ok(a) => return Ok(compiled(a)),
                 Err(Retry::Fatal(e)) => return Err(e),

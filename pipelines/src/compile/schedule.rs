@@ -1,8 +1,10 @@
 //! Scheduling with unit binding: the main loop by iterative modulo scheduling (Rau,
 //! "Iterative modulo scheduling", MICRO 1994: a modulo reservation table, operations placed
 //! in height order within `[Estart, Estart + II)`, an op that finds no free cycle forced in
-//! and the ops in its way evicted and scheduled again, II raised until the body fits),
-//! straight-line code by list scheduling on the same table with an unbounded modulus.
+//! and the ops in its way evicted and scheduled again, II raised until the body fits) or,
+//! where that fails, by modulo list scheduling (ops placed as they become ready, never
+//! evicted); straight-line code by list scheduling on the same table with an unbounded
+//! modulus.
 //!
 //! Placing an op also binds it to a slot, and so decides which LRFs its operands are read
 //! from — the distributed register files make register allocation part of scheduling, as in
@@ -256,6 +258,7 @@ pub fn schedule_region(
         super::bind::bind(g, sched, region, ii, slots);
         sched.grow(g.ops.len());
         let attempted = match ii {
+            Some(ii) if g.list => attempt_list_modulo(g, sched, region, ii, slots, desc),
             Some(ii) => attempt_modulo(g, sched, region, ii, slots, desc),
             None => attempt_line(g, sched, region, slots, desc),
         };
@@ -408,11 +411,7 @@ fn attempt_line(
             indeg[e.to] += 1;
         }
     }
-    // Mostly in program order (it keeps values short-lived, which the small LRFs need),
-    // leaning towards the critical path.
-    let priority: Vec<i64> = (0..n)
-        .map(|o| height[o] * 10 - i64::from(g.ops[o].ir.map_or(0, |v| v.0)))
-        .collect();
+    let priority = list_priority(g, &height);
     let mut ready: std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)> = ops
         .iter()
         .filter(|&&o| indeg[o] == 0)
@@ -484,6 +483,231 @@ fn attempt_line(
     // Ops placed before the first cycle (just-in-time constants) shift the whole body.
     shift_to_cycle_zero(sched, &ops, 1);
     Ok(())
+}
+
+/// Modulo list scheduling of the loop body at interval `ii`: ops in the order they become
+/// ready (every distance-0 predecessor placed), the highest first as in [`attempt_line`],
+/// each at the first cycle from its Estart where the modulo reservation table has room; a
+/// constant rematerialised for an op goes just before it. Nothing is ever evicted, so every
+/// value is read as soon as the table allows: where Rau's scheduler lets a big body drift
+/// through a nearly full table until its values outlive their LRF entries, this one keeps
+/// them short-lived (the MARBLE shader's body, over a thousand ops, schedules some
+/// intervals shorter this way). An operand that would outlive [`reach`] asks for a copy;
+/// an op with no free cycle in its window fails the attempt.
+fn attempt_list_modulo(
+    g: &Graph,
+    sched: &mut Schedule,
+    region: Region,
+    ii: i64,
+    slots: &Slots,
+    desc: &MachineDesc,
+) -> Result<(), Attempt> {
+    let n = g.ops.len();
+    let edges = g.edges(region, desc);
+    let Dag {
+        ops,
+        order,
+        height,
+        preds,
+        succs,
+    } = Dag::new(g, sched, region, &edges);
+    let mut table = Table::new(ii, slots);
+    let reach = reach(g, ii, desc);
+    let latency: Vec<i64> = (0..n).map(|o| g.latency(o, desc)).collect();
+    let jit = |o: usize| g.ops[o].is_rematerialised_constant();
+    let priority = list_priority(g, &height);
+    let readers = readers_of(g, &ops);
+    let ready = |o: usize, sched: &Schedule| {
+        !jit(o)
+            && sched.place[o].is_none()
+            && preds[o]
+                .iter()
+                .all(|e| e.distance > 0 || jit(e.from) || sched.place[e.from].is_some())
+    };
+    let mut queue: std::collections::BinaryHeap<(i64, std::cmp::Reverse<usize>)> = ops
+        .iter()
+        .filter(|&&o| ready(o, sched))
+        .map(|&o| (priority[o], std::cmp::Reverse(o)))
+        .collect();
+    let placed_at = |o: usize, sched: &Schedule| sched.place[o].map(|p| p.time);
+    while let Some((_, std::cmp::Reverse(u))) = queue.pop() {
+        if !ready(u, sched) {
+            continue;
+        }
+        // (Loop-carried dependences bound the window from both sides, and so do the
+        // lifetimes of values read in a later iteration.)
+        let mut estart = 0;
+        for e in &preds[u] {
+            if let Some(t) = placed_at(e.from, sched) {
+                estart = estart.max(t + e.latency - ii * i64::from(e.distance));
+            }
+        }
+        for &r in &readers[u] {
+            if let Some(t) = placed_at(r, sched) {
+                estart = estart.max(t - latency[u] - reach);
+            }
+        }
+        let mut last = estart + ii - 1;
+        for e in &succs[u] {
+            if let Some(t) = placed_at(e.to, sched) {
+                last = last.min(t - e.latency + ii * i64::from(e.distance));
+            }
+        }
+        // Each operand must still be in its entry.
+        let lifetime = shortest_lifetime(g, sched, u, &latency, reach).filter(|l| l.1 < last);
+        if let Some((_, limit)) = lifetime {
+            last = limit;
+        }
+        let late = g.ops[u].copy_kind == Some(CopyKind::Lifetime);
+        let times: Vec<i64> = if late {
+            late_first(g, u, estart, last)
+        } else {
+            (estart..=last).collect()
+        };
+        let dsq_align = divider_alignment(g, u, ii, slots);
+        let mut why = String::new();
+        let mut placed = false;
+        for t in times {
+            if dsq_align.is_some_and(|k| t.rem_euclid(ii) % k != 0) {
+                continue;
+            }
+            if let Err(w) = try_place(g, sched, &mut table, u, t, slots, desc) {
+                why = w;
+                continue;
+            }
+            if place_constants(g, sched, &mut table, &preds[u], t, ii, slots, desc) {
+                placed = true;
+                break;
+            }
+            unplace(g, sched, &mut table, u, slots, desc);
+            why = "no cycle is free for a constant it reads".into();
+        }
+        if !placed {
+            if let Some((arg, _)) = lifetime.filter(|_| !late) {
+                return Err(Attempt::Copy {
+                    user: u,
+                    arg,
+                    wanted: estart,
+                    places: sched.place.iter().map(|p| p.map(|p| p.time)).collect(),
+                });
+            }
+            if why.is_empty() {
+                why = format!("its dependences leave no cycle (earliest {estart}, latest {last})");
+            }
+            return Err(Attempt::Fail(Failure::NoSlot { op: u, why }));
+        }
+        for e in &succs[u] {
+            if e.distance == 0 && ready(e.to, sched) {
+                queue.push((priority[e.to], std::cmp::Reverse(e.to)));
+            }
+        }
+    }
+    if let Some(&u) = ops.iter().find(|&&o| sched.place[o].is_none()) {
+        return Err(Attempt::Fail(Failure::NoSlot {
+            op: u,
+            why: "it was never placed (internal error)".into(),
+        }));
+    }
+    sink(g, sched, &mut table, &order, &succs, Some(ii), slots, desc);
+    shift_to_cycle_zero(sched, &ops, ii);
+    Ok(())
+}
+
+/// Places the rematerialised constants among `preds` (of an op placed at `t`) just before
+/// it, no more than a short interval away; false (with any it placed taken out again) if
+/// one finds no cycle.
+#[allow(clippy::too_many_arguments)]
+fn place_constants(
+    g: &Graph,
+    sched: &mut Schedule,
+    table: &mut Table,
+    preds: &[Edge],
+    t: i64,
+    ii: i64,
+    slots: &Slots,
+    desc: &MachineDesc,
+) -> bool {
+    let constants = preds
+        .iter()
+        .filter(|e| e.distance == 0 && g.ops[e.from].is_rematerialised_constant());
+    let mut placed = Vec::new();
+    for e in constants {
+        let latest = t - e.latency;
+        let fits = (latest - ii.min(64)..=latest)
+            .rev()
+            .any(|tc| try_place(g, sched, table, e.from, tc, slots, desc).is_ok());
+        if !fits {
+            for c in placed {
+                unplace(g, sched, table, c, slots, desc);
+            }
+            return false;
+        }
+        placed.push(e.from);
+    }
+    true
+}
+
+/// The operand of `u` whose placed producer's value leaves its entry first, and the last
+/// cycle `u` may read it.
+fn shortest_lifetime(
+    g: &Graph,
+    sched: &Schedule,
+    u: usize,
+    latency: &[i64],
+    reach: i64,
+) -> Option<(usize, i64)> {
+    g.ops[u]
+        .args
+        .iter()
+        .enumerate()
+        .filter_map(|(i, a)| match a.src {
+            Source::Local(p) => sched.place[p].map(|q| (i, q.time + latency[p] + reach)),
+            _ => None,
+        })
+        .min_by_key(|&(i, limit)| (limit, i))
+}
+
+/// The issue interval a divide/sqrt op's row must be a multiple of (a divider in a loop
+/// whose interval it divides), if any.
+fn divider_alignment(g: &Graph, u: usize, ii: i64, slots: &Slots) -> Option<i64> {
+    match g.ops[u].kind {
+        Kind::Fu(o) if o.unit() == UnitClass::DivSqrt => {
+            let k = slots.dsq_interval as i64;
+            (k > 1 && ii % k == 0).then_some(k)
+        }
+        _ => None,
+    }
+}
+
+/// The cycles of `[estart, last]` a lifetime copy tries: as late as it may, to carry its
+/// value furthest — back from its deadline, then after it.
+fn late_first(g: &Graph, u: usize, estart: i64, last: i64) -> Vec<i64> {
+    let d = g.ops[u]
+        .deadline
+        .unwrap_or(last)
+        .clamp(estart, last.max(estart));
+    (estart..=d).rev().chain(d + 1..=last).collect()
+}
+
+/// The ops among `ops` that read each op's value.
+fn readers_of(g: &Graph, ops: &[usize]) -> Vec<Vec<usize>> {
+    let mut readers: Vec<Vec<usize>> = vec![Vec::new(); g.ops.len()];
+    for &u in ops {
+        for a in &g.ops[u].args {
+            if let Source::Local(p) = a.src {
+                readers[p].push(u);
+            }
+        }
+    }
+    readers
+}
+
+/// List scheduling priority: mostly program order (it keeps values short-lived, which the
+/// small LRFs need), leaning towards the critical path.
+fn list_priority(g: &Graph, height: &[i64]) -> Vec<i64> {
+    (0..g.ops.len())
+        .map(|o| height[o] * 10 - i64::from(g.ops[o].ir.map_or(0, |v| v.0)))
+        .collect()
 }
 
 /// Moves the ops of a region later, by a multiple of `step`, so that none is placed before
@@ -562,15 +786,7 @@ fn attempt_modulo(
     } = Dag::new(g, sched, region, &edges);
     let mut table = Table::new(ii, slots);
     let reach = reach(g, ii, desc);
-    // Local readers of each value.
-    let mut readers: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for &u in &ops {
-        for a in &g.ops[u].args {
-            if let Source::Local(p) = a.src {
-                readers[p].push(u);
-            }
-        }
-    }
+    let readers = readers_of(g, &ops);
     let jit = |o: usize| g.ops[o].just_in_time;
     let latency: Vec<i64> = (0..n).map(|o| g.latency(o, desc)).collect();
     // Ops go in the order of the last attempt at this interval, if it asked for a copy, or
@@ -677,17 +893,9 @@ fn attempt_modulo(
             estart = if jit(u) { lstart.min(0) } else { 0 };
         }
         let mut last = (estart + ii - 1).min(through_jit.max(estart));
-        let mut lifetime: Option<(usize, i64)> = None;
-        for (i, a) in g.ops[u].args.iter().enumerate() {
-            if let Source::Local(p) = a.src
-                && let Some(t) = placed_at(p, sched)
-            {
-                let limit = t + latency[p] + reach;
-                if limit < last {
-                    last = limit;
-                    lifetime = Some((i, limit));
-                }
-            }
+        let mut lifetime = shortest_lifetime(g, sched, u, &latency, reach).filter(|l| l.1 < last);
+        if let Some((_, limit)) = lifetime {
+            last = limit;
         }
         let late = g.ops[u].copy_kind == Some(CopyKind::Lifetime);
         if let Some((arg, limit)) = lifetime
@@ -727,12 +935,7 @@ fn attempt_modulo(
                 (lowest..=lstart).rev().collect()
             }
         } else if late {
-            // A lifetime copy goes as late as it may, to carry its value furthest.
-            let d = g.ops[u]
-                .deadline
-                .unwrap_or(last)
-                .clamp(estart, last.max(estart));
-            (estart..=d).rev().chain(d + 1..=last).collect()
+            late_first(g, u, estart, last)
         } else {
             // (Where the last attempt placed it first, if that is still in the window.)
             let warm = g.warm.get(u).copied().flatten();
@@ -741,13 +944,7 @@ fn attempt_modulo(
                 .chain(estart..=last)
                 .collect()
         };
-        let dsq_align = match g.ops[u].kind {
-            Kind::Fu(o) if o.unit() == UnitClass::DivSqrt => {
-                let k = slots.dsq_interval as i64;
-                (k > 1 && ii % k == 0).then_some(k)
-            }
-            _ => None,
-        };
+        let dsq_align = divider_alignment(g, u, ii, slots);
         let aligned = |t: i64| dsq_align.is_none_or(|k| t.rem_euclid(ii) % k == 0);
         let free = times
             .iter()
