@@ -432,15 +432,14 @@ fn attempt_line(
         }
         let last = lstart.min(estart + LINE - 1);
         let times: Box<dyn Iterator<Item = i64>> = if just_in_time(u) {
-            // Backwards from just before its reader, at most a short interval away. (It
+            // Backwards from just before its reader, at most `CONSTANT_LEAD` away. (It
             // may go before the first cycle: times are shifted afterwards.)
-            const NEAR: i64 = 64;
             let reader = succs[u]
                 .iter()
                 .filter_map(|e| sched.place[e.to].map(|p| p.time))
                 .max()
                 .unwrap_or(0);
-            let lowest = reader - NEAR - g.latency(u, desc);
+            let lowest = reader - CONSTANT_LEAD - g.latency(u, desc);
             Box::new((lowest..=lstart).rev())
         } else {
             Box::new(estart..=last)
@@ -613,8 +612,12 @@ fn attempt_list_modulo(
     Ok(())
 }
 
+/// How many cycles before its reader a list scheduler looks for a slot for a
+/// rematerialised constant: a short wait, so the constant holds its LRF entry briefly.
+const CONSTANT_LEAD: i64 = 64;
+
 /// Places the rematerialised constants among `preds` (of an op placed at `t`) just before
-/// it, no more than a short interval away; false (with any it placed taken out again) if
+/// it, at most `CONSTANT_LEAD` (or the interval) away; false (with any it placed taken out again) if
 /// one finds no cycle.
 #[allow(clippy::too_many_arguments)]
 fn place_constants(
@@ -633,7 +636,7 @@ fn place_constants(
     let mut placed = Vec::new();
     for e in constants {
         let latest = t - e.latency;
-        let fits = (latest - ii.min(64)..=latest)
+        let fits = (latest - ii.min(CONSTANT_LEAD)..=latest)
             .rev()
             .any(|tc| try_place(g, sched, table, e.from, tc, slots, desc).is_ok());
         if !fits {
