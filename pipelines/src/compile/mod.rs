@@ -578,11 +578,34 @@ fn bounds(g: &Graph, desc: &MachineDesc, slots: &Slots) -> Bounds {
     let imm = count(&|o: &MOp| matches!(o.kind, Kind::Imm(_)));
     let per = |n: usize, units: usize| n.div_ceil(units.max(1));
     let interval = desc.latency.divsqrt_issue_interval.max(1) as usize;
+    let landing = |c: UnitClass, units: usize| {
+        let mut by_latency: std::collections::BTreeMap<i64, usize> = Default::default();
+        for &o in &ops {
+            if matches!(g.ops[o].kind, Kind::Fu(op) if op.unit() == c) {
+                *by_latency.entry(g.latency(o, desc)).or_default() += 1;
+            }
+        }
+        let n = result_port_mii(&by_latency, units);
+        (n, n > per(by_latency.values().sum(), units))
+    };
+    let (adders, adder_ports) = landing(UnitClass::Adder, sh.adders);
+    let (multipliers, multiplier_ports) = landing(UnitClass::Multiplier, sh.multipliers);
     let limits = [
-        (per(class(UnitClass::Adder), sh.adders), "adders"),
         (
-            per(class(UnitClass::Multiplier), sh.multipliers),
-            "multipliers",
+            adders,
+            if adder_ports {
+                "adders' result ports"
+            } else {
+                "adders"
+            },
+        ),
+        (
+            multipliers,
+            if multiplier_ports {
+                "multipliers' result ports"
+            } else {
+                "multipliers"
+            },
         ),
         (
             per(class(UnitClass::DivSqrt) * interval, sh.divsqrt),
@@ -615,6 +638,44 @@ fn bounds(g: &Graph, desc: &MachineDesc, slots: &Slots) -> Bounds {
         res_limit: what.into(),
         rec_mii: rec_mii(g.ops.len(), &edges),
     }
+}
+
+/// The smallest II at which `units` fully pipelined units can issue ops of the latencies
+/// counted in `by_latency`, each unit landing one result a cycle. Above the plain bound
+/// (ops over units) when ops of two latencies nearly fill the units: a unit's rows `gap`
+/// (the latencies' difference) apart form `gcd(gap, ii)` orbits of `ii / gcd` rows, and
+/// results moved by latency land in distinct rows only if each full orbit issues a single
+/// latency, whereas an orbit with an empty row may mix them (the long ops just before the
+/// empty row). So the ops fit iff the full orbits can be split between the latencies
+/// without outnumbering either. (With more than two latencies only the plain bound.)
+pub fn result_port_mii(by_latency: &std::collections::BTreeMap<i64, usize>, units: usize) -> usize {
+    let ops: usize = by_latency.values().sum();
+    let plain = ops.div_ceil(units.max(1));
+    let (2, Some((&short, &n_short)), Some((&long, &n_long)), true) = (
+        by_latency.len(),
+        by_latency.first_key_value(),
+        by_latency.last_key_value(),
+        units > 0,
+    ) else {
+        return plain;
+    };
+    let gap = (long - short) as usize;
+    let fits = |ii: usize| {
+        let orbits_per_unit = gcd(gap, ii);
+        let orbit = ii / orbits_per_unit;
+        let orbits = units * orbits_per_unit;
+        let full = orbits - (units * ii - ops).min(orbits);
+        (0..=full).any(|long_orbits| {
+            long_orbits * orbit <= n_long && (full - long_orbits) * orbit <= n_short
+        })
+    };
+    (plain.max(1)..)
+        .find(|&ii| fits(ii))
+        .expect("ops + 1 rows a unit always fit")
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 { a } else { gcd(b, a % b) }
 }
 
 /// The smallest II with no dependence cycle longer than its distance allows: no positive
@@ -651,4 +712,92 @@ fn rec_mii(n: usize, edges: &[Edge]) -> u32 {
         }
     }
     hi as u32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::result_port_mii;
+    use std::collections::{BTreeMap, BTreeSet};
+
+    /// Every (short, long) op count one unit can issue at interval `ii` with each result
+    /// landing in its own row, found by trying every assignment of rows.
+    fn one_unit(ii: usize, short: usize, long: usize) -> BTreeSet<(usize, usize)> {
+        let mut found = BTreeSet::new();
+        for code in 0..3usize.pow(ii as u32) {
+            let (mut c, mut landed, mut counts, mut clash) = (code, vec![false; ii], (0, 0), false);
+            for row in 0..ii {
+                let latency = match c % 3 {
+                    0 => None,
+                    1 => Some(short),
+                    _ => Some(long),
+                };
+                c /= 3;
+                if let Some(l) = latency {
+                    clash |= std::mem::replace(&mut landed[(row + l) % ii], true);
+                    if l == short {
+                        counts.0 += 1
+                    } else {
+                        counts.1 += 1
+                    }
+                }
+            }
+            if !clash {
+                found.insert(counts);
+            }
+        }
+        found
+    }
+
+    #[test]
+    fn result_port_bound_matches_exhaustive_search() {
+        for (short, long) in [(2, 4), (2, 3), (1, 4)] {
+            let feasible: Vec<BTreeSet<(usize, usize)>> =
+                (0..=7).map(|ii| one_unit(ii, short, long)).collect();
+            for units in 1..=2 {
+                for n_short in 0..=7 * units {
+                    for n_long in 0..=7 * units {
+                        if n_short + n_long == 0 {
+                            continue;
+                        }
+                        // Some split of the ops between the units fits at `ii`.
+                        let fits = |ii: usize| {
+                            let f = &feasible[ii];
+                            match units {
+                                1 => f.contains(&(n_short, n_long)),
+                                _ => f.iter().any(|&(s, l)| {
+                                    s <= n_short
+                                        && l <= n_long
+                                        && f.contains(&(n_short - s, n_long - l))
+                                }),
+                            }
+                        };
+                        let Some(exact) = (1..=7).find(|&ii| fits(ii)) else {
+                            continue;
+                        };
+                        let counts =
+                            BTreeMap::from([(short as i64, n_short), (long as i64, n_long)]);
+                        let counts: BTreeMap<i64, usize> =
+                            counts.into_iter().filter(|&(_, n)| n > 0).collect();
+                        assert_eq!(
+                            result_port_mii(&counts, units),
+                            exact,
+                            "{units} unit(s), {n_short} ops of latency {short}, {n_long} of {long}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn result_port_bound_of_a_full_mixed_adder_class() {
+        // Three adders full at an odd interval must each issue one latency.
+        let counts = BTreeMap::from([(2, 420), (4, 231)]);
+        assert_eq!(result_port_mii(&counts, 3), 218);
+        assert_eq!(result_port_mii(&BTreeMap::from([(2, 651)]), 3), 217);
+        assert_eq!(
+            result_port_mii(&BTreeMap::from([(2, 434), (4, 217)]), 3),
+            217
+        );
+    }
 }
