@@ -578,7 +578,8 @@ fn bounds(g: &Graph, desc: &MachineDesc, slots: &Slots) -> Bounds {
     let imm = count(&|o: &MOp| matches!(o.kind, Kind::Imm(_)));
     let per = |n: usize, units: usize| n.div_ceil(units.max(1));
     let interval = desc.latency.divsqrt_issue_interval.max(1) as usize;
-    let landing = |c: UnitClass, units: usize| {
+    // (Named for the result ports when they, not the issue slots, set the bound.)
+    let landing = |c: UnitClass, units: usize, name: &'static str, ports: &'static str| {
         let mut by_latency: std::collections::BTreeMap<i64, usize> = Default::default();
         for &o in &ops {
             if matches!(g.ops[o].kind, Kind::Fu(op) if op.unit() == c) {
@@ -586,26 +587,21 @@ fn bounds(g: &Graph, desc: &MachineDesc, slots: &Slots) -> Bounds {
             }
         }
         let n = result_port_mii(&by_latency, units);
-        (n, n > per(by_latency.values().sum(), units))
+        let raised = n > per(by_latency.values().sum(), units);
+        (n, if raised { ports } else { name })
     };
-    let (adders, adder_ports) = landing(UnitClass::Adder, sh.adders);
-    let (multipliers, multiplier_ports) = landing(UnitClass::Multiplier, sh.multipliers);
     let limits = [
-        (
-            adders,
-            if adder_ports {
-                "adders' result ports"
-            } else {
-                "adders"
-            },
+        landing(
+            UnitClass::Adder,
+            sh.adders,
+            "adders",
+            "adders' result ports",
         ),
-        (
-            multipliers,
-            if multiplier_ports {
-                "multipliers' result ports"
-            } else {
-                "multipliers"
-            },
+        landing(
+            UnitClass::Multiplier,
+            sh.multipliers,
+            "multipliers",
+            "multipliers' result ports",
         ),
         (
             per(class(UnitClass::DivSqrt) * interval, sh.divsqrt),
@@ -648,7 +644,7 @@ fn bounds(g: &Graph, desc: &MachineDesc, slots: &Slots) -> Bounds {
 /// latency, whereas an orbit with an empty row may mix them (the long ops just before the
 /// empty row). So the ops fit iff the full orbits can be split between the latencies
 /// without outnumbering either. (With more than two latencies only the plain bound.)
-pub fn result_port_mii(by_latency: &std::collections::BTreeMap<i64, usize>, units: usize) -> usize {
+fn result_port_mii(by_latency: &std::collections::BTreeMap<i64, usize>, units: usize) -> usize {
     let ops: usize = by_latency.values().sum();
     let plain = ops.div_ceil(units.max(1));
     let (2, Some((&short, &n_short)), Some((&long, &n_long)), true) = (
