@@ -60,8 +60,9 @@ fn schedules_stay_near_their_bounds() {
         let allowed = match lk.name {
             "compact" => mii + 1,
             "transform" | "prefix_sum" | "hash" | "vertex" | "sort32" | "merge" => mii,
-            // (283 by Rau's scheduler alone; 273 with modulo list scheduling.)
-            "turbulence" => mii * 126 / 100,
+            // (283 by Rau's scheduler alone; 273 with modulo list scheduling; 268 with the
+            // waits of an overflowing schedule relaxed.)
+            "turbulence" => mii * 123 / 100,
             _ => mii * 3,
         };
         assert!(ii >= mii, "{}: II {ii} below its bound {mii}", lk.name);

@@ -18,6 +18,9 @@
 //! live too long), the scheduler asks for a `mov` copy between producer and consumer and
 //! starts over — for a big loop, from the places of the attempt that asked, so that the
 //! copies add up in one schedule instead of each perturbing a new one.
+//!
+//! A loop schedule whose values overflow an LRF is then relaxed ([`relax`]): its ops move to
+//! the free cycles where their values wait least.
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::check::Shape;
@@ -608,6 +611,10 @@ fn attempt_list_modulo(
         }));
     }
     sink(g, sched, &mut table, &order, &succs, Some(ii), slots, desc);
+    let readers = readers_of(g, &ops);
+    relax(
+        g, sched, table, &ops, &preds, &succs, &readers, ii, reach, slots, desc,
+    );
     shift_to_cycle_zero(sched, &ops, ii);
     Ok(())
 }
@@ -1046,6 +1053,10 @@ fn attempt_modulo(
         }
     }
     sink(g, sched, &mut table, &order, &succs, Some(ii), slots, desc);
+    let readers = readers_of(g, &ops);
+    relax(
+        g, sched, table, &ops, &preds, &succs, &readers, ii, reach, slots, desc,
+    );
     // Ops placed before the first cycle shift the whole body by whole intervals (rows
     // stay, stages grow).
     shift_to_cycle_zero(sched, &ops, ii);
@@ -1603,4 +1614,161 @@ pub fn relieve(
         }
     }
     false
+}
+
+/// Sweeps [`relax`] makes through the body, alternately forwards and backwards.
+const RELAX_SWEEPS: usize = 4;
+
+/// Shortens the waits of a loop schedule whose values overflow an LRF: each FU op and
+/// scratchpad read moves, within what its placed dependences and lifetimes allow, to the
+/// free cycle where the values it reads and writes wait least in their LRFs (an op reading
+/// two values and writing one goes early, one feeding several readers late), in sweeps
+/// forwards and backwards through the body. This is the lifetime-sensitive placement of
+/// Huff ("Lifetime-sensitive modulo scheduling", PLDI 1993) applied after the fact, to a
+/// schedule whose ops went to the first free cycle. The schedule is kept only if the
+/// values over the LRFs' sizes (summed over the LRFs, at their peaks) become fewer.
+#[allow(clippy::too_many_arguments)]
+fn relax(
+    g: &Graph,
+    sched: &mut Schedule,
+    mut table: Table,
+    ops: &[usize],
+    preds: &[Vec<Edge>],
+    succs: &[Vec<Edge>],
+    readers: &[Vec<usize>],
+    ii: i64,
+    reach: i64,
+    slots: &Slots,
+    desc: &MachineDesc,
+) {
+    let overflow = |sched: &Schedule| {
+        let live = super::alloc::Liveness::new(g, sched, slots, ii, desc);
+        (0..slots.lrfs())
+            .map(|l| live.peak(l).saturating_sub(slots.shape.lrf_sizes[l]))
+            .sum::<usize>()
+    };
+    let before = overflow(sched);
+    if before == 0 {
+        return;
+    }
+    let kept = sched.clone();
+    let latency: Vec<i64> = (0..g.ops.len()).map(|o| g.latency(o, desc)).collect();
+    let at = |o: usize, sched: &Schedule| sched.place[o].map(|p| p.time);
+    // Where reader `r` reads value `p`.
+    let read_locs = |r: usize, p: usize, sched: &Schedule| -> Vec<Loc> {
+        let op = &g.ops[r];
+        let pl = sched.place[r];
+        op.args
+            .iter()
+            .filter(|a| a.src == Source::Local(p))
+            .map(|a| {
+                slots.operand_loc(
+                    op.kind,
+                    pl.map_or(op.slot, |q| q.slot),
+                    pl.map_or(op.swap, |q| q.swap),
+                    a,
+                )
+            })
+            .collect()
+    };
+    // How long `p`'s value waits in `l`, with `u` read at `tu`.
+    let wait = |p: usize, l: Loc, u: usize, tu: i64, tp: i64, sched: &Schedule| -> i64 {
+        let last = readers[p]
+            .iter()
+            .filter(|&&r| read_locs(r, p, sched).contains(&l))
+            .filter_map(|&r| if r == u { Some(tu) } else { at(r, sched) })
+            .max();
+        last.map_or(0, |t| t - (tp + latency[p]))
+    };
+    for sweep in 0..RELAX_SWEEPS {
+        let order: Vec<usize> = if sweep % 2 == 0 {
+            ops.to_vec()
+        } else {
+            ops.iter().rev().copied().collect()
+        };
+        for &u in &order {
+            let Some(pl) = sched.place[u] else { continue };
+            match g.ops[u].kind {
+                Kind::Fu(o) if o.unit() != UnitClass::DivSqrt => {}
+                Kind::SpRead { .. } => {}
+                _ => continue,
+            }
+            let mut lo = i64::MIN;
+            let mut hi = i64::MAX;
+            for e in &preds[u] {
+                if let Some(t) = at(e.from, sched) {
+                    lo = lo.max(t + e.latency - ii * i64::from(e.distance));
+                }
+            }
+            for e in &succs[u] {
+                if let Some(t) = at(e.to, sched) {
+                    hi = hi.min(t - e.latency + ii * i64::from(e.distance));
+                }
+            }
+            for &r in &readers[u] {
+                if let Some(t) = at(r, sched) {
+                    lo = lo.max(t - latency[u] - reach);
+                }
+            }
+            for a in &g.ops[u].args {
+                if let Source::Local(p) = a.src
+                    && let Some(t) = at(p, sched)
+                {
+                    hi = hi.min(t + latency[p] + reach);
+                }
+            }
+            if lo == i64::MIN || hi == i64::MAX || lo >= hi {
+                continue;
+            }
+            let operands: Vec<(usize, Loc, i64)> = g.ops[u]
+                .args
+                .iter()
+                .filter_map(|a| match a.src {
+                    Source::Local(p) => at(p, sched)
+                        .map(|tp| (p, slots.operand_loc(g.ops[u].kind, pl.slot, pl.swap, a), tp)),
+                    _ => None,
+                })
+                .collect();
+            let dests: Vec<Loc> = sched.dests[u].clone();
+            let cost = |t: i64, sched: &Schedule| -> i64 {
+                let mut c = 0;
+                for &(p, l, tp) in &operands {
+                    c += wait(p, l, u, t, tp, sched);
+                }
+                for &l in &dests {
+                    let last = readers[u]
+                        .iter()
+                        .filter(|&&r| read_locs(r, u, sched).contains(&l))
+                        .filter_map(|&r| at(r, sched))
+                        .max();
+                    if let Some(last) = last {
+                        c += last - (t + latency[u]);
+                    }
+                }
+                c
+            };
+            let now = cost(pl.time, sched);
+            // (Least wait first, then nearest.)
+            let mut candidates: Vec<(i64, i64, i64)> = (lo..=hi)
+                .filter(|&t| t != pl.time)
+                .map(|t| (cost(t, sched), (t - pl.time).abs(), t))
+                .filter(|&(c, _, _)| c < now)
+                .collect();
+            if candidates.is_empty() {
+                continue;
+            }
+            candidates.sort_unstable();
+            unplace(g, sched, &mut table, u, slots, desc);
+            let moved = candidates
+                .iter()
+                .any(|&(_, _, t)| try_place(g, sched, &mut table, u, t, slots, desc).is_ok());
+            if !moved {
+                try_place(g, sched, &mut table, u, pl.time, slots, desc)
+                    .expect("its old place is free");
+            }
+        }
+    }
+    if overflow(sched) >= before {
+        *sched = kept;
+    }
 }
