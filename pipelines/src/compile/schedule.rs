@@ -611,7 +611,6 @@ fn attempt_list_modulo(
         }));
     }
     sink(g, sched, &mut table, &order, &succs, Some(ii), slots, desc);
-    let readers = readers_of(g, &ops);
     relax(
         g, sched, table, &ops, &preds, &succs, &readers, ii, reach, slots, desc,
     );
@@ -1053,7 +1052,6 @@ fn attempt_modulo(
         }
     }
     sink(g, sched, &mut table, &order, &succs, Some(ii), slots, desc);
-    let readers = readers_of(g, &ops);
     relax(
         g, sched, table, &ops, &preds, &succs, &readers, ii, reach, slots, desc,
     );
