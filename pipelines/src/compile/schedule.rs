@@ -506,19 +506,20 @@ fn attempt_list_modulo(
 ) -> Result<(), Attempt> {
     let n = g.ops.len();
     let edges = g.edges(region, desc);
+    let dag = Dag::new(g, sched, region, &edges);
     let Dag {
         ops,
-        order,
         height,
         preds,
         succs,
-    } = Dag::new(g, sched, region, &edges);
+        ..
+    } = &dag;
     let mut table = Table::new(ii, slots);
     let reach = reach(g, ii, desc);
     let latency: Vec<i64> = (0..n).map(|o| g.latency(o, desc)).collect();
     let jit = |o: usize| g.ops[o].is_rematerialised_constant();
-    let priority = list_priority(g, &height);
-    let readers = readers_of(g, &ops);
+    let priority = list_priority(g, height);
+    let readers = readers_of(g, ops);
     let ready = |o: usize, sched: &Schedule| {
         !jit(o)
             && sched.place[o].is_none()
@@ -610,11 +611,7 @@ fn attempt_list_modulo(
             why: "it was never placed (internal error)".into(),
         }));
     }
-    sink(g, sched, &mut table, &order, &succs, Some(ii), slots, desc);
-    relax(
-        g, sched, table, &ops, &preds, &succs, &readers, ii, reach, slots, desc,
-    );
-    shift_to_cycle_zero(sched, &ops, ii);
+    finish_loop(g, sched, table, &dag, &readers, ii, reach, slots, desc);
     Ok(())
 }
 
@@ -786,16 +783,17 @@ fn attempt_modulo(
 ) -> Result<(), Attempt> {
     let n = g.ops.len();
     let edges = g.edges(region, desc);
+    let dag = Dag::new(g, sched, region, &edges);
     let Dag {
         ops,
         order,
         height,
         preds,
         succs,
-    } = Dag::new(g, sched, region, &edges);
+    } = &dag;
     let mut table = Table::new(ii, slots);
     let reach = reach(g, ii, desc);
-    let readers = readers_of(g, &ops);
+    let readers = readers_of(g, ops);
     let jit = |o: usize| g.ops[o].just_in_time;
     let latency: Vec<i64> = (0..n).map(|o| g.latency(o, desc)).collect();
     // Ops go in the order of the last attempt at this interval, if it asked for a copy, or
@@ -806,9 +804,10 @@ fn attempt_modulo(
     } else {
         g.hint.iter().map(|&t| (t >= 0).then_some(t)).collect()
     };
-    let height = if !hinted.is_empty() {
+    let hinted_height: Vec<i64>;
+    let height: &[i64] = if !hinted.is_empty() {
         let mut h = vec![0i64; n];
-        for &o in &order {
+        for &o in order {
             h[o] = match hinted.get(o) {
                 Some(&Some(t)) => t,
                 _ => preds[o]
@@ -819,7 +818,8 @@ fn attempt_modulo(
                     .unwrap_or(0),
             };
         }
-        h.iter().map(|&t| -t).collect()
+        hinted_height = h.iter().map(|&t| -t).collect();
+        &hinted_height
     } else {
         height
     };
@@ -997,7 +997,7 @@ fn attempt_modulo(
                     match try_place(g, sched, &mut table, u, t, slots, desc) {
                         Ok(()) => break,
                         Err(why) => {
-                            let holders = blockers(g, sched, &table, &ops, u, t, slots, desc);
+                            let holders = blockers(g, sched, &table, ops, u, t, slots, desc);
                             if holders.is_empty() {
                                 return Err(Attempt::Fail(Failure::NoSlot { op: u, why }));
                             }
@@ -1051,13 +1051,7 @@ fn attempt_modulo(
             }
         }
     }
-    sink(g, sched, &mut table, &order, &succs, Some(ii), slots, desc);
-    relax(
-        g, sched, table, &ops, &preds, &succs, &readers, ii, reach, slots, desc,
-    );
-    // Ops placed before the first cycle shift the whole body by whole intervals (rows
-    // stay, stages grow).
-    shift_to_cycle_zero(sched, &ops, ii);
+    finish_loop(g, sched, table, &dag, &readers, ii, reach, slots, desc);
     if let Some(&u) = ops.iter().find(|&&o| sched.place[o].is_none()) {
         return Err(Attempt::Fail(Failure::NoSlot {
             op: u,
@@ -1614,6 +1608,35 @@ pub fn relieve(
     false
 }
 
+/// Ends a complete loop schedule: ops sunk towards their readers, the waits relaxed if
+/// values overflow an LRF, and the body shifted by whole intervals so that no op is placed
+/// before cycle 0 (rows stay, stages grow).
+#[allow(clippy::too_many_arguments)]
+fn finish_loop(
+    g: &Graph,
+    sched: &mut Schedule,
+    mut table: Table,
+    dag: &Dag,
+    readers: &[Vec<usize>],
+    ii: i64,
+    reach: i64,
+    slots: &Slots,
+    desc: &MachineDesc,
+) {
+    sink(
+        g,
+        sched,
+        &mut table,
+        &dag.order,
+        &dag.succs,
+        Some(ii),
+        slots,
+        desc,
+    );
+    relax(g, sched, table, dag, readers, ii, reach, slots, desc);
+    shift_to_cycle_zero(sched, &dag.ops, ii);
+}
+
 /// Sweeps [`relax`] makes through the body, alternately forwards and backwards.
 const RELAX_SWEEPS: usize = 4;
 
@@ -1630,9 +1653,7 @@ fn relax(
     g: &Graph,
     sched: &mut Schedule,
     mut table: Table,
-    ops: &[usize],
-    preds: &[Vec<Edge>],
-    succs: &[Vec<Edge>],
+    dag: &Dag,
     readers: &[Vec<usize>],
     ii: i64,
     reach: i64,
@@ -1650,6 +1671,9 @@ fn relax(
         return;
     }
     let kept = sched.clone();
+    let Dag {
+        ops, preds, succs, ..
+    } = dag;
     let latency: Vec<i64> = (0..g.ops.len()).map(|o| g.latency(o, desc)).collect();
     let at = |o: usize, sched: &Schedule| sched.place[o].map(|p| p.time);
     // Where reader `r` reads value `p`.
