@@ -49,8 +49,8 @@ fn library_on_gold32() {
     check_all("gold32");
 }
 
-/// Achieved intervals against their lower bounds on gold8 (a regression guard: the bounds
-/// here are what the compiler reaches today, not the goal).
+/// Achieved intervals against their lower bounds on gold8 (a regression guard: what the
+/// compiler reaches today).
 #[test]
 fn schedules_stay_near_their_bounds() {
     let desc = MachineDesc::gold8();
@@ -59,10 +59,11 @@ fn schedules_stay_near_their_bounds() {
         let (ii, mii) = (c.report.ii.unwrap(), c.report.mii());
         let allowed = match lk.name {
             "compact" => mii + 1,
-            "transform" | "prefix_sum" | "hash" | "vertex" | "sort32" | "merge" => mii,
-            // (283 by Rau's scheduler alone; 273 with modulo list scheduling; 268 with the
-            // waits of an overflowing schedule relaxed.)
-            "turbulence" => mii * 123 / 100,
+            // (turbulence: 283 by Rau's scheduler alone, 268 with modulo list scheduling and
+            // relaxed waits, 218 by local search.)
+            "transform" | "prefix_sum" | "hash" | "vertex" | "sort32" | "merge" | "turbulence" => {
+                mii
+            }
             _ => mii * 3,
         };
         assert!(ii >= mii, "{}: II {ii} below its bound {mii}", lk.name);

@@ -218,6 +218,36 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
     }
 }
 
+/// Sets the destinations of the values of `region` from where their readers, already
+/// bound, read them (and the locations earlier regions' values are required in).
+pub fn destinations(g: &Graph, sched: &mut Schedule, region: Region, slots: &Slots) {
+    for r in &mut sched.required {
+        r.retain(|&(_, by)| by != region);
+    }
+    let ops = g.in_region(region);
+    for &u in &ops {
+        sched.dests[u] = g.ops[u].seeded.clone();
+    }
+    for &u in &ops {
+        let op = &g.ops[u];
+        for a in &op.args {
+            let loc = slots.operand_loc(op.kind, op.slot, op.swap, a);
+            match a.src {
+                Source::Local(q) | Source::Carried(q) => {
+                    if !sched.dests[q].contains(&loc) {
+                        sched.dests[q].push(loc);
+                    }
+                }
+                Source::Earlier(p) => {
+                    if !sched.required[p].contains(&(loc, region)) {
+                        sched.required[p].push((loc, region));
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// The op whose result an operand reads in this region (carried values included).
 fn local_source(a: &Arg) -> Option<usize> {
     match a.src {

@@ -213,6 +213,8 @@ pub struct Graph {
     /// The loop is modulo list-scheduled (see [`super::schedule`]) instead of by Rau's
     /// iterative scheduler.
     pub list: bool,
+    /// The loop is scheduled by local search (see [`super::repair`]).
+    pub repair: bool,
     /// Issue cycles of the loop's ops when the modulo scheduler last asked for a lifetime
     /// copy at this interval (indexed by op; empty at first): the next attempt places them
     /// in that order, and at those cycles where it can.
@@ -521,6 +523,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
             late_ties: false,
             expand: false,
             list: false,
+            repair: false,
             warm: Vec::new(),
         },
         op_of: vec![None; n],

@@ -26,6 +26,7 @@ pub mod alloc;
 pub mod bind;
 pub mod emit;
 pub mod graph;
+pub mod repair;
 pub mod report;
 pub mod schedule;
 
@@ -227,21 +228,33 @@ fn search(
     // Each interval is tried with every value read within the interval first, then with
     // the body unrolled so that values may wait longer (see [`schedule::reach`]); both by
     // Rau's scheduler and then by modulo list scheduling, which keeps a big body's values
-    // short-lived where Rau's lets it drift through a nearly full table.
+    // short-lived where Rau's lets it drift through a nearly full table; last, once per
+    // interval close to the bound, by local search (see [`repair`]), which binds as it
+    // places and so can fill a table where the others leave values waiting beyond the LRFs
+    // (it takes seconds for a big body, so it is not tried further out).
     let mut listed = base.clone();
     listed.list = true;
     let mut listed_expanded = listed.clone();
     listed_expanded.expand = true;
+    let mut repaired = base.clone();
+    repaired.repair = true;
+    repaired.expand = true;
+    let mut searched = None;
     for (ii, graph, repairs) in near_attempts.chain(far_attempts) {
         let mut expanded = graph.clone();
         expanded.expand = true;
         let few = repairs.min(WIDE_REPAIRS);
-        for (graph, repairs) in [
+        let search_too = ii <= mii + SEARCH_ABOVE_BOUND && searched.replace(ii) != Some(ii);
+        let variants = [
             (graph, repairs),
             (&expanded, few),
             (&listed, repairs),
             (&listed_expanded, few),
-        ] {
+        ];
+        for (graph, repairs) in variants
+            .into_iter()
+            .chain(search_too.then_some((&repaired, few)))
+        {
             match with_repairs(graph, LoopMode::Modulo(ii as i64), repairs) {
                 Ok(a) => return Ok(compiled(a)),
                 Err(Retry::Fatal(e)) => return Err(e),
@@ -300,6 +313,9 @@ const RELIEF_SLACK: usize = 4;
 
 /// Repairs of a full LRF tried at one initiation interval before a larger one.
 const MAX_REPAIRS: usize = 96;
+
+/// Intervals above the lower bound at which the local search is tried (see [`search`]).
+const SEARCH_ABOVE_BOUND: u32 = 1;
 
 /// Intervals above the lower bound at which the modulo scheduler also breaks ties the
 /// other way (see [`search`]).

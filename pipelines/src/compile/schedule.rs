@@ -261,6 +261,7 @@ pub fn schedule_region(
         super::bind::bind(g, sched, region, ii, slots);
         sched.grow(g.ops.len());
         let attempted = match ii {
+            Some(ii) if g.repair => attempt_repair(g, sched, region, ii, slots, desc),
             Some(ii) if g.list => attempt_list_modulo(g, sched, region, ii, slots, desc),
             Some(ii) => attempt_modulo(g, sched, region, ii, slots, desc),
             None => attempt_line(g, sched, region, slots, desc),
@@ -614,6 +615,72 @@ fn attempt_list_modulo(
     finish_loop(g, sched, table, &dag, &readers, ii, reach, slots, desc);
     Ok(())
 }
+
+/// Schedules the loop at interval `ii` by local search (see [`super::repair`]), which also
+/// binds every op to its slot; the schedule is then checked against the reservation table
+/// and the dependences as the other schedulers build them.
+fn attempt_repair(
+    g: &mut Graph,
+    sched: &mut Schedule,
+    region: Region,
+    ii: i64,
+    slots: &Slots,
+    desc: &MachineDesc,
+) -> Result<(), Attempt> {
+    let edges = g.edges(region, desc);
+    let dag = Dag::new(g, sched, region, &edges);
+    let reach = reach(g, ii, desc);
+    let priority = list_priority(g, &dag.height);
+    // The search is a gamble: a run that ends with something broken is tried again from
+    // other random choices, a few times.
+    let Some(places) = (0..REPAIR_SEEDS).find_map(|seed| {
+        super::repair::schedule(g, &dag.ops, &edges, &priority, ii, reach, slots, desc, seed)
+    }) else {
+        return Err(Attempt::Fail(Failure::NoSlot {
+            op: dag.ops.first().copied().unwrap_or(0),
+            why: "the local search left it in conflict".into(),
+        }));
+    };
+    for (&u, &(_, slot, swap)) in dag.ops.iter().zip(&places) {
+        g.ops[u].slot = slot;
+        g.ops[u].swap = swap;
+    }
+    super::bind::destinations(g, sched, region, slots);
+    let mut table = Table::new(ii, slots);
+    for (&u, &(t, _, _)) in dag.ops.iter().zip(&places) {
+        try_place(g, sched, &mut table, u, t, slots, desc)
+            .map_err(|why| Attempt::Fail(Failure::NoSlot { op: u, why }))?;
+    }
+    let latency = |o: usize| g.latency(o, desc);
+    let at = |o: usize| sched.place[o].map_or(0, |p| p.time);
+    for e in &edges {
+        if at(e.from) + e.latency - ii * i64::from(e.distance) > at(e.to) {
+            return Err(Attempt::Fail(Failure::NoSlot {
+                op: e.to,
+                why: "the local search broke a dependence (internal error)".into(),
+            }));
+        }
+    }
+    for &u in &dag.ops {
+        for a in &g.ops[u].args {
+            if let Source::Local(p) = a.src
+                && at(u) > at(p) + latency(p) + reach
+            {
+                return Err(Attempt::Fail(Failure::NoSlot {
+                    op: u,
+                    why: "the local search let a value outlive its entry (internal error)".into(),
+                }));
+            }
+        }
+    }
+    // (Sinking and relaxing, as the other schedulers finish, would undo the search's
+    // balance of the LRFs.)
+    shift_to_cycle_zero(sched, &dag.ops, ii);
+    Ok(())
+}
+
+/// Runs of the local search per interval (see [`attempt_repair`]).
+const REPAIR_SEEDS: u64 = 2;
 
 /// How many cycles before its reader a list scheduler looks for a slot for a
 /// rematerialised constant: a short wait, so the constant holds its LRF entry briefly.
