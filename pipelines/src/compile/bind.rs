@@ -69,21 +69,7 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
                 .chain(slots.fu_slots(UnitClass::Multiplier))
                 .map(|k| (k, false))
                 .collect(),
-            Kind::Fu(o) => {
-                let units: Vec<usize> = match op.fixed_slot {
-                    Some(s) => vec![s],
-                    None => slots.fu_slots(o.unit()).collect(),
-                };
-                let swaps: &[bool] = if commutative(o) && op.args.len() == 2 {
-                    &[false, true]
-                } else {
-                    &[false]
-                };
-                units
-                    .iter()
-                    .flat_map(|&k| swaps.iter().map(move |&s| (k, s)))
-                    .collect()
-            }
+            Kind::Fu(o) => fu_options(op, o, slots),
             Kind::Comm(_) => (0..slots.shape.comm_units).map(|k| (k, false)).collect(),
             // One scratchpad holds the kernel's data; stream and immediate slots are
             // assigned when the instruction is written.
@@ -216,6 +202,24 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
             sched.dests[q] = v.clone();
         }
     }
+}
+
+/// The (slot, operands swapped) places FU op `op` (doing `o`) may be bound to: its fixed
+/// slot or any unit of its class, a commutative op's operands either way round.
+pub fn fu_options(op: &MOp, o: Op, slots: &Slots) -> Vec<(usize, bool)> {
+    let units: Vec<usize> = match op.fixed_slot {
+        Some(s) => vec![s],
+        None => slots.fu_slots(o.unit()).collect(),
+    };
+    let swaps: &[bool] = if commutative(o) && op.args.len() == 2 {
+        &[false, true]
+    } else {
+        &[false]
+    };
+    units
+        .iter()
+        .flat_map(|&k| swaps.iter().map(move |&s| (k, s)))
+        .collect()
 }
 
 /// Sets the destinations of the values of `region` from where their readers, already

@@ -33,7 +33,7 @@ use std::collections::HashMap;
 use imagine_units::desc::MachineDesc;
 use imagine_units::ops::UnitClass;
 
-use super::graph::{Edge, Graph, Input, Kind, Loc, Source, commutative};
+use super::graph::{Edge, Graph, Input, Kind, Loc, Source};
 use super::schedule::Slots;
 
 /// Where a loop op reads an operand from.
@@ -264,23 +264,8 @@ impl<'a> Problem<'a> {
                 }
                 _ => (1, None),
             };
-            // Any unit of the class, a commutative op's operands either way round.
             let options: Vec<(usize, bool)> = match op.kind {
-                Kind::Fu(x) => {
-                    let units: Vec<usize> = match op.fixed_slot {
-                        Some(s) => vec![s],
-                        None => slots.fu_slots(x.unit()).collect(),
-                    };
-                    let swaps: &[bool] = if commutative(x) && op.args.len() == 2 {
-                        &[false, true]
-                    } else {
-                        &[false]
-                    };
-                    units
-                        .iter()
-                        .flat_map(|&k| swaps.iter().map(move |&s| (k, s)))
-                        .collect()
-                }
+                Kind::Fu(x) => super::bind::fu_options(op, x, slots),
                 Kind::SpRead { .. } | Kind::SpWrite { .. } => (0..slots.shape.scratchpads.min(1))
                     .map(|k| (k, false))
                     .collect(),
@@ -1046,9 +1031,16 @@ impl<'a, 'p> State<'a, 'p> {
     /// The cycles op `u` may move to without breaking a dependence on its placed
     /// neighbours, at most `span` from where it is.
     fn free_window(&self, u: usize, span: i64) -> (i64, i64) {
+        let (lo, hi) = self.dependence_window(u);
+        (lo.max(self.t[u] - span), hi.min(self.t[u] + span))
+    }
+
+    /// The cycles op `u` may issue at without breaking a dependence on its placed
+    /// neighbours (`i64::MIN` / `i64::MAX` where none bounds it).
+    fn dependence_window(&self, u: usize) -> (i64, i64) {
         let p = self.p;
-        let mut lo = self.t[u] - span;
-        let mut hi = self.t[u] + span;
+        let mut lo = i64::MIN;
+        let mut hi = i64::MAX;
         for &e in &p.incident[u] {
             let (a, b, lat, dist) = p.edges[e];
             if a == b {
@@ -1285,21 +1277,7 @@ impl<'a, 'p> State<'a, 'p> {
     /// each end.
     fn window(&self, u: usize, span: i64) -> Vec<i64> {
         let p = self.p;
-        let mut lo = i64::MIN;
-        let mut hi = i64::MAX;
-        for &e in &p.incident[u] {
-            let (a, b, lat, dist) = p.edges[e];
-            if a == b {
-                continue;
-            }
-            let shift = lat - p.ii * i64::from(dist);
-            if b == u && self.placed[a] {
-                lo = lo.max(self.t[a] + shift);
-            }
-            if a == u && self.placed[b] {
-                hi = hi.min(self.t[b] - shift);
-            }
-        }
+        let (mut lo, hi) = self.dependence_window(u);
         if p.ops[u].jit && hi != i64::MAX {
             lo = lo.max(hi - CONSTANT_LEAD);
         }
