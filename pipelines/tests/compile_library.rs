@@ -75,3 +75,18 @@ fn schedules_stay_near_their_bounds() {
         );
     }
 }
+
+/// With twice the multipliers, vertex's values crowd the multipliers' LRFs: it reaches its
+/// bound only when the renamed allocation may unroll the body beyond its longest lifetime
+/// and colour the copies by tabu search (II 41 before); its output still matches.
+#[test]
+fn vertex_reaches_its_bound_with_more_units() {
+    let desc = MachineDesc::resolve("gold8+F").unwrap();
+    let lk = library().iter().find(|lk| lk.name == "vertex").unwrap();
+    let k = (lk.build)(&desc);
+    let c = compile(&k, &desc).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(c.report.ii, Some(c.report.mii()), "{}", c.report.text());
+    let r = check(&k, &c, &desc, &(lk.inputs)(&desc, 3, 11)).unwrap();
+    assert!(r.words > 0);
+    assert_eq!(r.mismatch, None, "{}", c.report.text());
+}

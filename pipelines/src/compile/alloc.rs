@@ -67,29 +67,48 @@ pub fn allocate(
     ii: Option<i64>,
     desc: &imagine_units::desc::MachineDesc,
 ) -> Result<Entries, Overflow> {
-    match pack(g, s, slots, ii, desc, false) {
+    match pack(g, s, slots, ii, desc, None) {
         // Packing the loop's values round the interval in order of issue can leave gaps
         // that a later value does not fit. Then every pass's copy of every loop value
         // gets an entry of its own (full renaming under modulo variable expansion, Rau et
         // al., "Register allocation for software pipelined loops", PLDI 1992), so each
         // copy is a single arc round the unrolled body, and the arcs are coloured by a
-        // search ([`colour`]), which needs barely more entries than values live at once.
+        // search ([`colour`]). Two copies share an entry only if their arcs fit round the
+        // body together, so long-lived values may need a pass or two more than their
+        // lifetimes to fit in about as many entries as values live at once (Eisenbeis et
+        // al., "The meeting graph", 1995).
         Err(o) if o.region == Some(Region::Loop) => {
-            pack(g, s, slots, ii, desc, true).map_err(|_| o)
+            let Some(ii) = ii else { return Err(o) };
+            let least = unroll(
+                g,
+                s,
+                &permanent(g),
+                &last_reads(g, s, slots, None),
+                ii,
+                desc,
+            );
+            let most = (desc.microcontroller.store_words / 2 / ii as usize).max(least);
+            (least..=most.min(least + EXTRA_PASSES))
+                .find_map(|passes| pack(g, s, slots, Some(ii), desc, Some(passes)).ok())
+                .ok_or(o)
         }
         other => other,
     }
 }
 
-/// Packs the entries, the loop's values first-fit in order of issue or, with `renamed`,
-/// each pass's copy of each by [`colour`].
+/// Passes beyond the longest lifetime that the renamed allocation may unroll the loop body
+/// into (see [`allocate`]).
+const EXTRA_PASSES: usize = 2;
+
+/// Packs the entries, the loop's values first-fit in order of issue or, with `renamed`
+/// passes, each pass's copy of each by [`colour`].
 fn pack(
     g: &Graph,
     s: &Schedule,
     slots: &Slots,
     ii: Option<i64>,
     desc: &imagine_units::desc::MachineDesc,
-    renamed: bool,
+    renamed: Option<usize>,
 ) -> Result<Entries, Overflow> {
     let n = g.ops.len();
     let perm = permanent(g);
@@ -102,7 +121,11 @@ fn pack(
     let index = |loc: Loc| index(slots, loc);
     let mut out = Entries {
         peak: vec![0; nlrf],
-        unroll: ii.map_or(1, |ii| unroll(g, s, &perm, &last_read, ii, desc)),
+        unroll: match (ii, renamed) {
+            (Some(_), Some(passes)) => passes,
+            (Some(ii), None) => unroll(g, s, &perm, &last_read, ii, desc),
+            (None, _) => 1,
+        },
         ..Entries::default()
     };
     let modulus = ii.map(|ii| ii * out.unroll as i64);
@@ -174,9 +197,9 @@ fn pack(
         .collect();
     // With `renamed`, each location's loop values are coloured first.
     let mut packed: HashMap<(usize, Loc), Vec<u16>> = HashMap::new();
-    if let (true, Some(m), Some(ii)) = (renamed, modulus, ii) {
-        // Per location: each value and the rows each pass's copy of it is live.
-        type Copies = Vec<(usize, Vec<Vec<i64>>)>;
+    if let (Some(_), Some(m), Some(ii)) = (renamed, modulus, ii) {
+        // Per location: each value and the arc each pass's copy of it is live.
+        type Copies = Vec<(usize, Vec<Arc>)>;
         let mut by_loc: Vec<(Loc, Copies)> = Vec::new();
         for &(u, loc) in &pairs {
             if g.ops[u].region != Region::Loop {
@@ -184,9 +207,9 @@ fn pack(
             }
             let w = s.place[u].expect("placed").time + g.latency(u, desc);
             let r = live_end(&last_read, u, loc, w);
-            let passes =
-                (0..out.unroll as i64).map(|j| (w + j * ii..r + j * ii).map(|c| c.rem_euclid(m)));
-            let held: Vec<Vec<i64>> = passes.map(Iterator::collect).collect();
+            let held: Vec<Arc> = (0..out.unroll as i64)
+                .map(|j| ((w + j * ii).rem_euclid(m) as usize, (r - w) as usize))
+                .collect();
             match by_loc.iter_mut().find(|(l, _)| *l == loc) {
                 Some((_, v)) => v.push((u, held)),
                 None => by_loc.push((loc, vec![(u, held)])),
@@ -195,8 +218,8 @@ fn pack(
         for (loc, values) in by_loc {
             let k = index(loc);
             let first = next_perm[k];
-            let items: Vec<Vec<i64>> = values.iter().flat_map(|(_, h)| h.iter().cloned()).collect();
-            let Some(colours) = colour(&items, first, capacity(loc), m as usize) else {
+            let arcs: Vec<Arc> = values.iter().flat_map(|(_, h)| h.iter().copied()).collect();
+            let Some(colours) = colour(&arcs, first, capacity(loc), m as usize) else {
                 return Err(Overflow {
                     loc,
                     needed: capacity(loc) + 1,
@@ -211,13 +234,13 @@ fn pack(
                     .map(|_| it.next().expect("coloured") as u16)
                     .collect();
                 let o = &mut occ[k];
-                for (cycles, &e) in held.iter().zip(&es) {
+                for (&arc, &e) in held.iter().zip(&es) {
                     let bits = &mut o.modulo[e as usize];
                     if bits.is_empty() {
                         bits.resize(m as usize, false);
                     }
-                    for &c in cycles {
-                        bits[c as usize] = true;
+                    for c in rows(arc, m as usize) {
+                        bits[c] = true;
                     }
                 }
                 packed.insert((u, loc), es);
@@ -328,49 +351,90 @@ fn pack(
     Ok(out)
 }
 
-/// Entries in `first..entries` for arcs (each the rows, in order, of an arc round a circle
-/// of `m` rows), no two sharing a row in one entry, or `None` within a bounded search.
+/// An arc round a circle of rows (the unrolled loop body): its first row and its length,
+/// at most the circle's.
+type Arc = (usize, usize);
+
+/// The rows of `arc` round a circle of `m`.
+fn rows((start, len): Arc, m: usize) -> impl Iterator<Item = usize> {
+    (start..start + len).map(move |c| c % m)
+}
+
+/// The rows of `arc` as a bit set.
+fn row_bits(arc: Arc, m: usize) -> Vec<u64> {
+    let mut bits = vec![0u64; m.div_ceil(64)];
+    for c in rows(arc, m) {
+        bits[c / 64] |= 1 << (c % 64);
+    }
+    bits
+}
+
+/// The highest row below `limit` set in `bits`.
+fn last_below(bits: &[u64], limit: usize) -> Option<usize> {
+    let (word, bit) = (limit / 64, limit % 64);
+    let partial = (bit > 0).then(|| (word, bits[word] & ((1u64 << bit) - 1)));
+    partial
+        .into_iter()
+        .chain((0..word).rev().map(|w| (w, bits[w])))
+        .find(|&(_, b)| b != 0)
+        .map(|(w, b)| w * 64 + 63 - b.leading_zeros() as usize)
+}
+
+/// Entries in `first..entries` for arcs round a circle of `m` rows, no two sharing a row
+/// in one entry, or `None` within a bounded search.
 ///
 /// The arcs crossing the row where fewest are live go first, then the rest in order of
 /// their first row from there (the left-edge order, which colours intervals with as many
 /// entries as are live at once); each takes the entry whose last arc ends nearest before
 /// it starts, and a dead end backs up to the arc before.
-fn colour(items: &[Vec<i64>], first: usize, entries: usize, m: usize) -> Option<Vec<usize>> {
+fn colour(arcs: &[Arc], first: usize, entries: usize, m: usize) -> Option<Vec<usize>> {
     const STEPS: usize = 20_000;
-    let mut live = vec![0usize; m];
-    for item in items {
-        for &c in item {
-            live[c as usize] += 1;
+    // Arcs live per row, from the rows where each starts and ends.
+    let mut change = vec![0i64; m + 1];
+    for &(start, len) in arcs {
+        let end = start + len;
+        change[start] += 1;
+        change[end.min(m)] -= 1;
+        if end > m {
+            change[0] += 1;
+            change[end - m] -= 1;
         }
     }
-    let cut = (0..m).min_by_key(|&c| (live[c], c)).unwrap_or(0) as i64;
-    let mut order: Vec<usize> = (0..items.len()).collect();
-    order.sort_by_key(|&i| {
-        let item = &items[i];
-        let start = item.first().copied().unwrap_or(0);
-        (!item.contains(&cut), (start - cut).rem_euclid(m as i64))
-    });
-    let items: Vec<&Vec<i64>> = order.iter().map(|&i| &items[i]).collect();
-    let words = m.div_ceil(64);
-    let bits: Vec<Vec<u64>> = items
+    let live: Vec<usize> = change[..m]
         .iter()
-        .map(|cycles| {
-            let mut b = vec![0u64; words];
-            for &c in cycles.iter() {
-                b[c as usize / 64] |= 1 << (c as usize % 64);
-            }
-            b
+        .scan(0i64, |n, &d| {
+            *n += d;
+            Some(*n as usize)
         })
         .collect();
-    let mut used = vec![vec![0u64; words]; entries];
+    // Two arcs share an entry only if they fit round the circle together: the longest
+    // arcs, down to where the two shortest of them no longer fit, need an entry each.
+    let mut lengths: Vec<usize> = arcs.iter().map(|a| a.1).collect();
+    lengths.sort_unstable_by(|a, b| b.cmp(a));
+    let apart = (1..lengths.len())
+        .find(|&t| lengths[t - 1] + lengths[t] <= m)
+        .unwrap_or(lengths.len());
+    if first + live.iter().copied().max().unwrap_or(0).max(apart) > entries {
+        return None;
+    }
+    let cut = (0..m).min_by_key(|&c| (live[c], c)).unwrap_or(0);
+    let mut order: Vec<usize> = (0..arcs.len()).collect();
+    order.sort_by_key(|&i| {
+        let (start, len) = arcs[i];
+        let from_cut = (start + m - cut) % m;
+        (from_cut != 0 && from_cut + len <= m, from_cut)
+    });
+    let items: Vec<Arc> = order.iter().map(|&i| arcs[i]).collect();
+    let bits: Vec<Vec<u64>> = items.iter().map(|&arc| row_bits(arc, m)).collect();
+    let mut used = vec![vec![0u64; m.div_ceil(64)]; entries];
     let free = |used: &[u64], b: &[u64]| used.iter().zip(b).all(|(x, y)| x & y == 0);
-    let gap = |used: &[u64], start: i64| -> usize {
-        (1..=m as i64)
-            .find(|&d| {
-                let c = (start - d).rem_euclid(m as i64) as usize;
-                used[c / 64] >> (c % 64) & 1 == 1
-            })
-            .unwrap_or(m as i64) as usize
+    // How far back round the circle from `start` the entry's nearest held row is.
+    let gap = |used: &[u64], start: usize| -> usize {
+        match (last_below(used, start), last_below(used, m)) {
+            (Some(c), _) => start - c,
+            (None, Some(c)) => start + m - c,
+            (None, None) => m,
+        }
     };
     // Per arc: the entries still to try, snuggest first.
     let mut choice: Vec<Vec<usize>> = Vec::with_capacity(items.len());
@@ -386,7 +450,7 @@ fn colour(items: &[Vec<i64>], first: usize, entries: usize, m: usize) -> Option<
             return Some(out);
         }
         if choice.len() == i {
-            let start = items[i].first().copied().unwrap_or(0);
+            let start = items[i].0;
             let mut options: Vec<(usize, usize)> = (first..entries)
                 .filter(|&e| free(&used[e], &bits[i]))
                 .map(|e| (gap(&used[e], start), e))
@@ -396,7 +460,13 @@ fn colour(items: &[Vec<i64>], first: usize, entries: usize, m: usize) -> Option<
         }
         steps += 1;
         if steps > STEPS {
-            return None;
+            // (Out of steps, not of choices: the arcs may still fit.)
+            let colours = tabu_colour(&bits, entries - first)?;
+            let mut out = vec![0; items.len()];
+            for (&k, c) in order.iter().zip(colours) {
+                out[k] = first + c;
+            }
+            return Some(out);
         }
         match choice[i].pop() {
             Some(e) => {
@@ -416,6 +486,88 @@ fn colour(items: &[Vec<i64>], first: usize, entries: usize, m: usize) -> Option<
             }
         }
     }
+}
+
+/// Colours `0..colours` for the arcs (as bit sets of rows), no two overlapping arcs in one
+/// colour, by tabu search (Hertz and de Werra, "Using tabu search techniques for graph
+/// coloring", Computing 39, 1987): from a greedy start with conflicts, each move recolours
+/// an arc in conflict to the colour that removes the most conflicts, and the colour it
+/// left is tabu for that arc for a while (unless taking it would beat the best so far).
+/// `None` if conflicts remain after a bounded number of moves. Deterministic.
+fn tabu_colour(bits: &[Vec<u64>], colours: usize) -> Option<Vec<usize>> {
+    const MOVES: usize = 50_000;
+    let n = bits.len();
+    if colours == 0 {
+        return (n == 0).then(Vec::new);
+    }
+    let k = colours;
+    let overlap = |a: &[u64], b: &[u64]| a.iter().zip(b).any(|(x, y)| x & y != 0);
+    let adjacent: Vec<Vec<usize>> = (0..n)
+        .map(|i| {
+            (0..n)
+                .filter(|&j| j != i && overlap(&bits[i], &bits[j]))
+                .collect()
+        })
+        .collect();
+    // `sharing[i * k + c]`: arcs overlapping arc `i` that have colour `c`.
+    let mut sharing = vec![0i64; n * k];
+    let mut colour = vec![0usize; n];
+    for i in 0..n {
+        let c = (0..k).min_by_key(|&c| sharing[i * k + c]).expect("colours");
+        colour[i] = c;
+        for &j in &adjacent[i] {
+            sharing[j * k + c] += 1;
+        }
+    }
+    let mut conflicts: i64 = (0..n).map(|i| sharing[i * k + colour[i]]).sum::<i64>() / 2;
+    let mut best = conflicts;
+    let mut tabu_until = vec![0usize; n * k];
+    let mut rng = super::repair::Rng(0x7AB0 ^ ((n as u64) << 16) ^ k as u64);
+    for step in 0..MOVES {
+        if conflicts == 0 {
+            return Some(colour);
+        }
+        // The best allowed move, ties broken at random; and how many arcs are in conflict.
+        let mut pick: Option<(i64, usize, usize)> = None;
+        let (mut ties, mut troubled) = (0usize, 0usize);
+        for i in 0..n {
+            let own = sharing[i * k + colour[i]];
+            if own == 0 {
+                continue;
+            }
+            troubled += 1;
+            for c in (0..k).filter(|&c| c != colour[i]) {
+                let delta = sharing[i * k + c] - own;
+                if tabu_until[i * k + c] > step && conflicts + delta >= best {
+                    continue;
+                }
+                match pick {
+                    Some((d, ..)) if delta > d => continue,
+                    Some((d, ..)) if delta == d => {
+                        ties += 1;
+                        if rng.below(ties) != 0 {
+                            continue;
+                        }
+                    }
+                    _ => ties = 1,
+                }
+                pick = Some((delta, i, c));
+            }
+        }
+        let Some((delta, i, c)) = pick else {
+            continue;
+        };
+        let old = colour[i];
+        tabu_until[i * k + old] = step + 1 + rng.below(10) + troubled * 3 / 5;
+        for &j in &adjacent[i] {
+            sharing[j * k + old] -= 1;
+            sharing[j * k + c] += 1;
+        }
+        colour[i] = c;
+        conflicts += delta;
+        best = best.min(conflicts);
+    }
+    (conflicts == 0).then_some(colour)
 }
 
 /// Passes the loop body at interval `ii` is unrolled into: its longest-lived value's
@@ -532,63 +684,141 @@ fn live_end(last_read: &HashMap<(usize, Loc), i64>, u: usize, loc: Loc, w: i64) 
 
 #[cfg(test)]
 mod tests {
-    use super::colour;
+    use super::{Arc, colour, last_below, row_bits, rows, tabu_colour};
 
     /// Arcs round a circle of `m` rows from a small deterministic generator.
-    fn arcs(count: usize, m: i64, longest: i64, seed: u64) -> Vec<Vec<i64>> {
+    fn arcs(count: usize, m: usize, longest: usize, seed: u64) -> Vec<Arc> {
         let mut x = seed;
-        let mut next = |n: i64| {
+        let mut next = |n: usize| {
             x = x
                 .wrapping_mul(6364136223846793005)
                 .wrapping_add(1442695040888963407);
-            ((x >> 33) % n as u64) as i64
+            ((x >> 33) % n as u64) as usize
         };
-        (0..count)
-            .map(|_| {
-                let (start, len) = (next(m), 1 + next(longest));
-                (start..start + len).map(|c| c.rem_euclid(m)).collect()
-            })
-            .collect()
+        (0..count).map(|_| (next(m), 1 + next(longest))).collect()
     }
 
-    fn max_live(items: &[Vec<i64>], m: usize) -> usize {
+    fn max_live(arcs: &[Arc], m: usize) -> usize {
         let mut live = vec![0; m];
-        for item in items {
-            for &c in item {
-                live[c as usize] += 1;
+        for &arc in arcs {
+            for c in rows(arc, m) {
+                live[c] += 1;
             }
         }
         live.into_iter().max().unwrap_or(0)
+    }
+
+    /// No entry of `entries` is held by two arcs at one row.
+    fn assert_valid(arcs: &[Arc], entries: &[usize], m: usize) {
+        let mut held = std::collections::HashSet::new();
+        for (&arc, &e) in arcs.iter().zip(entries) {
+            for c in rows(arc, m) {
+                assert!(held.insert((e, c)), "entry {e} twice at row {c} of {m}");
+            }
+        }
     }
 
     #[test]
     fn colouring_gives_no_entry_two_arcs_at_once() {
         for seed in 0..20 {
             let m = 120;
-            let items = arcs(60, m, 40, seed);
-            let need = max_live(&items, m as usize);
+            let arcs = arcs(60, m, 40, seed);
+            let need = max_live(&arcs, m);
             // Two entries below `first` are someone else's.
-            let Some(entries) = colour(&items, 2, need + 4, m as usize) else {
+            let Some(entries) = colour(&arcs, 2, need + 4, m) else {
                 panic!(
                     "seed {seed}: {need} live at most, not coloured in {}",
                     need + 2
                 )
             };
-            let mut held = vec![vec![false; m as usize]; need + 4];
-            for (item, &e) in items.iter().zip(&entries) {
-                assert!((2..need + 4).contains(&e));
-                for &c in item {
-                    assert!(!held[e][c as usize], "seed {seed}: entry {e} twice at {c}");
-                    held[e][c as usize] = true;
+            assert!(entries.iter().all(|e| (2..need + 4).contains(e)));
+            assert_valid(&arcs, &entries, m);
+        }
+    }
+
+    /// The loop values of vertex's mul0.a on gold8+F at interval 30, renamed over six
+    /// passes (start row and lifetime of the first pass's copy): at most 12 live at once,
+    /// 15 entries free. Backtracking runs out of steps on it; tabu search colours it.
+    #[test]
+    fn colouring_packs_long_lived_values_renamed_over_many_passes() {
+        let (ii, passes, m) = (30, 6, 180);
+        let values = [
+            (115, 100),
+            (129, 96),
+            (152, 82),
+            (29, 8),
+            (35, 1),
+            (36, 4),
+            (37, 1),
+            (38, 1),
+            (41, 1),
+            (45, 2),
+            (46, 2),
+            (47, 2),
+            (49, 1),
+            (50, 1),
+            (52, 1),
+        ];
+        let arcs: Vec<Arc> = values
+            .iter()
+            .flat_map(|&(start, len)| (0..passes).map(move |p| ((start + p * ii) % m, len)))
+            .collect();
+        assert!(max_live(&arcs, m) <= 12);
+        let entries = colour(&arcs, 1, 16, m).expect("coloured in 15 entries");
+        assert!(entries.iter().all(|e| (1..16).contains(e)));
+        assert_valid(&arcs, &entries, m);
+    }
+
+    /// Arcs longer than half the circle never share an entry, however few are live at once.
+    #[test]
+    fn colouring_refuses_long_arcs_that_cannot_share() {
+        let arcs = [(0, 70), (40, 70), (80, 70)];
+        assert_eq!(max_live(&arcs, 120), 2);
+        assert_eq!(colour(&arcs, 0, 2, 120), None);
+        let entries = colour(&arcs, 0, 3, 120).expect("one entry each");
+        assert_valid(&arcs, &entries, 120);
+    }
+
+    #[test]
+    fn tabu_colouring_is_valid_or_refuses() {
+        for seed in 0..10 {
+            let m = 96;
+            let arcs = arcs(50, m, 48, seed);
+            let need = max_live(&arcs, m);
+            let bits: Vec<Vec<u64>> = arcs.iter().map(|&arc| row_bits(arc, m)).collect();
+            let colours = tabu_colour(&bits, need + 2).unwrap_or_else(|| {
+                panic!("seed {seed}: {need} live, not coloured in {}", need + 2)
+            });
+            assert!(colours.iter().all(|&c| c < need + 2));
+            assert_valid(&arcs, &colours, m);
+            // Fewer colours than arcs live at once: never a colouring.
+            assert_eq!(tabu_colour(&bits, need - 1), None, "seed {seed}");
+        }
+    }
+
+    #[test]
+    fn last_below_finds_the_highest_held_row_below_a_limit() {
+        let m: usize = 150;
+        for seed in 0..20 {
+            let mut bits = vec![0u64; m.div_ceil(64)];
+            for arc in arcs(3, m, 20, seed) {
+                for (b, a) in bits.iter_mut().zip(row_bits(arc, m)) {
+                    *b |= a;
                 }
+            }
+            for limit in 0..=m {
+                let naive = (0..limit)
+                    .rev()
+                    .find(|&c| bits[c / 64] >> (c % 64) & 1 == 1);
+                assert_eq!(last_below(&bits, limit), naive, "seed {seed} limit {limit}");
             }
         }
     }
 
     #[test]
     fn colouring_fails_when_more_arcs_are_live_than_entries() {
-        let items = arcs(60, 120, 40, 7);
-        let need = max_live(&items, 120);
-        assert_eq!(colour(&items, 0, need - 1, 120), None);
+        let arcs = arcs(60, 120, 40, 7);
+        let need = max_live(&arcs, 120);
+        assert_eq!(colour(&arcs, 0, need - 1, 120), None);
     }
 }
