@@ -227,110 +227,94 @@ fn pack(
                     region: Some(Region::Loop),
                 });
             };
+            // (Every loop value is coloured, so first fit below, which packs the rest,
+            // need not know which rows these entries hold.)
             let mut it = colours.into_iter();
             for (u, held) in values {
-                let es: Vec<u16> = held
-                    .iter()
-                    .map(|_| it.next().expect("coloured") as u16)
-                    .collect();
-                let o = &mut occ[k];
-                for (&arc, &e) in held.iter().zip(&es) {
-                    let bits = &mut o.modulo[e as usize];
-                    if bits.is_empty() {
-                        bits.resize(m as usize, false);
-                    }
-                    for c in rows(arc, m as usize) {
-                        bits[c] = true;
-                    }
-                }
+                let es = it.by_ref().take(held.len()).map(|e| e as u16).collect();
                 packed.insert((u, loc), es);
             }
         }
     }
     for (u, loc) in pairs {
-        let pl = s.place[u].expect("placed");
-        let region = g.ops[u].region;
-        let w = pl.time + g.latency(u, desc);
-        if let Some(es) = packed.remove(&(u, loc)) {
-            if let [e] = es[..] {
-                out.entry.insert((u, loc), e);
-            } else {
-                out.instances.insert((u, loc), es);
-            }
-            continue;
-        }
-        {
-            let r = live_end(&last_read, u, loc, w);
-            let k = index(loc);
-            let first = next_perm[k];
-            let cap = capacity(loc);
-            let o = &mut occ[k];
-            // The cycles each entry to choose is held: one entry for every pass of the
-            // unrolled loop body unless the value outlives the interval, when each pass
-            // gets an entry of its own.
-            let held: Vec<Vec<i64>> = match (region, ii, modulus) {
-                (Region::Loop, Some(ii), Some(m)) => {
-                    let passes = (0..out.unroll as i64)
-                        .map(|j| (w + j * ii..r + j * ii).map(|c| c.rem_euclid(m)));
-                    if r - w <= ii {
-                        vec![passes.flatten().collect()]
-                    } else {
-                        passes.map(Iterator::collect).collect()
-                    }
-                }
-                _ => vec![Vec::new()],
-            };
-            let mut chosen = Vec::with_capacity(held.len());
-            for cycles in &held {
-                let mut found = None;
-                for e in 0..cap {
-                    if e < first {
-                        // A kept value's entry, usable before the loop until it is written.
-                        let until = kept_from.get(&(k, e as u16)).copied();
-                        if region != Region::Pre || until.is_none_or(|w0| r > w0) {
-                            continue;
+        let chosen = match packed.remove(&(u, loc)) {
+            Some(coloured) => coloured,
+            None => {
+                let region = g.ops[u].region;
+                let w = s.place[u].expect("placed").time + g.latency(u, desc);
+                let r = live_end(&last_read, u, loc, w);
+                let k = index(loc);
+                let first = next_perm[k];
+                let cap = capacity(loc);
+                let o = &mut occ[k];
+                // The cycles each entry to choose is held: one entry for every pass of the
+                // unrolled loop body unless the value outlives the interval, when each pass
+                // gets an entry of its own.
+                let held: Vec<Vec<i64>> = match (region, ii, modulus) {
+                    (Region::Loop, Some(ii), Some(m)) => {
+                        let passes = (0..out.unroll as i64)
+                            .map(|j| (w + j * ii..r + j * ii).map(|c| c.rem_euclid(m)));
+                        if r - w <= ii {
+                            vec![passes.flatten().collect()]
+                        } else {
+                            passes.map(Iterator::collect).collect()
                         }
                     }
-                    let free = match modulus {
-                        Some(m) if region == Region::Loop => {
-                            let bits = &mut o.modulo[e];
-                            if bits.is_empty() {
-                                bits.resize(m as usize, false);
-                            }
-                            cycles.iter().all(|&c| !bits[c as usize])
-                        }
-                        _ => o.line[e]
-                            .iter()
-                            .all(|&(rg, a, b)| rg != region || r <= a || b <= w),
-                    };
-                    if free {
-                        found = Some(e);
-                        break;
-                    }
-                }
-                let Some(e) = found else {
-                    return Err(Overflow {
-                        loc,
-                        needed: cap + 1,
-                        entries: cap,
-                        region: Some(region),
-                    });
+                    _ => vec![Vec::new()],
                 };
-                match modulus {
-                    Some(_) if region == Region::Loop => {
-                        for &c in cycles {
-                            o.modulo[e][c as usize] = true;
+                let mut chosen = Vec::with_capacity(held.len());
+                for cycles in &held {
+                    let mut found = None;
+                    for e in 0..cap {
+                        if e < first {
+                            // A kept value's entry, usable before the loop until it is written.
+                            let until = kept_from.get(&(k, e as u16)).copied();
+                            if region != Region::Pre || until.is_none_or(|w0| r > w0) {
+                                continue;
+                            }
+                        }
+                        let free = match modulus {
+                            Some(m) if region == Region::Loop => {
+                                let bits = &mut o.modulo[e];
+                                if bits.is_empty() {
+                                    bits.resize(m as usize, false);
+                                }
+                                cycles.iter().all(|&c| !bits[c as usize])
+                            }
+                            _ => o.line[e]
+                                .iter()
+                                .all(|&(rg, a, b)| rg != region || r <= a || b <= w),
+                        };
+                        if free {
+                            found = Some(e);
+                            break;
                         }
                     }
-                    _ => o.line[e].push((region, w, r)),
+                    let Some(e) = found else {
+                        return Err(Overflow {
+                            loc,
+                            needed: cap + 1,
+                            entries: cap,
+                            region: Some(region),
+                        });
+                    };
+                    match modulus {
+                        Some(_) if region == Region::Loop => {
+                            for &c in cycles {
+                                o.modulo[e][c as usize] = true;
+                            }
+                        }
+                        _ => o.line[e].push((region, w, r)),
+                    }
+                    chosen.push(e as u16);
                 }
-                chosen.push(e as u16);
+                chosen
             }
-            if let [e] = chosen[..] {
-                out.entry.insert((u, loc), e);
-            } else {
-                out.instances.insert((u, loc), chosen);
-            }
+        };
+        if let [e] = chosen[..] {
+            out.entry.insert((u, loc), e);
+        } else {
+            out.instances.insert((u, loc), chosen);
         }
     }
     let instances = out
