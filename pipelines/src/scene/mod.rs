@@ -21,6 +21,8 @@
 //! [0, 1]; counter-clockwise triangles in the window are front-facing; pixel centres sit at
 //! (x + 0.5, y + 0.5); the depth buffer clears to 1.0 and the colour buffer to black.
 
+pub mod model;
+
 use std::fmt;
 
 /// Largest window side the pipeline accepts (pixel addresses stay well inside 32 bits and

@@ -1,0 +1,202 @@
+//! The scene a file describes (`../shared/SCENE_FORMAT.md`), resolved: every default
+//! applied, every name turned into an index, every asset read, every transform a matrix.
+//! Pipelines and the reference renderers read only this.
+//!
+//! Matrices are row-major `[f32; 16]` with `clip = projection · view · model · (x, y, z, 1)`.
+//! Objects drawn in window space (the `rate` primitive, `.tri` files) keep their
+//! coordinates in pixels: their view is the identity and their projection is
+//! [`super::window_to_clip`] of the window, whatever the camera says.
+
+use std::path::PathBuf;
+
+/// A scene ready to draw.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    pub name: String,
+    /// The file it came from (`None` for generated scenes).
+    pub source: Option<PathBuf>,
+    pub width: u32,
+    pub height: u32,
+    /// The colour buffer's clear colour (depth clears to 1.0).
+    pub background: [f32; 3],
+    /// Global ambient light (`GL_LIGHT_MODEL_AMBIENT`).
+    pub ambient: [f32; 3],
+    pub camera: Camera,
+    pub pipeline: PipelineSettings,
+    /// Positional lights in world space, at most [`MAX_LIGHTS`].
+    pub lights: Vec<Light>,
+    pub textures: Vec<Texture>,
+    pub materials: Vec<Material>,
+    /// In drawing order.
+    pub objects: Vec<Object>,
+}
+
+/// Most lights a scene may have (OpenGL's minimum `GL_MAX_LIGHTS`).
+pub const MAX_LIGHTS: usize = 8;
+
+/// The world-to-eye (`view`) and eye-to-clip (`projection`) matrices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub view: [f32; 16],
+    pub projection: [f32; 16],
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PipelineKind {
+    OpenGl,
+    Reyes,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DepthTest {
+    Less,
+    Lequal,
+    Always,
+}
+
+/// Which window-space winding is discarded (counter-clockwise is front).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cull {
+    Back,
+    Front,
+    None,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Blend {
+    None,
+    /// `src_alpha, one_minus_src_alpha`.
+    Alpha,
+    /// `one, one`.
+    Add,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PipelineSettings {
+    pub kind: PipelineKind,
+    pub depth_test: DepthTest,
+    pub cull: Cull,
+    pub blend: Blend,
+    /// Reyes: the largest micropolygon side, in pixels.
+    pub stop_length: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// World space.
+    pub position: [f32; 3],
+    pub ambient: [f32; 3],
+    pub diffuse: [f32; 3],
+    pub specular: [f32; 3],
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Filter {
+    Nearest,
+    Linear,
+    Trilinear,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    Repeat,
+    Clamp,
+}
+
+/// A texture's base level: `texels[row * width + col]` as RGBA8 words (red in the low
+/// byte), row 0 at the bottom (t = 0), as OpenGL stores it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<u32>,
+    pub filter: Filter,
+    pub wrap: Wrap,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shader {
+    /// The vertex colour, Gouraud-interpolated.
+    Unlit,
+    /// OpenGL 1.x fixed-function lighting per vertex (the format's `lit`).
+    Lit,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TextureMode {
+    Modulate,
+    Replace,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: String,
+    pub shader: Shader,
+    pub ambient: [f32; 3],
+    pub diffuse: [f32; 3],
+    pub specular: [f32; 3],
+    pub shininess: f32,
+    /// Indices into [`Scene::textures`], texture units in order.
+    pub textures: Vec<usize>,
+    pub texture_mode: TextureMode,
+}
+
+/// Where an object's coordinates live.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Space {
+    /// Object coordinates, through the model matrix and the camera.
+    World,
+    /// Window pixels (x, y) and depth in [0, 1] (z): identity view, `window_to_clip`.
+    Window,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Object {
+    pub name: String,
+    /// Index into [`Scene::materials`].
+    pub material: usize,
+    /// Object to world (`T · R · S`).
+    pub model: [f32; 16],
+    /// Vertex colour where the mesh has none.
+    pub colour: [f32; 3],
+    pub space: Space,
+    pub mesh: Mesh,
+}
+
+/// Indexed triangles. Vertices are shared between the triangles that name them, unless
+/// `separate` says each triangle has its own three (then `triangles[i] = [3i, 3i+1, 3i+2]`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    pub positions: Vec<[f32; 3]>,
+    /// One per position, or empty.
+    pub normals: Vec<[f32; 3]>,
+    /// One per position, or empty (then the object's colour).
+    pub colours: Vec<[f32; 3]>,
+    /// One per position, or empty.
+    pub texcoords: Vec<[f32; 2]>,
+    /// Counter-clockwise front faces, in drawing order.
+    pub triangles: Vec<[u32; 3]>,
+    pub separate: bool,
+}
+
+impl Scene {
+    pub fn triangles(&self) -> usize {
+        self.objects.iter().map(|o| o.mesh.triangles.len()).sum()
+    }
+
+    pub fn vertices(&self) -> usize {
+        self.objects.iter().map(|o| o.mesh.positions.len()).sum()
+    }
+
+    /// The view and projection an object is drawn with.
+    pub fn camera_for(&self, object: &Object) -> Camera {
+        match object.space {
+            Space::World => self.camera,
+            Space::Window => Camera {
+                view: super::IDENTITY,
+                projection: super::window_to_clip(self.width, self.height),
+            },
+        }
+    }
+}
