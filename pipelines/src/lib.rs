@@ -7,3 +7,4 @@ pub mod kernels;
 pub mod opengl;
 pub mod run;
 pub mod scene;
+pub mod stream;

@@ -3,6 +3,7 @@
 use imagine_pipelines::compile::compile;
 use imagine_pipelines::kernels::{records_to_stream, stream_to_records};
 use imagine_pipelines::opengl::kernels::{self, FrameShape};
+use imagine_pipelines::scene::model::{Cull, DepthTest};
 use imagine_units::desc::MachineDesc;
 
 #[test]
@@ -17,7 +18,8 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             width: 64,
             height: 48,
             clusters: c,
-            cull_back: true,
+            cull: Cull::Back,
+            depth_test: DepthTest::Less,
             batch: rows * c,
         };
         for k in [
@@ -122,7 +124,8 @@ fn xyrast_covers_exactly_the_pixels_the_edges_cover() {
             width,
             height: 32,
             clusters: c,
-            cull_back: false,
+            cull: Cull::None,
+            depth_test: DepthTest::Less,
             batch: rows * c,
         };
         let k = kernels::xyrast(&desc, shape);
@@ -245,7 +248,8 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             width: 128,
             height: 128,
             clusters: c,
-            cull_back: true,
+            cull: Cull::Back,
+            depth_test: DepthTest::Less,
             batch: 8 * c,
         };
         let tris = 64.max(8 * c);
@@ -471,7 +475,8 @@ fn hash_holds_back_exactly_the_fragments_an_earlier_one_shares_a_stamp_key_with(
             width,
             height: 70,
             clusters: c,
-            cull_back: false,
+            cull: Cull::None,
+            depth_test: DepthTest::Less,
             batch: c,
         };
         let k = kernels::hash(&desc, shape);
@@ -632,7 +637,8 @@ fn sort32_and_mergefrag_keep_the_fragment_zcompare_would_keep_per_pixel_and_grou
             width: 40,
             height: 30,
             clusters: c,
-            cull_back: false,
+            cull: Cull::None,
+            depth_test: DepthTest::Less,
             batch: c,
         };
         let trash = shape.trash();

@@ -117,6 +117,15 @@ impl Processor {
         self.sc.push(instr)
     }
 
+    /// Adds a kernel compiled after the processor was built (checked against the machine
+    /// as [`build`] checks its programs); returns its program index.
+    pub fn add_program(&mut self, desc: &MachineDesc, program: Program) -> Result<usize, String> {
+        program
+            .check(desc)
+            .map_err(|e| format!("kernel `{}`: {e}", program.name))?;
+        Ok(self.sc.add_program(program))
+    }
+
     /// Whether every stream instruction has completed.
     pub fn is_done(&self) -> bool {
         self.sc.is_done() && self.issue.is_none()

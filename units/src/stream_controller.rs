@@ -268,6 +268,14 @@ impl StreamController {
         &self.programs
     }
 
+    /// Adds a program the host compiled after the run began (a kernel the frame reached
+    /// late); returns its index for [`StreamInstr::Kernel`] and
+    /// [`StreamInstr::LoadMicrocode`].
+    pub fn add_program(&mut self, program: Program) -> usize {
+        self.programs.push(program);
+        self.programs.len() - 1
+    }
+
     /// The host appends an instruction (between cycles); returns its index.
     pub fn push(&mut self, instr: StreamInstr) -> usize {
         self.records.push(InstrRecord::new(instr));

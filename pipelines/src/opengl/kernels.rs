@@ -3,8 +3,9 @@
 //!
 //! | kernel | per element | streams |
 //! |---|---|---|
-//! | [`perbegin`] | once per frame: the vertex program's parameters from the OpenGL state | state → params |
-//! | `vertex` / [`vertex_unlit`] | vertex: clip position and colour | 6 words → 7 words |
+//! | [`perbegin`](super::vertex_program) | once per object: the vertex program's parameters from the OpenGL state | state → params |
+//! | `vertex_*` ([`super::vertex_program`]) | vertex: clip position and colour | 3 or 6 words → 7 words |
+//! | [`clear`] | pixel: the clear colour and depth | tickets → pixels |
 //! | [`assemble_clip`] | triangle: its three vertices gathered into one cluster (comms), trivial reject | shaded vertices → clipped (10), attribs (12) |
 //! | [`viewport_cull`] | triangle: window-homogeneous corners, edge functions, facing, cull, bounding box, top-left flags | clipped → window (14), \|det\| |
 //! | [`baryprep`] | triangle: the interpolation record | attribs, \|det\| → interp (13) |
@@ -12,7 +13,7 @@
 //! | [`xyrast`] | run of 4 candidate pixels: coverage by three edge functions | raster → addr, tri, E0, E1, E2 (conditional) |
 //! | [`irast`] | fragment: perspective-correct colour and depth | E0..E2, interp → z, colour, prim |
 //! | [`hash`] | fragment: conflict with an earlier fragment of the round (32×32 stamp) | addr → conflict |
-//! | [`zcompare`] | fragment: depth test LESS with primitive-order ties | z, colour, addr, prim, pixel, conflict → new pixel, its address |
+//! | [`zcompare`] | fragment: the depth test (LESS, LEQUAL, ALWAYS) with primitive-order ties | z, colour, addr, prim, pixel, conflict → new pixel, its address |
 //! | [`compact_recycle`] | fragment: keeps the conflicting fragments for the next round | conflict, a, b → a', b' (conditional) |
 //! | [`sort32`](super::mergefrag::sort32) | group of 32 fragments: the conflicting ones sorted by address | conflict, addr, z, prim → key, z, prim |
 //! | [`mergefrag`](super::mergefrag::mergefrag) | sorted group: one fragment per address, the one `zcompare` would keep | key, z, prim, colour → z, colour, addr, prim (conditional) |
@@ -49,6 +50,7 @@ use imagine_units::desc::MachineDesc;
 use imagine_units::ops::Op;
 
 use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, StreamId, Ty, Value};
+use crate::scene::model::{Cull, DepthTest};
 
 /// Words of a raster record (`xyprep` → `xyrast`): the bounding box's first and last pixel (`lo`, `hi`,
 /// packed `y·2^16 + x`), the tag (the triangle's index in the batch and its three top-left
@@ -78,7 +80,10 @@ pub struct FrameShape {
     pub width: u32,
     pub height: u32,
     pub clusters: usize,
-    pub cull_back: bool,
+    /// The winding `viewport_cull` discards.
+    pub cull: Cull,
+    /// The depth test `zcompare` applies.
+    pub depth_test: DepthTest,
     /// Triangles per batch (a multiple of `clusters`): `xyrast` keeps a batch's raster
     /// records in the scratchpad.
     pub batch: usize,
@@ -145,59 +150,22 @@ pub(crate) fn null_row(b: &mut KernelBuilder, outs: &[(StreamId, u32)]) {
     }
 }
 
-/// Words of the matrices `perbegin` reads first: the model-view, then the projection.
-pub const STATE_MATRIX_WORDS: usize = 32;
-
-/// `perbegin`: the per-`glBegin` work on the current OpenGL state, once per frame. Input
-/// `state`: the model-view matrix (16 words, row-major), the projection (16), then
-/// `passthrough` words (the lit vertex program's eye, lights and material), in rows of `C`
-/// words (word `j` in read `j / C` of cluster `j mod C`), the last row padded. Output
-/// `params`: the vertex program's parameter rows (every cluster writes every word, so row
-/// `i` is parameter `i` in all clusters): the model-view-projection `P · MV` (entry
-/// `(i, j)` is `((P_i0·MV_0j + P_i1·MV_1j) + P_i2·MV_2j) + P_i3·MV_3j`, as
-/// [`crate::scene::mat_mul`]), then the passthrough words. Each cluster gets the state
-/// words by broadcasts from the cluster that read them.
-pub fn perbegin(desc: &MachineDesc, passthrough: usize) -> Kernel {
-    let c = desc.cluster.count;
-    let mut b = KernelBuilder::new("perbegin");
-    let state_in = b.input("state");
-    let params_out = b.output("params");
-    let words = STATE_MATRIX_WORDS + passthrough;
-    let rows: Vec<Value> = (0..words.div_ceil(c))
-        .map(|_| b.read_f32(state_in))
-        .collect();
-    let state: Vec<Value> = (0..words)
-        .map(|j| b.comm(rows[j / c], Perm::Broadcast((j % c) as u16)))
-        .collect();
-    let (modelview, projection) = (&state[..16], &state[16..32]);
-    for k in 0..16 {
-        let (i, j) = (k / 4, k % 4);
-        let mut sum = b.fmul(projection[4 * i], modelview[j]);
-        for t in 1..4 {
-            let term = b.fmul(projection[4 * i + t], modelview[4 * t + j]);
-            sum = b.fadd(sum, term);
-        }
-        b.write(params_out, sum);
-    }
-    for &w in &state[STATE_MATRIX_WORDS..] {
-        b.write(params_out, w);
-    }
-    finish(b)
-}
-
-/// The unlit vertex program: clip position `mvp · (x, y, z, 1)` and the vertex colour.
-/// Input records (x, y, z, r, g, b); output (x, y, z, w, r, g, b).
-pub fn vertex_unlit(_desc: &MachineDesc) -> Kernel {
-    let mut b = KernelBuilder::new("vertex_unlit");
-    let vertices = b.input("vertices");
-    let shaded = b.output("shaded");
-    let mvp = crate::kernels::transform::matrix_params(&mut b, "mvp");
-    b.begin_loop(LoopSpec::OverStream(vertices));
-    let position: [Value; 3] = std::array::from_fn(|_| b.read_f32(vertices));
-    let colour: [Value; 3] = std::array::from_fn(|_| b.read_f32(vertices));
-    let clip = crate::kernels::transform::transform_point(&mut b, &mvp, position, None);
-    for v in clip.into_iter().chain(colour) {
-        b.write(shaded, v);
+/// `clear`: the framebuffer clear, done by the machine: one pixel record (the clear colour,
+/// the clear depth, primitive 0) per element of `tickets` (whose words are not read for
+/// their values; they set the length). The host stores the records over the framebuffer.
+pub fn clear(_desc: &MachineDesc) -> Kernel {
+    let mut b = KernelBuilder::new("clear");
+    let tickets = b.input("tickets");
+    let pixels = b.output("pixels");
+    let colour = b.param("colour", Ty::Word);
+    let depth = b.param("depth", Ty::Word);
+    let zero = b.word(0);
+    b.begin_loop(LoopSpec::OverStream(tickets));
+    let ticket = b.read(tickets);
+    // Primitive 0 ("never drawn"), taken through the ticket so the read is used.
+    let prim = b.and(ticket, zero);
+    for w in [colour, depth, prim] {
+        b.write(pixels, w);
     }
     b.end_loop();
     finish(b)
@@ -388,9 +356,17 @@ pub fn viewport_cull(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
         let nd = b.xor(d, one);
         b.and(not_rejected, nd)
     };
-    if shape.cull_back {
-        let f = flag(&mut b, front);
-        keep = b.and(keep, f);
+    match shape.cull {
+        Cull::None => {}
+        Cull::Back => {
+            let f = flag(&mut b, front);
+            keep = b.and(keep, f);
+        }
+        Cull::Front => {
+            let f = flag(&mut b, front);
+            let back = b.xor(f, one);
+            keep = b.and(keep, back);
+        }
     }
     // Bounding box: the window corners (X/w, Y/w, one divide for all three) when every
     // w > 0, else unbounded (the scissor rectangle bounds it in `xyprep`).
@@ -961,14 +937,16 @@ pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     finish(b)
 }
 
-/// `zcompare`: the depth test LESS of a fragment against its pixel (colour, depth,
-/// primitive), gathered from the framebuffer. A fragment `hash` found in conflict waits for
-/// the next round; any other passes if its depth is in [0, 1] and less than the pixel's, or
-/// equal to it with an earlier primitive (OpenGL's ordering: the later of two equal depths
-/// fails LESS). The test is a minimum over (depth, primitive), so the order in which the
-/// rounds reach a pixel does not change the result. Outputs, unconditional: the pixel to
-/// write back (3 words) and where (`newaddr`: the fragment's pixel if it passed, else the
-/// trash pixel).
+/// `zcompare`: the scene's depth test (LESS, LEQUAL or ALWAYS) of a fragment against its
+/// pixel (colour, depth, primitive), gathered from the framebuffer. A fragment `hash` found
+/// in conflict waits for the next round; any other passes if its depth is in [0, 1] and it
+/// wins against the pixel in OpenGL's primitive order: LESS — a smaller depth, or an equal
+/// one with an earlier primitive (the later of two equal depths fails LESS); LEQUAL — a
+/// smaller depth, or an equal one with a later primitive; ALWAYS — a later primitive. Each
+/// test is an extremum over (depth, primitive), so the order in which the rounds reach a
+/// pixel does not change the result. Outputs, unconditional: the pixel to write back
+/// (3 words) and where (`newaddr`: the fragment's pixel if it passed, else the trash
+/// pixel).
 pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let mut b = KernelBuilder::new("zcompare");
     let z_in = b.input("z");
@@ -980,6 +958,7 @@ pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let pixel_out = b.output("new_pixel");
     let newaddr_out = b.output("newaddr");
     let trash = b.i32(shape.trash() as i32);
+    let past_one = b.word(1.0f32.to_bits() + 1);
     b.begin_loop(LoopSpec::OverStream(z_in));
     let z = b.read(z_in);
     let colour = b.read(colour_in);
@@ -991,14 +970,26 @@ pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     // The framebuffer holds only depths in [+0, 1], whose words order like the depths;
     // every other word (negative, above 1, NaN) is above 1.0's and so never less than the
     // pixel's nor equal to it. (depth, primitive) then compare as a pair of unsigned words.
-    let less = b.iltu(z, old_z);
-    let equal = b.ieq(z, old_z);
     // A pixel never drawn has primitive 0, which no fragment precedes.
-    let earlier = b.iltu(prim, old_prim);
-    let wins = {
-        let less = flag(&mut b, less);
-        let earlier = flag(&mut b, earlier);
-        b.select(equal, earlier, less)
+    let wins = match shape.depth_test {
+        DepthTest::Less | DepthTest::Lequal => {
+            let less = b.iltu(z, old_z);
+            let equal = b.ieq(z, old_z);
+            let tie = match shape.depth_test {
+                DepthTest::Less => b.iltu(prim, old_prim),
+                _ => b.iltu(old_prim, prim),
+            };
+            let less = flag(&mut b, less);
+            let tie = flag(&mut b, tie);
+            b.select(equal, tie, less)
+        }
+        DepthTest::Always => {
+            let in_range = b.iltu(z, past_one);
+            let later = b.iltu(old_prim, prim);
+            let in_range = flag(&mut b, in_range);
+            let later = flag(&mut b, later);
+            b.and(in_range, later)
+        }
     };
     // Both 0 or 1: passes when it wins and does not conflict.
     let pass = b.ilt(conflict, wins);

@@ -4,3 +4,5 @@
 pub mod kernels;
 pub mod mergefrag;
 pub mod render;
+pub mod stats;
+pub mod vertex_program;

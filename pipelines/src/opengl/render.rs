@@ -1,69 +1,86 @@
-//! The host of the OpenGL-like pipeline: it drives the stream processor (stream
-//! controller, address generators, clusters, SRF and SDRAM, all clocked) through a frame,
-//! batch by batch (ARCHITECTURE §5, §7).
+//! The OpenGL-like pipeline as a stream program (ARCHITECTURE §5, §7, §8), built for each
+//! scene and run on the clocked processor through the stream-program layer
+//! ([`crate::stream`]).
 //!
-//! Per batch of `B` triangles (`B` a multiple of the cluster count, 64 unless the
-//! scratchpads cannot hold that many raster records for `xyrast`): load the vertices
-//! (records laid out in cluster rows, in drawing order), run the vertex program,
-//! `assemble_clip`, `viewport_cull` and `baryprep`, and store the interpolation records to
-//! memory; then for each scissor tile (the whole window unless the batch overflows) run
-//! `xyprep` and `xyrast` for as many iterations as `xyprep` counted. Fragments
-//! then go through in chunks: gather their interpolation records by triangle index, run
-//! `irast`, and composite in rounds — gather the fragments' pixels while `hash` marks
-//! the fragments that share a pixel (their stamp key) with an earlier one, run `zcompare`
-//! on the others, scatter the pixels that passed, and recycle the conflicting fragments
-//! (`compact_recycle`) until none is left. The framebuffer (colour, depth, primitive per
-//! pixel) lives in DRAM.
+//! **Phases.** The host loads the scene's inputs into DRAM over the host interface (vertex
+//! records, corner indices, each object's OpenGL state), then the machine clears the
+//! framebuffer (`clear`, and stores), renders the frame, and the host reads the colour
+//! buffer back. Each phase is timed apart; the frame's cycles are the render's alone, as
+//! the thesis counts them (§5.1: inputs start in memory, the image ends there).
+//!
+//! **Per batch** of `B` triangles of one object (`B` a multiple of the cluster count,
+//! sized by strip-mining to the SRF and to `xyrast`'s scratchpad): the object's vertices
+//! the batch uses are loaded and shaded once each (`perbegin` first when the object
+//! changes); for a mesh with shared vertices the shaded vertices go to DRAM and come back
+//! gathered by the batch's corner indices, three per triangle in drawing order (for a
+//! mesh of separate triangles they are already in that order). Then `assemble_clip`,
+//! `viewport_cull` and `baryprep`, whose interpolation records are stored for the
+//! fragments' gathers; then, per scissor tile (the window, split while a tile's fragments
+//! would overflow their SRF streams), `xyprep` and `xyrast`; the fragments go through in
+//! chunks: their interpolation records are gathered by triangle, `irast` interpolates, and
+//! the composite runs in rounds — the pixels are gathered while `hash` marks fragments
+//! that share a pixel with an earlier one, `zcompare` applies the depth test to the
+//! others, the pixels that passed are scattered, and the held-back fragments are recycled
+//! (`compact_recycle`), or sorted and merged (`sort32`, `mergefrag`) when many are, until
+//! none is left.
 //!
 //! **Two batches in flight.** The next batch's vertices are loaded while this one is set
-//! up, and its vertex program is queued right after this batch's `xyrast`, so that it runs
-//! while the first chunk's interpolation records are gathered (the clusters would
-//! otherwise wait for the memory system). The shaded vertices have two SRF sets. Within a
-//! batch, the next chunk's records are gathered while the current chunk is composited
-//! (two SRF buffers); the gathers and the framebuffer's scatters carry bounds, so the
-//! scoreboard knows they touch different memory and lets them overlap.
+//! up, and its vertex program is deferred to where the host first waits for the machine
+//! in this batch (the host's read-back of `xyprep`'s counts), so the clusters shade while
+//! the host would otherwise leave them idle. Within a batch the next chunk's records are
+//! gathered while this one is composited (two SRF buffers).
 //!
-//! **Spilling.** `xyprep` also counts each cluster's candidate pixels (its boxes' areas),
-//! which bound the fragments `xyrast` can write. When they would overflow their SRF region,
-//! the host splits the scissor tile in two and runs `xyprep` and `xyrast` once per half,
-//! recursively: a triangle larger than the SRF is drawn tile by tile, never dropped.
-//!
-//! The host waits for the processor where it needs a number the machine computed, and
-//! then only for what brings it that number: a count a kernel wrote into the SRF
-//! (`xyprep`'s iteration and candidate counts, `hash`'s conflicts) comes back over the
-//! host interface (`ReadSrf`, which the scoreboard orders after the kernel), and the length
-//! of a conditional output stream is the stream controller's once the kernel completes.
-//! Work queued earlier that does not write those words (such as a round's `zcompare` and
-//! pixel scatter) goes on meanwhile. Everything else is queued and ordered by the stream
-//! controller's scoreboard. Kernel parameters reach the SRF through the host interface too
-//! (`WriteSrf`, ordered like any instruction).
+//! **Specialisation.** Only what the scene needs is built: a vertex program per material
+//! (unlit with or without per-vertex colours; lit for the scene's light count, with the
+//! specular term only when there is one, and its exponent unrolled), `viewport_cull` for
+//! the scene's cull mode, `zcompare` for its depth test; `sort32` and `mergefrag` are
+//! compiled only if a round needs them (and never for depth tests other than LESS, whose
+//! minimum they implement). `--no-specialize` builds the general pipeline instead: every
+//! vertex carries position, normal or colour, specular lighting always, and every kernel
+//! compiled up front.
 
 use std::time::Instant;
 
-use imagine_hdl::Sim;
 use imagine_units::desc::MachineDesc;
 use imagine_units::dram::ReplayReport;
-use imagine_units::machine::{KernelStats, StreamBinding};
-use imagine_units::memory::{MemOp, MemOpKind, Pattern};
-use imagine_units::processor::{self, ProcessorOptions, StreamProgram};
+use imagine_units::machine::KernelStats;
+use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
-use serde::Serialize;
 
 use super::kernels::{
-    self, ATTRIB_WORDS, CLIPPED_WORDS, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS,
-    RASTER_WORDS, WINDOW_WORDS,
+    self, ATTRIB_WORDS, CLIPPED_WORDS, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS,
+    WINDOW_WORDS,
 };
 use super::mergefrag::{self, GROUP};
-use crate::compile::{Compiled, compile};
-use crate::kernel::Kernel;
-use crate::scene::{Scene, Shading};
+use super::stats::{BatchRow, Phases, Specialisation};
+use super::vertex_program::{SHADED_WORDS, VertexProgram};
+use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene};
+use crate::scene::MAX_WINDOW;
+use crate::stream::{
+    Buffer, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS, PlanError, SrfPlan,
+    SrfPlanner, StreamHost, StreamId, live, pipelined, split_to_fit, strip_mine,
+};
 
-/// Words per vertex record in memory: position and normal (lit) or colour (unlit).
-const VERTEX_WORDS: usize = 6;
-/// Words per shaded vertex.
-const SHADED_WORDS: usize = 7;
-/// The longest a frame may run, in core cycles, before the host gives up.
-const MAX_FRAME_CYCLES: u64 = 20_000_000_000;
+pub use super::stats::{FrameStats, KernelShare};
+
+/// The longest a run may take, in core cycles, before the host gives up.
+const MAX_RUN_CYCLES: u64 = 20_000_000_000;
+
+/// Fragments per composite chunk (before rounding to whole blocks and rows). Its buffers
+/// bound how many fragments go round together; 96 was the fastest on SPHERE (gold8) of the
+/// sizes 64 to 256 tried.
+const CHUNK: usize = 96;
+
+/// Words of `xyrast`'s tickets stream: its iteration count is the busiest cluster's runs,
+/// so this bounds a pass at `TICKET_WORDS / C` runs per cluster (a tile splits beyond).
+const TICKET_WORDS: usize = 4096;
+
+/// Words of the staging buffer the host interface fills for loads and read-backs.
+const STAGING_WORDS: usize = 8192;
+
+/// Pixels the clear kernel writes per call; its records are stored over the framebuffer
+/// again and again.
+const CLEAR_PIXELS: usize = 1024;
 
 /// A rendered frame.
 #[derive(Clone, Debug)]
@@ -73,59 +90,6 @@ pub struct Frame {
     /// Packed RGBA8 (red in the low byte), row 0 at the bottom.
     pub pixels: Vec<u32>,
     pub stats: FrameStats,
-}
-
-/// One kernel's share of the frame.
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct KernelShare {
-    pub kernel: String,
-    pub calls: u64,
-    pub cycles: u64,
-    pub stall_cycles: u64,
-    pub ops: u64,
-}
-
-/// Statistics of a frame (ARCHITECTURE §7).
-#[derive(Clone, Debug, Default, Serialize)]
-pub struct FrameStats {
-    pub scene: String,
-    pub machine: String,
-    pub width: u32,
-    pub height: u32,
-    pub core_mhz: f64,
-    pub cycles: u64,
-    pub frames_per_second: f64,
-    pub triangles: u64,
-    pub vertices: u64,
-    pub fragments: u64,
-    pub vertices_per_second: f64,
-    pub fragments_per_second: f64,
-    /// Arithmetic ops per core cycle over the frame, all clusters.
-    pub ops_per_cycle: f64,
-    /// Share of the frame's cycles a kernel was running (with and without its stalls).
-    pub cluster_occupancy: f64,
-    pub cluster_occupancy_without_stalls: f64,
-    pub kernels: Vec<KernelShare>,
-    pub batch_triangles: usize,
-    pub batches: u64,
-    /// Scissor splits made because a batch's fragments overflowed the SRF.
-    pub spills: u64,
-    pub composite_rounds: u64,
-    /// Composite rounds whose conflicting fragments were sorted and merged (`sort32`,
-    /// `mergefrag`) rather than recycled as they were.
-    pub merge_rounds: u64,
-    /// Conflicting fragments `mergefrag` dropped (another fragment of the same pixel in
-    /// their group beats them).
-    pub merged_fragments: u64,
-    pub dram_gbs: f64,
-    pub dram_row_hit_rate: f64,
-    pub dram_bytes: u64,
-    pub srf_words_per_cycle: f64,
-    /// LRF words read and written per core cycle, all clusters.
-    pub lrf_reads_per_cycle: f64,
-    pub lrf_writes_per_cycle: f64,
-    pub host_seconds: f64,
-    pub simulated_cycles_per_second: f64,
 }
 
 /// A frame that could not be rendered.
@@ -140,844 +104,361 @@ impl std::fmt::Display for RenderError {
 
 impl std::error::Error for RenderError {}
 
-/// The kernels of a frame, compiled.
-struct Kernels {
-    perbegin: usize,
-    vertex: usize,
-    assemble_clip: usize,
-    viewport_cull: usize,
-    xyprep: usize,
-    baryprep: usize,
-    xyrast: usize,
-    irast: usize,
-    hash: usize,
-    zcompare: usize,
-    recycle_zc: usize,
-    recycle_ap: usize,
-    sort32: usize,
-    mergefrag: usize,
-    compiled: Vec<(Kernel, Compiled)>,
-}
-
-fn compile_all(
-    scene: &Scene,
-    desc: &MachineDesc,
-    shape: FrameShape,
-) -> Result<Kernels, RenderError> {
-    let vertex = match scene.shading {
-        Shading::Lit(_) => crate::kernels::vertex::build(desc),
-        Shading::Unlit => kernels::vertex_unlit(desc),
-    };
-    let list = vec![
-        kernels::perbegin(desc, passthrough(scene).len()),
-        vertex,
-        kernels::assemble_clip(desc),
-        kernels::viewport_cull(desc, shape),
-        kernels::xyprep(desc, shape),
-        kernels::baryprep(desc),
-        kernels::xyrast(desc, shape),
-        kernels::irast(desc),
-        kernels::hash(desc, shape),
-        kernels::zcompare(desc, shape),
-        kernels::compact_recycle(desc, [NULL_DEPTH, 0]),
-        kernels::compact_recycle(desc, [shape.trash(), 0]),
-        mergefrag::sort32(desc, shape),
-        mergefrag::mergefrag(desc, shape),
-    ];
-    let compiled = compile_in_parallel(list, desc)
-        .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))?;
-    Ok(Kernels {
-        perbegin: 0,
-        vertex: 1,
-        assemble_clip: 2,
-        viewport_cull: 3,
-        xyprep: 4,
-        baryprep: 5,
-        xyrast: 6,
-        irast: 7,
-        hash: 8,
-        zcompare: 9,
-        recycle_zc: 10,
-        recycle_ap: 11,
-        sort32: 12,
-        mergefrag: 13,
-        compiled,
-    })
-}
-
-/// Compiles `kernels` on as many host threads as there are cores (each kernel on its own;
-/// the microcode does not depend on which thread compiled it), in their order.
-fn compile_in_parallel(
-    kernels: Vec<Kernel>,
-    desc: &MachineDesc,
-) -> Result<Vec<(Kernel, Compiled)>, crate::compile::CompileError> {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    let next = AtomicUsize::new(0);
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(kernels.len());
-    let mut done: Vec<(usize, Result<Compiled, _>)> = std::thread::scope(|scope| {
-        let workers: Vec<_> = (0..threads)
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut mine = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        let Some(k) = kernels.get(i) else { break };
-                        mine.push((i, compile(k, desc)));
-                    }
-                    mine
-                })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .flat_map(|w| w.join().expect("a compiler thread panicked"))
-            .collect()
-    });
-    done.sort_by_key(|&(i, _)| i);
-    kernels
-        .into_iter()
-        .zip(done)
-        .map(|(k, (_, r))| r.map(|c| (k, c)))
-        .collect()
-}
-
-/// SRF regions, block-aligned, bump-allocated once per frame.
-struct SrfPlan {
-    next: usize,
-    block: usize,
-    words: usize,
-}
-
-impl SrfPlan {
-    fn take(&mut self, words: usize) -> Result<usize, RenderError> {
-        let start = self.next;
-        let words = words.div_ceil(self.block) * self.block;
-        if start + words > self.words {
-            return Err(RenderError(format!(
-                "the SRF ({} words) is too small for the pipeline's streams",
-                self.words
-            )));
-        }
-        self.next += words;
-        Ok(start)
+impl From<HostError> for RenderError {
+    fn from(e: HostError) -> Self {
+        RenderError(e.0)
     }
 }
 
-struct Regions {
-    /// The OpenGL state `perbegin` reads, and the vertex program's parameters it writes.
-    state: usize,
-    vertex_params: usize,
-    /// `xyprep`'s scissor rectangle and `baryprep`'s first primitive number.
-    xyprep_params: usize,
-    baryprep_params: usize,
-    /// One batch's vertices as loaded: the next batch's load waits (by the scoreboard)
-    /// only until the vertex program has read them.
-    vertices: usize,
-    /// Two sets of shaded vertices, so that one batch is shaded while the previous one is
-    /// still being set up.
-    shaded: [usize; 2],
-    /// A batch's triangles between the setup kernels: `assemble_clip`'s `clipped` and
-    /// `attribs`, `viewport_cull`'s `det` (its `window` records go over the shaded
-    /// vertices).
-    clipped: usize,
-    attribs: usize,
-    det: usize,
-    raster: usize,
-    interp: usize,
-    rows: usize,
-    tickets: usize,
-    tickets_words: usize,
-    /// xyrast outputs: addr, tri, e0, e1, e2.
-    frags: [usize; 5],
-    /// Fragments xyrast may write per pass (nulls included).
-    frag_capacity: usize,
-    /// Two buffers of gathered interpolation records: the next chunk's are gathered while
-    /// this one is composited.
-    gathered: [usize; 2],
-    /// irast outputs, then two recycle sets: z, colour, addr, prim (room for a chunk
-    /// rounded up to whole groups of 32 and a row of nulls).
-    zcap: [[usize; 4]; 3],
-    /// `sort32`'s outputs: key, z, prim (in `pixel`'s words).
-    sorted: [usize; 3],
-    pixel: usize,
-    new_pixel: usize,
-    newaddr: usize,
-    conflict: usize,
-    /// `hash`'s row of conflict counts.
-    conflicts: usize,
-    /// Fragments per chunk.
-    chunk: usize,
-}
-
-/// DRAM word addresses.
-struct Memory {
-    vertices: u64,
-    /// The OpenGL state (see [`state_words`]).
-    state: u64,
-    interp: u64,
-    /// Interpolation records (a batch's triangles): the bound of gathers by triangle.
-    interp_records: u64,
-    framebuffer: u64,
-    /// Framebuffer pixels with the trash pixel: the bound of gathers and scatters by pixel.
-    pixels: u64,
-}
-
-struct Host {
-    sim: Sim,
-    k: Kernels,
-    r: Regions,
-    m: Memory,
-    clusters: usize,
-    stats: FrameStats,
-    /// The vertex set whose vertex program is still to be queued, with its triangles.
-    pending_vertex: Option<(usize, usize)>,
-    /// [`RenderOptions::merge_min_conflicts`].
-    merge_min_conflicts: Option<usize>,
-}
-
-fn bind(start: usize, words: usize) -> StreamBinding {
-    StreamBinding { start, words }
-}
-
-impl Host {
-    fn push(&mut self, instr: StreamInstr) -> usize {
-        processor::processor_mut(&mut self.sim).push(instr)
+impl From<PlanError> for RenderError {
+    fn from(e: PlanError) -> Self {
+        RenderError(e.0)
     }
-
-    fn kernel(
-        &mut self,
-        k: usize,
-        mut streams: Vec<StreamBinding>,
-        params: Option<usize>,
-    ) -> usize {
-        let (kernel, c) = &self.k.compiled[k];
-        if c.params_stream.is_some() {
-            let start = params.expect("the host passes the parameters' region");
-            streams.push(bind(start, kernel.params.len() * self.clusters));
-        }
-        self.push(StreamInstr::Kernel {
-            program: k,
-            bindings: streams,
-        })
-    }
-
-    fn mem(
-        &mut self,
-        kind: MemOpKind,
-        base: u64,
-        pattern: Pattern,
-        record_words: usize,
-        records: usize,
-        srf_start: usize,
-    ) {
-        self.push(StreamInstr::Memory(MemOp {
-            kind,
-            base,
-            pattern,
-            record_words,
-            records,
-            srf_start,
-            row_records: if record_words > 1 { self.clusters } else { 1 },
-        }));
-    }
-
-    /// Runs until every queued instruction has completed.
-    fn drain(&mut self) -> Result<(), RenderError> {
-        self.run_until(|s| {
-            processor::processor(s).is_done()
-                && s.modules_of::<imagine_units::dram::DramChannel>()
-                    .all(imagine_units::dram::DramChannel::is_idle)
-        })
-    }
-
-    fn run_until(&mut self, done: impl Fn(&Sim) -> bool) -> Result<(), RenderError> {
-        let left = MAX_FRAME_CYCLES.saturating_sub(self.sim.core_cycles());
-        let finished = self
-            .sim
-            .run_until(left, done)
-            .map_err(|e| RenderError(format!("the machine stopped: {e}")))?;
-        if !finished {
-            return Err(RenderError(format!(
-                "the frame did not finish within {MAX_FRAME_CYCLES} core cycles"
-            )));
-        }
-        Ok(())
-    }
-
-    /// Runs until instruction `id` has completed; later ones may still be in flight.
-    fn wait_for(&mut self, id: usize) -> Result<(), RenderError> {
-        self.run_until(|s| {
-            processor::processor(s).controller().records()[id]
-                .completed
-                .is_some()
-        })
-    }
-
-    fn outputs(&self, id: usize) -> Vec<usize> {
-        processor::processor(&self.sim).controller().records()[id]
-            .outputs
-            .clone()
-    }
-
-    /// Queues the host's write of kernel parameters (each replicated per cluster) at SRF
-    /// word `start`.
-    fn write_params(&mut self, start: usize, words: &[u32]) {
-        let c = self.clusters;
-        let words = words
-            .iter()
-            .flat_map(|&w| std::iter::repeat_n(w, c))
-            .collect();
-        self.push(StreamInstr::WriteSrf { start, words });
-    }
-
-    /// Reads `len` SRF words from `start` back over the host interface, once every
-    /// instruction queued before that writes them has completed.
-    fn read_srf(&mut self, start: usize, len: usize) -> Result<Vec<u32>, RenderError> {
-        let id = self.push(StreamInstr::ReadSrf { start, len });
-        self.wait_for(id)?;
-        Ok(processor::processor(&self.sim).controller().records()[id]
-            .read
-            .clone())
-    }
-
-    /// Queues the load of the OpenGL state (`words` words) and `perbegin`, which writes
-    /// the vertex program's parameters.
-    fn begin(&mut self, words: usize) {
-        let (state, params) = (self.r.state, self.r.vertex_params);
-        let stride = Pattern::Strided { stride: 1 };
-        self.mem(MemOpKind::Load, self.m.state, stride, 1, words, state);
-        let params_words = self.k.compiled[self.k.vertex].0.params.len() * self.clusters;
-        let streams = vec![bind(state, words), bind(params, params_words)];
-        self.kernel(self.k.perbegin, streams, None);
-    }
-
-    /// Queues the load of a batch's vertices, to be shaded into set `set`; its vertex
-    /// program is queued later by [`Host::shade_pending`], where the clusters would
-    /// otherwise wait.
-    fn load_batch(&mut self, first_triangle: usize, triangles: usize, set: usize) {
-        let verts = 3 * triangles;
-        self.mem(
-            MemOpKind::Load,
-            self.m.vertices + (3 * first_triangle * VERTEX_WORDS) as u64,
-            Pattern::Strided {
-                stride: VERTEX_WORDS as u64,
-            },
-            VERTEX_WORDS,
-            verts,
-            self.r.vertices,
-        );
-        self.pending_vertex = Some((set, triangles));
-    }
-
-    /// Queues the vertex program of the loaded batch, if it is not queued yet.
-    fn shade_pending(&mut self) {
-        let Some((set, triangles)) = self.pending_vertex.take() else {
-            return;
-        };
-        let verts = 3 * triangles;
-        let r = &self.r;
-        let streams = vec![
-            bind(r.vertices, verts * VERTEX_WORDS),
-            bind(r.shaded[set], verts * SHADED_WORDS),
-        ];
-        let vparams = r.vertex_params;
-        self.kernel(self.k.vertex, streams, Some(vparams));
-    }
-
-    /// Rasterizes and composites a batch whose vertices are shaded into vertex set `set`.
-    fn batch(
-        &mut self,
-        first_triangle: usize,
-        triangles: usize,
-        set: usize,
-        width: u32,
-        height: u32,
-    ) -> Result<(), RenderError> {
-        let c = self.clusters;
-        let verts = 3 * triangles;
-        // Once per batch: assembly, clipping, viewport and culling, and the interpolation
-        // records, stored for the fragments' gathers.
-        let r = &self.r;
-        let (clipped, attribs, window, det, interp) =
-            (r.clipped, r.attribs, r.shaded[set], r.det, r.interp);
-        let streams = vec![
-            bind(r.shaded[set], verts * SHADED_WORDS),
-            bind(clipped, triangles * CLIPPED_WORDS),
-            bind(attribs, triangles * ATTRIB_WORDS),
-        ];
-        self.kernel(self.k.assemble_clip, streams, None);
-        let streams = vec![
-            bind(clipped, triangles * CLIPPED_WORDS),
-            bind(window, triangles * WINDOW_WORDS),
-            bind(det, triangles),
-        ];
-        self.kernel(self.k.viewport_cull, streams, None);
-        let bparams = self.r.baryprep_params;
-        self.write_params(bparams, &[first_triangle as u32]);
-        let streams = vec![
-            bind(attribs, triangles * ATTRIB_WORDS),
-            bind(det, triangles),
-            bind(interp, triangles * INTERP_WORDS),
-        ];
-        self.kernel(self.k.baryprep, streams, Some(bparams));
-        self.mem(
-            MemOpKind::Store,
-            self.m.interp,
-            Pattern::Strided {
-                stride: INTERP_WORDS as u64,
-            },
-            INTERP_WORDS,
-            triangles,
-            interp,
-        );
-        // Per scissor tile: the bounding boxes, then rasterization.
-        let mut tiles = vec![[0, 0, width as i32 - 1, height as i32 - 1]];
-        while let Some(tile) = tiles.pop() {
-            let xparams = self.r.xyprep_params;
-            self.write_params(xparams, &tile.map(|v| v as u32));
-            let r = &self.r;
-            let streams = vec![
-                bind(window, triangles * WINDOW_WORDS),
-                bind(r.raster, triangles * RASTER_WORDS),
-                bind(r.rows, 2 * c),
-            ];
-            self.kernel(self.k.xyprep, streams, Some(xparams));
-            let counts = self.read_srf(self.r.rows, 2 * c)?;
-            let rows = counts[0] as usize;
-            // Each candidate pixel gives at most one fragment; then a row of nulls.
-            let candidates: usize = counts[c..].iter().map(|&n| n as usize).sum();
-            if candidates + c > self.r.frag_capacity || rows * c > self.r.tickets_words {
-                let [x0, y0, x1, y1] = tile;
-                if x1 > x0 || y1 > y0 {
-                    self.stats.spills += 1;
-                    if x1 - x0 >= y1 - y0 {
-                        let mid = (x0 + x1) / 2;
-                        tiles.push([mid + 1, y0, x1, y1]);
-                        tiles.push([x0, y0, mid, y1]);
-                    } else {
-                        let mid = (y0 + y1) / 2;
-                        tiles.push([x0, mid + 1, x1, y1]);
-                        tiles.push([x0, y0, x1, mid]);
-                    }
-                    continue;
-                }
-                return Err(RenderError(format!(
-                    "a one-pixel tile needs {rows} rasterizer iterations; the SRF holds {}",
-                    self.r.frag_capacity / c
-                )));
-            }
-            self.rasterize(triangles, rows)?;
-        }
-        Ok(())
-    }
-
-    fn rasterize(&mut self, triangles: usize, rows: usize) -> Result<(), RenderError> {
-        let c = self.clusters;
-        let r = &self.r;
-        let (raster, tickets, frags, cap) = (r.raster, r.tickets, r.frags, r.frag_capacity);
-        let mut streams = vec![
-            bind(raster, triangles * RASTER_WORDS),
-            bind(tickets, rows * c),
-        ];
-        streams.extend(frags.iter().map(|&f| bind(f, cap)));
-        let id = self.kernel(self.k.xyrast, streams, None);
-        self.shade_pending();
-        self.wait_for(id)?;
-        // The real fragments, then the row of nulls.
-        let real = self.outputs(id)[2] - c;
-        // Whole rows: every real fragment and the nulls that fill its last row; the rest of
-        // the nulls are not composited.
-        let total = real.div_ceil(c) * c;
-        self.stats.fragments += real as u64;
-        let chunk = self.r.chunk;
-        let chunks: Vec<(usize, usize)> = (0..total)
-            .step_by(chunk)
-            .map(|start| (start, chunk.min(total - start)))
-            .collect();
-        if let Some(&(start, len)) = chunks.first() {
-            self.gather_interp(start, len, 0);
-        }
-        for (i, &(start, len)) in chunks.iter().enumerate() {
-            // The next chunk's records are gathered while this one is composited.
-            if let Some(&(next, next_len)) = chunks.get(i + 1) {
-                self.gather_interp(next, next_len, (i + 1) % 2);
-            }
-            self.fragments(start, len, i % 2)?;
-        }
-        Ok(())
-    }
-
-    /// Queues the gather of the interpolation records of fragments `start..start + len`
-    /// (by triangle index) into buffer `buffer`.
-    fn gather_interp(&mut self, start: usize, len: usize, buffer: usize) {
-        let tri = self.r.frags[1] + start;
-        self.mem(
-            MemOpKind::Load,
-            self.m.interp,
-            Pattern::Indexed {
-                index_start: tri,
-                scale: INTERP_WORDS as u64,
-                bound: Some(self.m.interp_records),
-            },
-            INTERP_WORDS,
-            len,
-            self.r.gathered[buffer],
-        );
-    }
-
-    /// Interpolates and composites fragments `start..start + len` of the xyrast output,
-    /// their interpolation records gathered into buffer `buffer`.
-    fn fragments(&mut self, start: usize, len: usize, buffer: usize) -> Result<(), RenderError> {
-        let r = &self.r;
-        let [addr, _, e0, e1, e2] = r.frags.map(|f| f + start);
-        let gathered = r.gathered[buffer];
-        let [z, colour, _, prim] = r.zcap[0];
-        self.kernel(
-            self.k.irast,
-            vec![
-                bind(e0, len),
-                bind(e1, len),
-                bind(e2, len),
-                bind(gathered, len * INTERP_WORDS),
-                bind(z, len),
-                bind(colour, len),
-                bind(prim, len),
-            ],
-            None,
-        );
-        let mut current = [z, colour, addr, prim];
-        let mut len = len;
-        let mut set = 1;
-        // Whether a merge of this chunk dropped fragments.
-        let mut stacked = false;
-        let mut fruitless = false;
-        loop {
-            self.stats.composite_rounds += 1;
-            let r = &self.r;
-            let (pixel, new_pixel, newaddr, conflict) =
-                (r.pixel, r.new_pixel, r.newaddr, r.conflict);
-            let next = r.zcap[set];
-            let (fb, pixels) = (self.m.framebuffer, self.m.pixels);
-            let [z, colour, addr, prim] = current;
-            let by_pixel = |index_start| Pattern::Indexed {
-                index_start,
-                scale: PIXEL_WORDS as u64,
-                bound: Some(pixels),
-            };
-            // The pixels are gathered while `hash` looks for conflicts.
-            self.mem(MemOpKind::Load, fb, by_pixel(addr), PIXEL_WORDS, len, pixel);
-            self.kernel(
-                self.k.hash,
-                vec![
-                    bind(addr, len),
-                    bind(conflict, len + GROUP),
-                    bind(self.r.conflicts, self.clusters),
-                ],
-                None,
-            );
-            self.kernel(
-                self.k.zcompare,
-                vec![
-                    bind(z, len),
-                    bind(colour, len),
-                    bind(addr, len),
-                    bind(prim, len),
-                    bind(pixel, len * PIXEL_WORDS),
-                    bind(conflict, len),
-                    bind(new_pixel, len * PIXEL_WORDS),
-                    bind(newaddr, len),
-                ],
-                None,
-            );
-            let scatter = by_pixel(newaddr);
-            self.mem(MemOpKind::Store, fb, scatter, PIXEL_WORDS, len, new_pixel);
-            // The zcompare and the scatter are queued; the host needs only the count.
-            let conflicts = self.read_srf(self.r.conflicts, 1)?[0] as usize;
-            if conflicts == 0 {
-                return Ok(());
-            }
-            let c = self.clusters;
-            let cap = self.r.chunk.next_multiple_of(GROUP) + c;
-            // Merge on many conflicts, and after a merge of this chunk that found a pixel's
-            // fragments together, on any that could merge; not again after a merge of this
-            // chunk that dropped nothing.
-            let merge = !fruitless
-                && self
-                    .merge_min_conflicts
-                    .is_some_and(|m| conflicts >= m || (stacked && conflicts >= 2));
-            if merge {
-                // Sort the conflicting fragments by address in groups of 32 and keep one
-                // per address: whole groups, `hash`'s rows of zeros after its flags.
-                self.stats.merge_rounds += 1;
-                let groups = len.next_multiple_of(GROUP);
-                let sorted = self.r.sorted;
-                self.kernel(
-                    self.k.sort32,
-                    vec![
-                        bind(conflict, groups),
-                        bind(addr, groups),
-                        bind(z, groups),
-                        bind(prim, groups),
-                        bind(sorted[0], groups),
-                        bind(sorted[1], groups),
-                        bind(sorted[2], groups),
-                    ],
-                    None,
-                );
-                let merged = self.kernel(
-                    self.k.mergefrag,
-                    vec![
-                        bind(sorted[0], groups),
-                        bind(sorted[1], groups),
-                        bind(sorted[2], groups),
-                        bind(colour, groups),
-                        bind(next[0], cap),
-                        bind(next[1], cap),
-                        bind(next[2], cap),
-                        bind(next[3], cap),
-                    ],
-                    None,
-                );
-                // The next round needs the survivors' count.
-                self.wait_for(merged)?;
-                let written = self.outputs(merged)[4];
-                let dropped = conflicts + c - written;
-                self.stats.merged_fragments += dropped as u64;
-                stacked |= dropped > 0;
-                fruitless = dropped == 0;
-                len = written / c * c;
-            } else {
-                self.kernel(
-                    self.k.recycle_zc,
-                    vec![
-                        bind(conflict, len),
-                        bind(z, len),
-                        bind(colour, len),
-                        bind(next[0], cap),
-                        bind(next[1], cap),
-                    ],
-                    None,
-                );
-                self.kernel(
-                    self.k.recycle_ap,
-                    vec![
-                        bind(conflict, len),
-                        bind(addr, len),
-                        bind(prim, len),
-                        bind(next[2], cap),
-                        bind(next[3], cap),
-                    ],
-                    None,
-                );
-                // The conflicting fragments, then `compact_recycle`'s row of nulls: whole
-                // rows.
-                len = (conflicts + c) / c * c;
-            }
-            current = next;
-            set = if set == 1 { 2 } else { 1 };
-        }
-    }
-}
-
-/// Chooses the batch size: the largest multiple of the cluster count up to 64 triangles
-/// (fewer for tiny scenes, and at most `rows` triangles per cluster: `xyrast` keeps the
-/// batch's raster records in the scratchpads).
-fn batch_size(triangles: usize, clusters: usize, rows: usize) -> usize {
-    let want = 64usize.max(clusters).div_ceil(clusters) * clusters;
-    want.min(triangles.div_ceil(clusters) * clusters)
-        .min(rows * clusters)
-        .max(clusters)
-}
-
-fn plan(
-    desc: &MachineDesc,
-    batch: usize,
-    state: usize,
-    params: usize,
-) -> Result<Regions, RenderError> {
-    let c = desc.cluster.count;
-    let mut p = SrfPlan {
-        next: 0,
-        block: desc.srf.block_words,
-        words: desc.srf.words,
-    };
-    // Fragments per chunk. Its buffers also hold xyrast's tickets, so smaller chunks split
-    // more tiles, and larger ones leave fewer words for fragments; 96 was the fastest on
-    // SPHERE (gold8) of the sizes 64 to 256 tried. A chunk is whole rows of clusters and
-    // whole SRF blocks: its slices of the fragment streams start on block boundaries.
-    let gcd = |mut a: usize, mut b: usize| {
-        while b != 0 {
-            (a, b) = (b, a % b);
-        }
-        a
-    };
-    let unit = c / gcd(c, desc.srf.block_words) * desc.srf.block_words;
-    let chunk = 96usize.div_ceil(unit) * unit;
-    let state = p.take(state)?;
-    let vertex_params = p.take(params * c)?;
-    let xyprep_params = p.take(4 * c)?;
-    let baryprep_params = p.take(c)?;
-    let vertices = p.take(3 * batch * VERTEX_WORDS)?;
-    let shaded = [
-        p.take(3 * batch * SHADED_WORDS)?,
-        p.take(3 * batch * SHADED_WORDS)?,
-    ];
-    let raster = p.take(batch * RASTER_WORDS)?;
-    // Words only kernels use can be shared by streams whose kernels do not overlap in the
-    // queue (the kernels run one after another): `clipped` lives from `assemble_clip` to
-    // `viewport_cull`, before any `xyprep` writes raster records.
-    const _: () = assert!(CLIPPED_WORDS <= RASTER_WORDS);
-    let clipped = raster;
-    // (`window` goes over the batch's shaded vertices, which `assemble_clip` has read; the
-    // vertex program writes that set again only after the batch's last `xyprep`.)
-    const _: () = assert!(WINDOW_WORDS <= 3 * SHADED_WORDS);
-    let interp = p.take(batch * INTERP_WORDS)?;
-    let rows = p.take(2 * c)?;
-    // The fragment chunk's streams; xyrast, which runs alone, reads its tickets (whose
-    // contents do not matter) from the same words.
-    // `attribs` and `det` live from `assemble_clip` to `baryprep`, in the second buffer of
-    // gathered records: the previous batch's `irast`s have read it, and this batch's first
-    // gather into it comes after `baryprep`.
-    let attribs_words = (batch * ATTRIB_WORDS).next_multiple_of(p.block);
-    let gathered = [
-        p.take(chunk * INTERP_WORDS)?,
-        p.take((chunk * INTERP_WORDS).max(attribs_words + batch))?,
-    ];
-    let (attribs, det) = (gathered[1], gathered[1] + attribs_words);
-    let tickets = gathered[0];
-    let mut zcap = [[0; 4]; 3];
-    let groups = chunk.next_multiple_of(GROUP);
-    for set in &mut zcap {
-        for s in set.iter_mut() {
-            *s = p.take(groups + c)?;
-        }
-    }
-    // `sort32`'s outputs reuse the gathered pixels' words, which the round's `zcompare`
-    // has read by then (the scoreboard sees to it): SRF words left for fragments mean
-    // fewer scissor splits.
-    let pixel = p.take((chunk * PIXEL_WORDS).max(3 * groups))?;
-    let sorted = [0, 1, 2].map(|i| pixel + i * groups);
-    let new_pixel = p.take(chunk * PIXEL_WORDS)?;
-    let newaddr = p.take(chunk)?;
-    // `hash`'s flags and the rows of zeros after them.
-    let conflict = p.take(chunk + GROUP)?;
-    let conflicts = p.take(c)?;
-    let tickets_words = p.next - tickets;
-    // What is left: the five xyrast outputs, equal shares.
-    let left = p.words.saturating_sub(p.next);
-    let share = (left / 5) / p.block * p.block;
-    let frag_capacity = share / c * c;
-    if frag_capacity < 4 * c {
-        return Err(RenderError(format!(
-            "machine `{}`: the SRF ({} words) leaves no room for fragments",
-            desc.name, desc.srf.words
-        )));
-    }
-    let frags = [(); 5].map(|_| p.take(share).expect("shares fit"));
-    Ok(Regions {
-        state,
-        vertex_params,
-        xyprep_params,
-        baryprep_params,
-        vertices,
-        shaded,
-        clipped,
-        attribs,
-        det,
-        raster,
-        interp,
-        rows,
-        tickets,
-        tickets_words,
-        frags,
-        frag_capacity,
-        gathered,
-        zcap,
-        sorted,
-        pixel,
-        new_pixel,
-        newaddr,
-        conflict,
-        conflicts,
-        chunk,
-    })
-}
-
-/// Vertex records of `scene` in drawing order (triangle `t` is vertices `3t..3t + 3`),
-/// padded with degenerate triangles to whole batches.
-fn vertex_words(scene: &Scene, batch: usize) -> Vec<u32> {
-    let tris = scene.triangles();
-    let padded = tris.div_ceil(batch) * batch;
-    let last = tris.saturating_sub(1);
-    (0..3 * padded)
-        .flat_map(|v| {
-            // Padding repeats one vertex three times: a degenerate triangle.
-            let v = if v < 3 * tris { v } else { 3 * last };
-            let q = match scene.shading {
-                Shading::Lit(_) => scene.normals[v],
-                Shading::Unlit => scene.colours[v],
-            };
-            scene.positions[v].into_iter().chain(q).map(f32::to_bits)
-        })
-        .collect()
-}
-
-/// The words of the vertex program's parameters that `perbegin` passes through after the
-/// model-view-projection matrix: the lit program's eye, lights and material.
-fn passthrough(scene: &Scene) -> Vec<u32> {
-    let mut p: Vec<f32> = Vec::new();
-    if let Shading::Lit(l) = &scene.shading {
-        p.extend(l.eye);
-        for (pos, colour) in &l.lights {
-            p.extend(pos);
-            p.extend(colour);
-        }
-        p.extend(l.diffuse);
-        p.extend(l.specular);
-        p.extend(l.ambient);
-    }
-    p.iter().map(|x| x.to_bits()).collect()
-}
-
-/// The OpenGL state as `perbegin` reads it: the model-view and projection matrices and the
-/// passthrough words, padded with zeros to whole rows of `clusters` words.
-fn state_words(scene: &Scene, clusters: usize) -> Vec<u32> {
-    let mut words: Vec<u32> = scene
-        .modelview
-        .iter()
-        .chain(&scene.projection)
-        .map(|x| x.to_bits())
-        .collect();
-    words.extend(passthrough(scene));
-    words.resize(words.len().div_ceil(clusters) * clusters, 0);
-    words
 }
 
 /// How the host runs the pipeline (choices that change the cycles, never the image).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RenderOptions {
     /// Sort and merge a round's conflicting fragments (`sort32`, `mergefrag`) when `hash`
-    /// holds back at least this many; else, or when `None`, recycle them as they are
-    /// (`compact_recycle`).
+    /// holds back at least this many; else, or when `None`, recycle them as they are.
     pub merge_min_conflicts: Option<usize>,
+    /// Build the pipeline for the scene (`false`: the general pipeline, for comparison).
+    pub specialise: bool,
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
 /// recycling it replaces (on gold8, chunks of 96 fragments of a stacked scene: `sort32`
 /// about 600 cycles a call and `mergefrag` 540, against 300 each, the least a kernel
-/// holds the clusters, for `compact_recycle`), and
-/// saves rounds only when fragments of one pixel share a group; few conflicts are more
-/// often stamp aliases (different pixels, the same stamp key) than a pixel's stack.
+/// holds the clusters, for `compact_recycle`), and saves rounds only when fragments of one
+/// pixel share a group; few conflicts are more often stamp aliases (different pixels, the
+/// same stamp key) than a pixel's stack.
 pub const MERGE_MIN_CONFLICTS: usize = 24;
 
 impl Default for RenderOptions {
     fn default() -> Self {
         RenderOptions {
             merge_min_conflicts: Some(MERGE_MIN_CONFLICTS),
+            specialise: true,
         }
     }
+}
+
+/// The pipeline's batch schedule: the phases stream lifetimes are given in.
+const PHASES: [&str; 8] = ["vertex", "assemble", "cull", "baryprep", "xyprep", "xyrast", "composite", "host"];
+
+/// The streams of a batch.
+struct Streams {
+    state: StreamId,
+    vertex_params: StreamId,
+    xyprep_params: StreamId,
+    baryprep_params: StreamId,
+    vertices: StreamId,
+    corner_index: [StreamId; 2],
+    shaded: [StreamId; 2],
+    corners: StreamId,
+    clipped: StreamId,
+    attribs: StreamId,
+    det: StreamId,
+    window: StreamId,
+    interp: StreamId,
+    raster: StreamId,
+    rows: StreamId,
+    tickets: StreamId,
+    /// `xyrast`'s outputs.
+    addr: StreamId,
+    tri: StreamId,
+    edges: [StreamId; 3],
+    gathered: [StreamId; 2],
+    /// irast's outputs, then two recycle sets: z, colour, addr, prim.
+    zcap: [[StreamId; 4]; 3],
+    sorted: [StreamId; 3],
+    pixel: StreamId,
+    new_pixel: StreamId,
+    newaddr: StreamId,
+    conflict: StreamId,
+    conflicts: StreamId,
+    chunk: usize,
+}
+
+/// Words of the largest state and parameter lists of the scene's vertex programs.
+struct Sizes {
+    batch: usize,
+    state_words: usize,
+    params: usize,
+    vertex_words: usize,
+}
+
+fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), PlanError> {
+    let c = desc.cluster.count;
+    let b = s.batch;
+    let mut p = SrfPlanner::new(desc, &PHASES);
+    let always = Lifetime::Always;
+    let words = Layout::words();
+    // A chunk is whole rows of clusters and whole SRF blocks: its slices of the fragment
+    // streams start on block boundaries.
+    let gcd = |mut a: usize, mut b: usize| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let block = desc.srf.block_words.max(1);
+    let unit = c / gcd(c, block) * block;
+    let chunk = CHUNK.div_ceil(unit) * unit;
+    let groups = chunk.next_multiple_of(GROUP);
+    let streams = Streams {
+        state: p.stream("state", Layout::packed(1), s.state_words, always),
+        vertex_params: p.stream("vertex_params", words, s.params * c, always),
+        xyprep_params: p.stream("xyprep_params", words, 4 * c, always),
+        baryprep_params: p.stream("baryprep_params", words, c, always),
+        vertices: p.stream("vertices", Layout::records(s.vertex_words), 3 * b, always),
+        corner_index: p.buffers("corner_index", words, 3 * b, always),
+        shaded: p.buffers("shaded", Layout::records(SHADED_WORDS), 3 * b, always),
+        corners: p.stream("corners", Layout::records(SHADED_WORDS), 3 * b, live("assemble", "assemble")),
+        clipped: p.stream("clipped", Layout::records(CLIPPED_WORDS), b, live("assemble", "cull")),
+        attribs: p.stream("attribs", Layout::records(ATTRIB_WORDS), b, live("assemble", "baryprep")),
+        det: p.stream("det", words, b, live("cull", "baryprep")),
+        // Read by every tile's `xyprep`.
+        window: p.stream("window", Layout::records(WINDOW_WORDS), b, live("cull", "composite")),
+        // Stored to DRAM while the tiles start: live until that store has surely completed,
+        // so that `xyprep` and `xyrast` do not wait for it.
+        interp: p.stream("interp", Layout::records(INTERP_WORDS), b, live("baryprep", "xyrast")),
+        raster: p.stream("raster", Layout::records(RASTER_WORDS), b, live("xyprep", "xyrast")),
+        rows: p.stream("rows", words, 2 * c, live("xyprep", "xyprep")),
+        tickets: p.stream("tickets", words, TICKET_WORDS / c * c, live("xyrast", "xyrast")),
+        addr: p.elastic("addr", words, live("xyrast", "composite")),
+        tri: p.elastic("tri", words, live("xyrast", "composite")),
+        edges: ["e0", "e1", "e2"].map(|n| p.elastic(n, words, live("xyrast", "composite"))),
+        gathered: p.buffers("gathered", Layout::records(INTERP_WORDS), chunk, live("composite", "composite")),
+        zcap: [0, 1, 2].map(|set| {
+            ["z", "colour", "addr", "prim"]
+                .map(|n| p.stream(&format!("{n}[{set}]"), words, groups + c, live("composite", "composite")))
+        }),
+        sorted: ["key", "z_sorted", "prim_sorted"].map(|n| p.stream(n, words, groups, live("composite", "composite"))),
+        // The framebuffer's gathers and scatters: a batch's last scatter is still running
+        // when the next batch is set up, so these words are not shared with anything.
+        pixel: p.stream("pixel", Layout::records(PIXEL_WORDS), chunk, always),
+        new_pixel: p.stream("new_pixel", Layout::records(PIXEL_WORDS), chunk, always),
+        newaddr: p.stream("newaddr", words, chunk, always),
+        // `hash`'s flags and the rows of zeros after them.
+        conflict: p.stream("conflict", words, chunk + GROUP, live("composite", "composite")),
+        conflicts: p.stream("conflicts", words, c, live("composite", "composite")),
+        chunk,
+    };
+    let plan = p.place()?;
+    if plan.capacity(streams.addr) < 4 * c {
+        return Err(PlanError(format!(
+            "machine `{}`: the SRF ({} words) leaves no room for fragments",
+            desc.name, desc.srf.words
+        )));
+    }
+    Ok((plan, streams))
+}
+
+/// The streams of the host phases (load, clear, read-back), placed before the frame's.
+struct PhaseStreams {
+    staging: StreamId,
+    clear_tickets: StreamId,
+    clear_pixels: StreamId,
+    clear_params: StreamId,
+}
+
+fn plan_phases(desc: &MachineDesc) -> Result<(SrfPlan, PhaseStreams), PlanError> {
+    let c = desc.cluster.count;
+    let mut p = SrfPlanner::new(desc, &["load", "clear", "readback"]);
+    let pixels = CLEAR_PIXELS.div_ceil(c) * c;
+    let staging_words = STAGING_WORDS.min(desc.srf.words / 4);
+    let s = PhaseStreams {
+        staging: p.stream("staging", Layout::packed(1), staging_words, live("load", "readback")),
+        clear_tickets: p.stream("clear_tickets", Layout::words(), pixels, live("clear", "clear")),
+        clear_pixels: p.stream("clear_pixels", Layout::records(PIXEL_WORDS), pixels, live("clear", "clear")),
+        clear_params: p.stream("clear_params", Layout::words(), 2 * c, live("clear", "clear")),
+    };
+    Ok((p.place()?, s))
+}
+
+/// The kernels a frame may call.
+struct Kernels {
+    /// Per object: its `perbegin` and vertex program.
+    per_object: Vec<(KernelId, KernelId)>,
+    assemble_clip: KernelId,
+    viewport_cull: KernelId,
+    baryprep: KernelId,
+    xyprep: KernelId,
+    xyrast: KernelId,
+    irast: KernelId,
+    hash: KernelId,
+    zcompare: KernelId,
+    recycle_zc: KernelId,
+    recycle_ap: KernelId,
+    clear: KernelId,
+    /// `sort32` and `mergefrag`, when the depth test allows merging.
+    merge: Option<(KernelId, KernelId)>,
+}
+
+fn register_kernels(
+    lib: &mut KernelLibrary,
+    desc: &MachineDesc,
+    shape: FrameShape,
+    programs: &[VertexProgram],
+    options: RenderOptions,
+) -> Kernels {
+    let mut per_program: Vec<(VertexProgram, (KernelId, KernelId))> = Vec::new();
+    let per_object = programs
+        .iter()
+        .map(|vp| {
+            if let Some((_, ids)) = per_program.iter().find(|(p, _)| p == vp) {
+                return *ids;
+            }
+            let name = vp.name();
+            let ids = (
+                lib.register(&format!("perbegin:{name}"), vp.perbegin(desc)),
+                lib.register(&name, vp.build(desc)),
+            );
+            per_program.push((vp.clone(), ids));
+            ids
+        })
+        .collect();
+    let merge = (shape.depth_test == DepthTest::Less && options.merge_min_conflicts.is_some()).then(|| {
+        (
+            lib.register("sort32", mergefrag::sort32(desc, shape)),
+            lib.register("mergefrag", mergefrag::mergefrag(desc, shape)),
+        )
+    });
+    Kernels {
+        per_object,
+        assemble_clip: lib.register("assemble_clip", kernels::assemble_clip(desc)),
+        viewport_cull: lib.register("viewport_cull", kernels::viewport_cull(desc, shape)),
+        baryprep: lib.register("baryprep", kernels::baryprep(desc)),
+        xyprep: lib.register("xyprep", kernels::xyprep(desc, shape)),
+        xyrast: lib.register("xyrast", kernels::xyrast(desc, shape)),
+        irast: lib.register("irast", kernels::irast(desc)),
+        hash: lib.register("hash", kernels::hash(desc, shape)),
+        zcompare: lib.register("zcompare", kernels::zcompare(desc, shape)),
+        recycle_zc: lib.register("compact_recycle:z,colour", kernels::compact_recycle(desc, [NULL_DEPTH, 0])),
+        recycle_ap: lib.register("compact_recycle:addr,prim", kernels::compact_recycle(desc, [shape.trash(), 0])),
+        clear: lib.register("clear", kernels::clear(desc)),
+        merge,
+    }
+}
+
+/// One batch's work: triangles of one object.
+#[derive(Clone, Debug)]
+struct Batch {
+    object: usize,
+    /// Whether it is the object's first batch (its `perbegin` runs first).
+    first_of_object: bool,
+    /// The primitive number of its first triangle (numbers run over the whole scene).
+    first_prim: usize,
+    triangles: usize,
+    /// Vertex records to load (a multiple of the cluster count), from record `vertex_at`.
+    vertices: usize,
+    vertex_at: u64,
+    /// Corner indices at word `index_at` (shared meshes; 3 per triangle of the batch).
+    index_at: Option<u64>,
+}
+
+/// The scene's inputs as the host lays them out in DRAM.
+struct Inputs {
+    batches: Vec<Batch>,
+    vertex_words: Vec<u32>,
+    index_words: Vec<u32>,
+    /// Per object: its state words, and where they go.
+    states: Vec<(Vec<u32>, u64)>,
+    shaded_vertices: u64,
+}
+
+/// Cuts every object into batches of `batch` triangles (the last padded with degenerate
+/// triangles) and lays out their inputs: vertex records in the order each batch loads
+/// them; for shared meshes, each batch's vertices once (in order of first use) and its
+/// corners as indices into them.
+fn inputs(scene: &Scene, programs: &[VertexProgram], batch: usize, clusters: usize) -> Inputs {
+    let mut out = Inputs {
+        batches: Vec::new(),
+        vertex_words: Vec::new(),
+        index_words: Vec::new(),
+        states: Vec::new(),
+        shaded_vertices: 0,
+    };
+    let mut prim = 0;
+    let mut state_at = 0u64;
+    for (o, object) in scene.objects.iter().enumerate() {
+        let vp = &programs[o];
+        let words = vp.state_words(scene, object, clusters);
+        let len = words.len() as u64;
+        out.states.push((words, state_at));
+        state_at += len;
+        let tris = &object.mesh.triangles;
+        for (k, chunk) in tris.chunks(batch).enumerate() {
+            let vertex_at = (out.vertex_words.len() / vp.record_words()) as u64;
+            let mut local: Vec<u32> = Vec::new();
+            let mut corners: Vec<u32> = Vec::new();
+            if object.mesh.separate {
+                for t in chunk {
+                    local.extend(t);
+                }
+                // Degenerate padding: the batch's first vertex three times.
+                local.resize(3 * batch, chunk[0][0]);
+            } else {
+                let mut slot = std::collections::HashMap::new();
+                for &v in chunk.iter().flatten() {
+                    let next = local.len() as u32;
+                    let s = *slot.entry(v).or_insert_with(|| {
+                        local.push(v);
+                        next
+                    });
+                    corners.push(s);
+                }
+                corners.resize(3 * batch, 0);
+                out.shaded_vertices += local.len() as u64;
+                let padded = local.len().div_ceil(clusters) * clusters;
+                local.resize(padded, local[0]);
+            }
+            if object.mesh.separate {
+                out.shaded_vertices += 3 * chunk.len() as u64;
+            }
+            for &v in &local {
+                vp.vertex_words(object, v as usize, &mut out.vertex_words);
+            }
+            let index_at = (!object.mesh.separate).then(|| {
+                let at = out.index_words.len() as u64;
+                out.index_words.extend(&corners);
+                at
+            });
+            out.batches.push(Batch {
+                object: o,
+                first_of_object: k == 0,
+                first_prim: prim,
+                triangles: chunk.len(),
+                vertices: local.len(),
+                vertex_at,
+                index_at,
+            });
+            prim += batch;
+        }
+    }
+    out
+}
+
+/// Reasons the pipeline cannot draw `scene` yet.
+fn check_supported(scene: &Scene) -> Result<(), RenderError> {
+    let bad = |m: String| Err(RenderError(format!("scene `{}`: {m}", scene.name)));
+    if scene.pipeline.kind != PipelineKind::OpenGl {
+        return bad("the Reyes pipeline is not built yet; use kind = \"opengl\"".into());
+    }
+    if scene.pipeline.blend != Blend::None {
+        return bad("blending is not supported yet (pipeline.blend must be \"none\")".into());
+    }
+    if let Some(m) = scene.materials.iter().find(|m| !m.textures.is_empty()) {
+        return bad(format!("material `{}` has textures, which are not supported yet", m.name));
+    }
+    if scene.width == 0 || scene.height == 0 || scene.width > MAX_WINDOW || scene.height > MAX_WINDOW {
+        return bad(format!(
+            "window {}x{} is outside 1..={MAX_WINDOW} pixels per side",
+            scene.width, scene.height
+        ));
+    }
+    Ok(())
 }
 
 /// Renders `scene` on a processor built from `desc`; `progress(done, total)` is called
@@ -1000,9 +481,16 @@ pub fn render_with(
     on_start: Option<imagine_units::runner::OnStart>,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Frame, RenderError> {
-    scene.validate().map_err(|e| RenderError(e.to_string()))?;
+    check_supported(scene)?;
     let host_start = Instant::now();
     let clusters = desc.cluster.count;
+    let general = !options.specialise;
+    let programs: Vec<VertexProgram> = scene
+        .objects
+        .iter()
+        .map(|o| VertexProgram::for_object(scene, o, general))
+        .collect::<Result<_, _>>()
+        .map_err(|e| RenderError(format!("scene `{}`: {e}", scene.name)))?;
     let rows = kernels::xyrast_rows(desc);
     if rows == 0 {
         return Err(RenderError(format!(
@@ -1010,109 +498,175 @@ pub fn render_with(
             desc.name
         )));
     }
-    let batch = batch_size(scene.triangles(), clusters, rows);
+    // Strip-mining: the largest batch up to 64 triangles (whole rows of clusters, at most
+    // `rows` per cluster for `xyrast`'s scratchpad, no more than the largest object needs)
+    // whose streams fit the SRF.
+    let most = scene.objects.iter().map(|o| o.mesh.triangles.len()).max().unwrap_or(0);
+    let want = 64usize.max(clusters).div_ceil(clusters) * clusters;
+    let top = want.min(most.div_ceil(clusters) * clusters).min(rows * clusters).max(clusters);
+    let candidates = (1..=top / clusters).rev().map(|r| r * clusters);
+    let state_words = programs
+        .iter()
+        .zip(&scene.objects)
+        .map(|(p, o)| p.state_words(scene, o, clusters).len())
+        .max()
+        .unwrap_or(clusters);
+    let params = programs.iter().map(|p| p.param_count()).max().unwrap_or(0).max(1);
+    let vertex_words = programs.iter().map(VertexProgram::record_words).max().unwrap_or(3);
+    let sizes_for = |batch| Sizes {
+        batch,
+        state_words,
+        params,
+        vertex_words,
+    };
+    let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
+    let (phase_plan, ps) = plan_phases(desc)?;
     let shape = FrameShape {
         width: scene.width,
         height: scene.height,
         clusters,
-        cull_back: scene.cull_back,
+        cull: scene.pipeline.cull,
+        depth_test: scene.pipeline.depth_test,
         batch,
     };
-    let k = compile_all(scene, desc, shape)?;
-    let state = state_words(scene, clusters);
-    let params = k.compiled[k.vertex].0.params.len();
-    let regions = plan(desc, batch, state.len(), params)?;
-    let verts = vertex_words(scene, batch);
+    let mut lib = KernelLibrary::new(desc);
+    let k = register_kernels(&mut lib, desc, shape, &programs, options);
+    // Compile what every frame reaches now, on the host's cores; the merge stage when a
+    // round first needs it (or now, for the general pipeline).
+    let mut eager: Vec<KernelId> = k.per_object.iter().flat_map(|&(a, b)| [a, b]).collect();
+    eager.extend([
+        k.clear,
+        k.assemble_clip,
+        k.viewport_cull,
+        k.baryprep,
+        k.xyprep,
+        k.xyrast,
+        k.irast,
+        k.hash,
+        k.zcompare,
+        k.recycle_zc,
+        k.recycle_ap,
+    ]);
+    if general && let Some((a, b)) = k.merge {
+        eager.extend([a, b]);
+    }
+    lib.compile_now(&eager)
+        .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))?;
+
+    let input = inputs(scene, &programs, batch, clusters);
     let pixels = (scene.width * scene.height) as usize + 1;
-    let mut fb = Vec::with_capacity(pixels * PIXEL_WORDS);
-    for _ in 0..pixels {
-        fb.extend([0xFF00_0000, 1.0f32.to_bits(), 0]);
-    }
-    let align = |x: u64| x.div_ceil(1024) * 1024;
-    let interp = align(verts.len() as u64);
-    let state_at = align(interp + (batch * INTERP_WORDS) as u64);
-    let memory = Memory {
-        vertices: 0,
-        state: state_at,
-        interp,
-        interp_records: batch as u64,
-        framebuffer: align(state_at + state.len() as u64),
-        pixels: pixels as u64,
-    };
-    let capacity_words = imagine_units::dram::DramParams::of(desc).capacity_bytes() / 4;
-    if memory.framebuffer + fb.len() as u64 > capacity_words {
-        return Err(RenderError(format!(
-            "the scene needs {} words of DRAM; machine `{}` has {capacity_words}",
-            memory.framebuffer + fb.len() as u64,
-            desc.name
-        )));
-    }
-    let program = StreamProgram {
-        kernels: k.compiled.iter().map(|(_, c)| c.program.clone()).collect(),
-        instrs: (0..k.compiled.len())
-            .map(|p| StreamInstr::LoadMicrocode { program: p })
-            .collect(),
-    };
-    let state_len = state.len();
-    let opts = ProcessorOptions {
-        dram_init: vec![
-            (memory.vertices, verts),
-            (memory.state, state),
-            (memory.framebuffer, fb),
+    let mut dram = DramMap::new(desc);
+    let fb_pixels = pixels.div_ceil(clusters) * clusters;
+    let m = Memory {
+        vertices: dram.buffer("vertices", input.vertex_words.len() as u64)?,
+        indices: dram.buffer("corner_indices", input.index_words.len() as u64)?,
+        state: dram.buffer("state", input.states.iter().map(|(w, _)| w.len() as u64).sum())?,
+        shaded: [
+            dram.buffer("shaded[0]", (3 * batch * SHADED_WORDS) as u64)?,
+            dram.buffer("shaded[1]", (3 * batch * SHADED_WORDS) as u64)?,
         ],
-        on_start,
-        ..ProcessorOptions::default()
+        interp: dram.buffer("interp", (batch * INTERP_WORDS) as u64)?,
+        framebuffer: dram.buffer("framebuffer", (fb_pixels * PIXEL_WORDS) as u64)?,
+        pixels: pixels as u64,
+        interp_records: batch as u64,
     };
-    let sim = processor::build(desc, program, opts).map_err(|e| RenderError(e.to_string()))?;
-    let triangles = scene.triangles();
-    let mut host = Host {
-        sim,
-        k,
-        r: regions,
-        m: memory,
-        clusters,
-        pending_vertex: None,
-        merge_min_conflicts: options.merge_min_conflicts,
-        stats: FrameStats {
-            scene: scene.name.clone(),
-            machine: desc.name.clone(),
-            width: scene.width,
-            height: scene.height,
-            triangles: triangles as u64,
-            vertices: 3 * triangles as u64,
-            batch_triangles: batch,
-            ..FrameStats::default()
-        },
+    let mut host = StreamHost::new(desc, lib, dram, on_start, MAX_RUN_CYCLES)?;
+    let mut stats = FrameStats {
+        scene: scene.name.clone(),
+        machine: desc.name.clone(),
+        width: scene.width,
+        height: scene.height,
+        triangles: scene.triangles() as u64,
+        vertices: input.shaded_vertices,
+        batch_triangles: batch,
+        srf_plan: plan.rows(),
+        srf_peak_words: plan.peak_words(),
+        ..FrameStats::default()
     };
-    host.begin(state_len);
-    let batches = triangles.div_ceil(batch);
-    // Two batches in flight: batch b+1's vertices are loaded while batch b is set up and
-    // shaded while its first fragments are composited.
-    host.load_batch(0, batch, 0);
-    host.shade_pending();
-    for b in 0..batches {
-        let set = b % 2;
-        if b + 1 < batches {
-            host.load_batch((b + 1) * batch, batch, 1 - set);
-        }
-        host.batch(b * batch, batch, set, scene.width, scene.height)?;
-        host.shade_pending();
-        host.stats.batches += 1;
-        progress(b + 1, batches);
+
+    // Load: the scene's inputs into DRAM over the host interface.
+    let sim_start = Instant::now();
+    let compiled_before = host.kernels.compile_seconds();
+    let staging = phase_plan.whole(ps.staging);
+    host.upload(&input.vertex_words, m.vertices, 0, staging);
+    host.upload(&input.index_words, m.indices, 0, staging);
+    for (words, at) in &input.states {
+        host.upload(words, m.state, *at, staging);
     }
     host.drain()?;
-    host.sim
-        .finish()
-        .map_err(|e| RenderError(format!("cannot finish the waveform: {e}")))?;
-    let fb_words = processor::read_dram(
-        &host.sim,
-        desc,
-        host.m.framebuffer,
-        (pixels - 1) * PIXEL_WORDS,
-    );
-    let pixels_out: Vec<u32> = fb_words.chunks(PIXEL_WORDS).map(|p| p[0]).collect();
-    let mut stats = host.stats;
-    finish_stats(&mut stats, &host.sim, desc, &host.k, host_start);
+    let loaded = host.cycles();
+
+    // Clear: the machine writes the clear pixel and stores it over the framebuffer.
+    let background = pack_rgb(scene.background);
+    host.write_params(phase_plan.whole(ps.clear_params), &[background, 1.0f32.to_bits()]);
+    let clear_rows = phase_plan.capacity(ps.clear_pixels);
+    host.call(
+        k.clear,
+        &[
+            ("tickets", phase_plan.first(ps.clear_tickets, clear_rows)),
+            ("pixels", phase_plan.first(ps.clear_pixels, clear_rows)),
+            (PARAMS, phase_plan.whole(ps.clear_params)),
+        ],
+    )?;
+    let mut at = 0;
+    while at < fb_pixels {
+        let n = clear_rows.min(fb_pixels - at);
+        host.store(phase_plan.first(ps.clear_pixels, n), Layout::records(PIXEL_WORDS), n, m.framebuffer, at as u64);
+        at += n;
+    }
+    host.drain()?;
+    let cleared = host.cycles();
+
+    // The frame.
+    let mut frame = FrameRun {
+        k: &k,
+        plan: &plan,
+        s: &s,
+        m: &m,
+        input: &input,
+        scene,
+        merge_min_conflicts: options.merge_min_conflicts,
+        stats: &mut stats,
+        batch,
+        last_cycles: cleared,
+        max_fragment_words: 0,
+        programs: &programs,
+    };
+    let batches = input.batches.len();
+    let mut run = (&mut host, &mut frame);
+    pipelined(
+        &mut run,
+        batches,
+        |(h, f), b| f.prefetch(h, b),
+        |(h, f), b| f.batch(h, b),
+        |(h, f), b| {
+            f.finish_batch(h);
+            progress(b + 1, batches);
+        },
+    )?;
+    host.drain()?;
+    let rendered = host.cycles();
+
+    // Read-back: the colour words of the framebuffer.
+    let pixels_out = host.download(m.framebuffer, 0, PIXEL_WORDS as u64, pixels - 1, staging)?;
+    host.drain()?;
+    let read = host.cycles();
+    host.finish()?;
+    let simulate_seconds = sim_start.elapsed().as_secs_f64();
+
+    stats.phases = Phases {
+        load_cycles: loaded,
+        clear_cycles: cleared - loaded,
+        frame_plus_clear_cycles: rendered - loaded,
+        readback_cycles: read - rendered,
+    };
+    stats.cycles = rendered - cleared;
+    finish_stats(&mut stats, &host, desc, &k, &programs, general);
+    stats.compile_seconds = host.kernels.compile_seconds();
+    // Kernels first reached during the run were compiled inside it.
+    stats.simulate_seconds = simulate_seconds - (stats.compile_seconds - compiled_before);
+    stats.host_seconds = host_start.elapsed().as_secs_f64();
+    stats.simulated_cycles_per_second = read as f64 / stats.simulate_seconds.max(1e-9);
     Ok(Frame {
         width: scene.width,
         height: scene.height,
@@ -1121,72 +675,501 @@ pub fn render_with(
     })
 }
 
-fn finish_stats(s: &mut FrameStats, sim: &Sim, desc: &MachineDesc, k: &Kernels, start: Instant) {
+/// `[r, g, b]` in [0, 1] as an opaque RGBA8 word (red in the low byte), rounded.
+pub fn pack_rgb(c: [f32; 3]) -> u32 {
+    let byte = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u32;
+    byte(c[0]) | byte(c[1]) << 8 | byte(c[2]) << 16 | 0xFF00_0000
+}
+
+/// DRAM buffers of the frame.
+struct Memory {
+    vertices: Buffer,
+    indices: Buffer,
+    state: Buffer,
+    /// Shaded vertices of shared meshes, two sets, gathered back by corner.
+    shaded: [Buffer; 2],
+    interp: Buffer,
+    framebuffer: Buffer,
+    /// Window pixels and the trash pixel: the bound of gathers and scatters by pixel.
+    pixels: u64,
+    /// A batch's interpolation records: the bound of gathers by triangle.
+    interp_records: u64,
+}
+
+/// A frame in progress.
+struct FrameRun<'a> {
+    k: &'a Kernels,
+    plan: &'a SrfPlan,
+    s: &'a Streams,
+    m: &'a Memory,
+    input: &'a Inputs,
+    scene: &'a Scene,
+    programs: &'a [VertexProgram],
+    merge_min_conflicts: Option<usize>,
+    stats: &'a mut FrameStats,
+    batch: usize,
+    last_cycles: u64,
+    /// The most SRF words fragments held in this batch's passes.
+    max_fragment_words: usize,
+}
+
+impl FrameRun<'_> {
+    fn object(&self, b: usize) -> &Object {
+        &self.scene.objects[self.input.batches[b].object]
+    }
+
+    /// Queues batch `b`'s loads, and defers its `perbegin` (first batch of an object) and
+    /// vertex program to where the host next waits.
+    fn prefetch(&mut self, h: &mut StreamHost, b: usize) -> Result<(), RenderError> {
+        // Work deferred for the previous batch goes first: it reads the streams these
+        // loads overwrite.
+        h.flush_deferred()?;
+        h.set_batch(Some(b));
+        let (p, s, m) = (self.plan, self.s, self.m);
+        let bt = self.input.batches[b].clone();
+        let vp = &self.programs[bt.object];
+        let (perbegin, vertex) = self.k.per_object[bt.object];
+        let params = p.words(s.vertex_params, h.kernels.kernel(vertex).params.len() * h.clusters());
+        let vertices = p.words(s.vertices, bt.vertices * vp.record_words());
+        if bt.first_of_object {
+            let (words, at) = &self.input.states[bt.object];
+            let state = p.words(s.state, words.len());
+            h.load(m.state, *at, Layout::words(), words.len(), state);
+            h.defer(perbegin, &[("state", state), ("params", params)]);
+        }
+        let layout = Layout::records(vp.record_words());
+        h.load(m.vertices, bt.vertex_at, layout, bt.vertices, vertices);
+        if let Some(at) = bt.index_at {
+            let ci = p.first(s.corner_index[b % 2], 3 * self.batch);
+            h.load(m.indices, at, Layout::words(), 3 * self.batch, ci);
+        }
+        h.defer(
+            vertex,
+            &[
+                ("vertices", vertices),
+                ("shaded", p.first(s.shaded[b % 2], bt.vertices)),
+                (PARAMS, params),
+            ],
+        );
+        h.set_batch(None);
+        Ok(())
+    }
+
+    /// Sets up, rasterizes and composites batch `b`.
+    fn batch(&mut self, h: &mut StreamHost, b: usize) -> Result<(), RenderError> {
+        // This batch's vertex program, if it is still deferred (the next batch's stays).
+        h.flush_deferred_through(b)?;
+        h.set_batch(Some(b));
+        let (p, s, m) = (self.plan, self.s, self.m);
+        let bt = self.input.batches[b].clone();
+        let tris = self.batch;
+        let set = b % 2;
+        let corners = match bt.index_at {
+            None => p.first(s.shaded[set], 3 * tris),
+            Some(_) => {
+                // Shared vertices: shaded once, then gathered three per triangle.
+                let shaded = Layout::records(SHADED_WORDS);
+                h.store(p.first(s.shaded[set], bt.vertices), shaded, bt.vertices, m.shaded[set], 0);
+                let index = p.first(s.corner_index[set], 3 * tris);
+                let to = p.first(s.corners, 3 * tris);
+                h.gather(m.shaded[set], index, bt.vertices as u64, shaded, 3 * tris, to);
+                to
+            }
+        };
+        let (clipped, attribs) = (p.first(s.clipped, tris), p.first(s.attribs, tris));
+        let (window, det) = (p.first(s.window, tris), p.first(s.det, tris));
+        h.call(
+            self.k.assemble_clip,
+            &[("shaded", corners), ("clipped", clipped), ("attribs", attribs)],
+        )?;
+        h.call(self.k.viewport_cull, &[("clipped", clipped), ("window", window), ("det", det)])?;
+        let bparams = p.whole(s.baryprep_params);
+        h.write_params(bparams, &[bt.first_prim as u32]);
+        let interp = p.first(s.interp, tris);
+        h.call(
+            self.k.baryprep,
+            &[("attribs", attribs), ("det", det), ("interp", interp), (PARAMS, bparams)],
+        )?;
+        h.store(interp, Layout::records(INTERP_WORDS), tris, m.interp, 0);
+        let (w, ht) = (self.scene.width as i32, self.scene.height as i32);
+        let splits = split_to_fit(
+            [0, 0, w - 1, ht - 1],
+            |tile| self.tile(h, *tile),
+            |&[x0, y0, x1, y1]| {
+                if x1 > x0 && x1 - x0 >= y1 - y0 {
+                    let mid = (x0 + x1) / 2;
+                    Some(([x0, y0, mid, y1], [mid + 1, y0, x1, y1]))
+                } else if y1 > y0 {
+                    let mid = (y0 + y1) / 2;
+                    Some(([x0, y0, x1, mid], [x0, mid + 1, x1, y1]))
+                } else {
+                    None
+                }
+            },
+            RenderError,
+        )?;
+        self.stats.spills += splits;
+        self.stats.batch_rows.push(BatchRow {
+            batch: b,
+            object: self.object(b).name.clone(),
+            triangles: bt.triangles,
+            vertices: bt.vertices,
+            spills: splits,
+            ..BatchRow::default()
+        });
+        h.set_batch(None);
+        Ok(())
+    }
+
+    /// Bounding boxes of scissor tile `tile`, then rasterization and composite, unless the
+    /// tile's fragments would overflow their streams.
+    fn tile(&mut self, h: &mut StreamHost, tile: [i32; 4]) -> Result<Fit, RenderError> {
+        let (p, s) = (self.plan, self.s);
+        let c = h.clusters();
+        let tris = self.batch;
+        let xparams = p.whole(s.xyprep_params);
+        h.write_params(xparams, &tile.map(|v| v as u32));
+        let rows_stream = p.whole(s.rows);
+        h.call(
+            self.k.xyprep,
+            &[
+                ("window", p.first(s.window, tris)),
+                ("raster", p.first(s.raster, tris)),
+                ("rows", rows_stream),
+                (PARAMS, xparams),
+            ],
+        )?;
+        let counts = h.read_back(rows_stream)?;
+        let rows = counts[0] as usize;
+        // Each candidate pixel gives at most one fragment; then a row of nulls.
+        let candidates: usize = counts[c..].iter().map(|&n| n as usize).sum();
+        let capacity = p.capacity(s.addr);
+        if candidates + c > capacity || rows * c > p.capacity(s.tickets) {
+            return Ok(Fit::Overflow(format!(
+                "a one-pixel tile needs {rows} rasterizer iterations and {candidates} fragments; \
+                 the SRF holds {} iterations and {capacity} fragments",
+                p.capacity(s.tickets) / c
+            )));
+        }
+        self.rasterize(h, rows, candidates + c)?;
+        Ok(Fit::Done)
+    }
+
+    fn rasterize(&mut self, h: &mut StreamHost, rows: usize, bound: usize) -> Result<(), RenderError> {
+        let (p, s) = (self.plan, self.s);
+        let c = h.clusters();
+        let cap = p.capacity(s.addr);
+        let frags = |id| p.first(id, cap);
+        let call = h.call(
+            self.k.xyrast,
+            &[
+                ("raster", p.first(s.raster, self.batch)),
+                ("tickets", p.first(s.tickets, rows * c)),
+                ("addr", frags(s.addr)),
+                ("tri", frags(s.tri)),
+                ("e0", frags(s.edges[0])),
+                ("e1", frags(s.edges[1])),
+                ("e2", frags(s.edges[2])),
+            ],
+        )?;
+        h.wait(call)?;
+        // The real fragments, then the row of nulls.
+        let real = h.written(call, "addr")? - c;
+        debug_assert!(real + c <= bound);
+        self.max_fragment_words = self.max_fragment_words.max(5 * (real + c));
+        // Whole rows: every real fragment and the nulls that fill its last row; the rest
+        // of the nulls are not composited.
+        let total = real.div_ceil(c) * c;
+        self.stats.fragments += real as u64;
+        let chunk = s.chunk;
+        let chunks: Vec<(usize, usize)> = (0..total)
+            .step_by(chunk)
+            .map(|start| (start, chunk.min(total - start)))
+            .collect();
+        if let Some(&(start, len)) = chunks.first() {
+            self.gather_interp(h, start, len, 0);
+        }
+        for (i, &(start, len)) in chunks.iter().enumerate() {
+            // The next chunk's records are gathered while this one is composited.
+            if let Some(&(next, next_len)) = chunks.get(i + 1) {
+                self.gather_interp(h, next, next_len, (i + 1) % 2);
+            }
+            self.fragments(h, start, len, i % 2)?;
+        }
+        Ok(())
+    }
+
+    /// Queues the gather of the interpolation records of fragments `start..start + len`
+    /// (by triangle index) into buffer `buffer`.
+    fn gather_interp(&self, h: &mut StreamHost, start: usize, len: usize, buffer: usize) {
+        let (p, s, m) = (self.plan, self.s, self.m);
+        let tri = p.slice(s.tri, start, len);
+        let to = p.first(s.gathered[buffer], len);
+        h.gather(m.interp, tri, m.interp_records, Layout::records(INTERP_WORDS), len, to);
+    }
+
+    /// Interpolates and composites fragments `start..start + len` of the xyrast output,
+    /// their interpolation records gathered into buffer `buffer`.
+    fn fragments(&mut self, h: &mut StreamHost, start: usize, len: usize, buffer: usize) -> Result<(), RenderError> {
+        let (p, s, m) = (self.plan, self.s, self.m);
+        let c = h.clusters();
+        let edge = |i: usize| p.slice(s.edges[i], start, len);
+        let [z, colour, _, prim] = s.zcap[0];
+        h.call(
+            self.k.irast,
+            &[
+                ("e0", edge(0)),
+                ("e1", edge(1)),
+                ("e2", edge(2)),
+                ("interp", p.first(s.gathered[buffer], len)),
+                ("z", p.first(z, len)),
+                ("colour", p.first(colour, len)),
+                ("prim", p.first(prim, len)),
+            ],
+        )?;
+        // The current round's streams: (stream, first record).
+        let mut current = [(z, 0), (colour, 0), (s.addr, start), (prim, 0)];
+        let mut len = len;
+        let mut set = 1;
+        // Whether a merge of this chunk dropped fragments, or dropped none.
+        let mut stacked = false;
+        let mut fruitless = false;
+        let by_pixel = Layout::records(PIXEL_WORDS);
+        loop {
+            self.stats.composite_rounds += 1;
+            let view = |(id, first): (StreamId, usize), n: usize| p.slice(id, first, n);
+            let [zs, cs, addr, ps] = current;
+            let pixel = p.first(s.pixel, len);
+            // The pixels are gathered while `hash` looks for conflicts.
+            h.gather(m.framebuffer, view(addr, len), m.pixels, by_pixel, len, pixel);
+            let conflict = p.first(s.conflict, len + GROUP);
+            let conflicts = p.whole(s.conflicts);
+            h.call(
+                self.k.hash,
+                &[("addr", view(addr, len)), ("conflict", conflict), ("count", conflicts)],
+            )?;
+            let (new_pixel, newaddr) = (p.first(s.new_pixel, len), p.first(s.newaddr, len));
+            h.call(
+                self.k.zcompare,
+                &[
+                    ("z", view(zs, len)),
+                    ("colour", view(cs, len)),
+                    ("addr", view(addr, len)),
+                    ("prim", view(ps, len)),
+                    ("pixel", pixel),
+                    ("conflict", p.first(s.conflict, len)),
+                    ("new_pixel", new_pixel),
+                    ("newaddr", newaddr),
+                ],
+            )?;
+            h.scatter(new_pixel, newaddr, m.pixels, by_pixel, len, m.framebuffer);
+            // The zcompare and the scatter are queued; the host needs only the count.
+            let held = h.read_back(p.first(s.conflicts, 1))?[0] as usize;
+            if held == 0 {
+                return Ok(());
+            }
+            let next = s.zcap[set];
+            let cap = s.chunk.next_multiple_of(GROUP) + c;
+            let out = |i: usize| p.first(next[i], cap);
+            // Merge on many conflicts, and after a merge of this chunk that found a pixel's
+            // fragments together, on any that could merge; not again after a merge of this
+            // chunk that dropped nothing.
+            let merge = self.k.merge.filter(|_| {
+                !fruitless && self.merge_min_conflicts.is_some_and(|m| held >= m || (stacked && held >= 2))
+            });
+            if let Some((sort32, mergefrag)) = merge {
+                // Sort the conflicting fragments by address in groups of 32 and keep one
+                // per address: whole groups, `hash`'s rows of zeros after its flags.
+                self.stats.merge_rounds += 1;
+                let groups = len.next_multiple_of(GROUP);
+                let sorted = s.sorted.map(|id| p.first(id, groups));
+                h.call(
+                    sort32,
+                    &[
+                        ("conflict", p.first(s.conflict, groups)),
+                        ("addr", view(addr, groups)),
+                        ("z", view(zs, groups)),
+                        ("prim", view(ps, groups)),
+                        ("key", sorted[0]),
+                        ("z_sorted", sorted[1]),
+                        ("prim_sorted", sorted[2]),
+                    ],
+                )?;
+                let merged = h.call(
+                    mergefrag,
+                    &[
+                        ("key", sorted[0]),
+                        ("z_sorted", sorted[1]),
+                        ("prim_sorted", sorted[2]),
+                        ("colour", view(cs, groups)),
+                        ("z", out(0)),
+                        ("colour_kept", out(1)),
+                        ("addr", out(2)),
+                        ("prim_kept", out(3)),
+                    ],
+                )?;
+                // The next round needs the survivors' count.
+                h.wait(merged)?;
+                let written = h.written(merged, "z")?;
+                let dropped = held + c - written;
+                self.stats.merged_fragments += dropped as u64;
+                stacked |= dropped > 0;
+                fruitless = dropped == 0;
+                len = written / c * c;
+            } else {
+                h.call(
+                    self.k.recycle_zc,
+                    &[
+                        ("conflict", p.first(s.conflict, len)),
+                        ("a", view(zs, len)),
+                        ("b", view(cs, len)),
+                        ("a_kept", out(0)),
+                        ("b_kept", out(1)),
+                    ],
+                )?;
+                h.call(
+                    self.k.recycle_ap,
+                    &[
+                        ("conflict", p.first(s.conflict, len)),
+                        ("a", view(addr, len)),
+                        ("b", view(ps, len)),
+                        ("a_kept", out(2)),
+                        ("b_kept", out(3)),
+                    ],
+                )?;
+                // The conflicting fragments, then `compact_recycle`'s row of nulls: whole
+                // rows.
+                len = (held + c) / c * c;
+            }
+            current = next.map(|id| (id, 0));
+            set = if set == 1 { 2 } else { 1 };
+        }
+    }
+
+    fn finish_batch(&mut self, h: &mut StreamHost) {
+        let now = h.cycles();
+        if let Some(row) = self.stats.batch_rows.last_mut() {
+            row.cycles = now.saturating_sub(self.last_cycles);
+            row.srf_words = self.plan.peak_words();
+            row.srf_fragment_words = self.max_fragment_words;
+        }
+        self.last_cycles = now;
+        self.max_fragment_words = 0;
+        self.stats.batches += 1;
+    }
+}
+
+fn finish_stats(
+    s: &mut FrameStats,
+    host: &StreamHost,
+    desc: &MachineDesc,
+    k: &Kernels,
+    programs: &[VertexProgram],
+    general: bool,
+) {
+    let sim = host.sim();
     let p = processor::processor(sim);
-    let cycles = sim.core_cycles();
+    let cycles = s.cycles.max(1);
     let mhz = desc.clocks.core_mhz as f64;
     let seconds = cycles as f64 / (mhz * 1e6);
     s.core_mhz = mhz;
-    s.cycles = cycles;
     s.frames_per_second = 1.0 / seconds.max(1e-12);
     s.vertices_per_second = s.vertices as f64 / seconds.max(1e-12);
     s.fragments_per_second = s.fragments as f64 / seconds.max(1e-12);
-    let mut shares: Vec<KernelShare> = k
-        .compiled
-        .iter()
-        .map(|(kernel, _)| KernelShare {
-            kernel: kernel.name.clone(),
-            ..KernelShare::default()
-        })
-        .collect();
-    let mut busy = 0;
-    let mut stalls = 0;
-    let mut ops = 0;
-    for r in p.controller().records() {
-        if let (StreamInstr::Kernel { program, .. }, Some(st)) = (&r.instr, &r.kernel_stats) {
-            let share = &mut shares[*program];
-            let st: &KernelStats = st;
-            share.calls += 1;
-            share.cycles += st.cycles;
-            share.stall_cycles += st.stall_cycles;
-            let o: u64 = st.fu_ops.iter().sum::<u64>() * desc.cluster.count as u64;
-            share.ops += o;
-            busy += st.cycles;
-            stalls += st.stall_cycles;
-            ops += o;
-        }
-    }
-    // The two recycle kernels share a name: merge them.
-    let mut merged: Vec<KernelShare> = Vec::new();
-    for sh in shares {
-        match merged.iter_mut().find(|m| m.kernel == sh.kernel) {
-            Some(m) => {
-                m.calls += sh.calls;
-                m.cycles += sh.cycles;
-                m.stall_cycles += sh.stall_cycles;
-                m.ops += sh.ops;
+    let names: Vec<String> = p.controller().programs().iter().map(|pr| pr.name.clone()).collect();
+    let mut shares: Vec<KernelShare> = Vec::new();
+    let (mut busy, mut stalls, mut ops) = (0, 0, 0);
+    let tags = host.batch_tags();
+    let mut dram_words = 0u64;
+    for (id, r) in p.controller().records().iter().enumerate() {
+        let batch = tags.get(id).copied().flatten();
+        match (&r.instr, &r.kernel_stats) {
+            (StreamInstr::Kernel { program, .. }, Some(st)) => {
+                let st: &KernelStats = st;
+                let name = &names[*program];
+                if name == "clear" {
+                    continue;
+                }
+                let o: u64 = st.fu_ops.iter().sum::<u64>() * desc.cluster.count as u64;
+                let share = match shares.iter_mut().find(|sh| &sh.kernel == name) {
+                    Some(sh) => sh,
+                    None => {
+                        shares.push(KernelShare {
+                            kernel: name.clone(),
+                            ..KernelShare::default()
+                        });
+                        shares.last_mut().expect("pushed")
+                    }
+                };
+                share.calls += 1;
+                share.cycles += st.cycles;
+                share.stall_cycles += st.stall_cycles;
+                share.ops += o;
+                busy += st.cycles;
+                stalls += st.stall_cycles;
+                ops += o;
+                if let Some(row) = batch.and_then(|b| s.batch_rows.iter_mut().find(|row| row.batch == b)) {
+                    row.kernel_cycles += st.cycles;
+                }
             }
-            None => merged.push(sh),
+            (StreamInstr::Memory(op), _) if batch.is_some() => {
+                dram_words += op.words() as u64;
+                if let Some(row) = s.batch_rows.iter_mut().find(|row| Some(row.batch) == batch) {
+                    row.dram_words += op.words() as u64;
+                }
+            }
+            _ => {}
         }
     }
-    s.kernels = merged;
-    s.ops_per_cycle = ops as f64 / cycles.max(1) as f64;
-    s.cluster_occupancy = busy as f64 / cycles.max(1) as f64;
-    s.cluster_occupancy_without_stalls = busy.saturating_sub(stalls) as f64 / cycles.max(1) as f64;
+    s.kernels = shares;
+    s.ops_per_cycle = ops as f64 / cycles as f64;
+    s.cluster_occupancy = busy as f64 / cycles as f64;
+    s.cluster_occupancy_without_stalls = busy.saturating_sub(stalls) as f64 / cycles as f64;
     let dram: ReplayReport = imagine_units::dram::replay::report_of(
         sim,
-        imagine_units::dram::Policy::parse(&desc.memory.policy)
-            .unwrap_or(imagine_units::dram::Policy::FirstReady),
+        imagine_units::dram::Policy::parse(&desc.memory.policy).unwrap_or(imagine_units::dram::Policy::FirstReady),
         &imagine_units::dram::DramParams::of(desc),
     );
-    s.dram_bytes = dram.bytes;
-    s.dram_gbs = dram.bytes as f64 / seconds.max(1e-12) / 1e9;
+    s.dram_bytes = 4 * dram_words;
+    s.dram_gbs = s.dram_bytes as f64 / seconds.max(1e-12) / 1e9;
     s.dram_row_hit_rate = dram.row_hit_rate;
     let srf = p.machine().srf().stats();
     s.srf_words_per_cycle = srf.words_per_cycle();
     let (lrf_read, lrf_written) = p.machine().lrf_words_moved();
-    s.lrf_reads_per_cycle = lrf_read as f64 / cycles.max(1) as f64;
-    s.lrf_writes_per_cycle = lrf_written as f64 / cycles.max(1) as f64;
-    s.host_seconds = start.elapsed().as_secs_f64();
-    s.simulated_cycles_per_second = cycles as f64 / s.host_seconds.max(1e-9);
+    s.lrf_reads_per_cycle = lrf_read as f64 / cycles as f64;
+    s.lrf_writes_per_cycle = lrf_written as f64 / cycles as f64;
+    // Table 5.1's counting: a vertex's input words (and its corner index, for meshes);
+    // a fragment's framebuffer words read and written.
+    let words_per_vertex = programs.iter().map(VertexProgram::record_words).max().unwrap_or(0);
+    s.bytes_per_vertex = 4.0 * words_per_vertex as f64;
+    s.bytes_per_fragment = (4 * 2 * PIXEL_WORDS) as f64;
+    let mut left_out = Vec::new();
+    if !general {
+        if programs.iter().all(|p| matches!(p, VertexProgram::Unlit { .. })) {
+            left_out.push("lighting".to_string());
+        } else if programs.iter().all(|p| matches!(p, VertexProgram::Lit { specular: false, .. } | VertexProgram::Unlit { .. })) {
+            left_out.push("specular lighting".to_string());
+        }
+        if programs.iter().any(|p| matches!(p, VertexProgram::Unlit { per_vertex_colour: false })) {
+            left_out.push("per-vertex colours (a constant colour instead)".to_string());
+        }
+    }
+    left_out.push("textures".into());
+    left_out.push("procedural noise".into());
+    left_out.push("blending".into());
+    if k.merge.is_none() {
+        left_out.push("merge of conflicting fragments (sort32, mergefrag)".into());
+    }
+    s.specialisation = Specialisation {
+        specialised: !general,
+        kernels_built: host.kernels.built().into_iter().map(String::from).collect(),
+        kernels_not_reached: host.kernels.not_built().into_iter().map(String::from).collect(),
+        left_out,
+        interpolants: programs
+            .first()
+            .map(|p| p.interpolants().into_iter().map(String::from).collect())
+            .unwrap_or_default(),
+        words_per_vertex,
+        words_per_fragment: 4,
+    };
 }

@@ -1,0 +1,163 @@
+//! What a frame reports (ARCHITECTURE §7): cycles by phase, rates, kernels, the memory
+//! system, the pipeline the scene was given and the SRF plan, per frame and per batch.
+
+use serde::Serialize;
+
+use crate::stream::srf::PlanRow;
+
+/// One kernel's share of the frame.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct KernelShare {
+    pub kernel: String,
+    pub calls: u64,
+    pub cycles: u64,
+    pub stall_cycles: u64,
+    pub ops: u64,
+}
+
+/// The pipeline built for the scene (ARCHITECTURE §8: leave out what a scene does not
+/// need).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Specialisation {
+    /// Whether the pipeline was specialised (`false`: `--no-specialize`).
+    pub specialised: bool,
+    /// Kernels compiled for the frame.
+    pub kernels_built: Vec<String>,
+    /// Kernels the pipeline could call but the frame never reached (not compiled).
+    pub kernels_not_reached: Vec<String>,
+    /// Features of the general pipeline this scene's pipeline leaves out.
+    pub left_out: Vec<String>,
+    /// Interpolated words per fragment, by name.
+    pub interpolants: Vec<String>,
+    /// Words a vertex record carries from memory (the largest over the scene's objects).
+    pub words_per_vertex: usize,
+    /// Words a fragment carries through the composite (z, colour, address, primitive).
+    pub words_per_fragment: usize,
+}
+
+/// Host-side phases, in core cycles (the frame itself is [`FrameStats::cycles`]).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Phases {
+    /// The scene's inputs (vertex records, indices, OpenGL state) written into DRAM over
+    /// the host interface. Not frame time (the thesis's inputs start in memory, §5.1).
+    pub load_cycles: u64,
+    /// The framebuffer cleared by the machine (`clear` kernel and stores).
+    pub clear_cycles: u64,
+    /// The frame plus the clear.
+    pub frame_plus_clear_cycles: u64,
+    /// The colour buffer read back to the host over the host interface.
+    pub readback_cycles: u64,
+}
+
+/// One batch (`--stats-csv`).
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct BatchRow {
+    pub batch: usize,
+    pub object: String,
+    pub triangles: usize,
+    /// Vertices shaded (each vertex of the batch once).
+    pub vertices: usize,
+    /// Core cycles from the end of the previous batch's body to the end of this one's.
+    pub cycles: u64,
+    /// Cycles of the kernels queued for this batch.
+    pub kernel_cycles: u64,
+    pub fragments: u64,
+    /// Scissor splits (spills) of this batch.
+    pub spills: u64,
+    pub composite_rounds: u64,
+    /// Words the batch's memory operations moved.
+    pub dram_words: u64,
+    /// SRF words the plan gives the batch's streams (all phases).
+    pub srf_words: usize,
+    /// SRF words holding fragments at the batch's largest rasterization pass.
+    pub srf_fragment_words: usize,
+}
+
+/// Statistics of a frame.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct FrameStats {
+    pub scene: String,
+    pub machine: String,
+    pub width: u32,
+    pub height: u32,
+    pub core_mhz: f64,
+    /// Core cycles of the frame: from the first vertex load to the last pixel written
+    /// (inputs in DRAM, framebuffer cleared).
+    pub cycles: u64,
+    pub frames_per_second: f64,
+    pub phases: Phases,
+    pub triangles: u64,
+    /// Vertices shaded (a shared vertex once per batch that uses it).
+    pub vertices: u64,
+    pub fragments: u64,
+    pub vertices_per_second: f64,
+    pub fragments_per_second: f64,
+    /// Input bytes per vertex and framebuffer bytes per fragment, counted as the thesis's
+    /// Table 5.1 counts them (vertex record and index words; depth, colour and primitive
+    /// words read and written).
+    pub bytes_per_vertex: f64,
+    pub bytes_per_fragment: f64,
+    /// Arithmetic ops per core cycle over the frame, all clusters.
+    pub ops_per_cycle: f64,
+    /// Share of the frame's cycles a kernel was running, and running without a stall.
+    pub cluster_occupancy: f64,
+    pub cluster_occupancy_without_stalls: f64,
+    pub kernels: Vec<KernelShare>,
+    pub specialisation: Specialisation,
+    pub batch_triangles: usize,
+    pub batches: u64,
+    /// Scissor splits made because a batch's fragments overflowed the SRF.
+    pub spills: u64,
+    pub composite_rounds: u64,
+    /// Composite rounds whose conflicting fragments were sorted and merged.
+    pub merge_rounds: u64,
+    /// Conflicting fragments `mergefrag` dropped.
+    pub merged_fragments: u64,
+    /// DRAM bytes the frame's memory operations moved, and per second of the frame.
+    pub dram_bytes: u64,
+    pub dram_gbs: f64,
+    /// Row hits over every DRAM access of the run (load and read-back included).
+    pub dram_row_hit_rate: f64,
+    pub srf_words_per_cycle: f64,
+    pub lrf_reads_per_cycle: f64,
+    pub lrf_writes_per_cycle: f64,
+    /// The SRF plan of a batch, and the most words it holds at once.
+    pub srf_plan: Vec<PlanRow>,
+    pub srf_peak_words: usize,
+    /// Host time: all of it, compiling, and simulating.
+    pub host_seconds: f64,
+    pub compile_seconds: f64,
+    pub simulate_seconds: f64,
+    /// Simulated core cycles (all phases) per second of simulation.
+    pub simulated_cycles_per_second: f64,
+    #[serde(skip)]
+    pub batch_rows: Vec<BatchRow>,
+}
+
+impl FrameStats {
+    /// The per-batch rows as CSV.
+    pub fn batches_csv(&self) -> String {
+        let mut out = String::from(
+            "batch,object,triangles,vertices,cycles,kernel_cycles,fragments,spills,\
+             composite_rounds,dram_words,srf_words,srf_fragment_words\n",
+        );
+        for r in &self.batch_rows {
+            out += &format!(
+                "{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                r.batch,
+                r.object.replace(',', ";"),
+                r.triangles,
+                r.vertices,
+                r.cycles,
+                r.kernel_cycles,
+                r.fragments,
+                r.spills,
+                r.composite_rounds,
+                r.dram_words,
+                r.srf_words,
+                r.srf_fragment_words
+            );
+        }
+        out
+    }
+}

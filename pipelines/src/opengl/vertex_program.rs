@@ -1,0 +1,443 @@
+//! The vertex stage, generated for each material of a scene: `perbegin` (the per-`glBegin`
+//! state work, once per object) and the vertex program it feeds.
+//!
+//! **perbegin** reads the OpenGL state as the host wrote it — the view, model and
+//! projection matrices, then the material and light words below — and writes the vertex
+//! program's parameters: the model-view `MV = V·M`, `MVP = P·MV`, and for `lit` materials
+//! the normal matrix (the inverse transpose of MV's upper 3×3, its cofactors over its
+//! determinant), each light's position in eye space (`V·l`), and the light-times-material
+//! products OpenGL folds once per state change: `base = a_global·a_m + Σ_l a_l·a_m`,
+//! `d_l·d_m` and `s_l·s_m`. Every product of matrices sums left to right, as
+//! [`crate::scene::mat_mul`]. The host composes nothing.
+//!
+//! **The vertex program** is `unlit` — the clip position `MVP·p` and the vertex colour
+//! (from each vertex, or the object's colour as a parameter when the mesh has none, so
+//! vertices carry 3 words instead of 6) — or `lit`: OpenGL 1.x fixed-function lighting per
+//! vertex in eye space as `../shared/SCENE_FORMAT.md` defines it (local viewer, no
+//! attenuation or spotlights, colour clamped to [0, 1]): `p_e = MV·p`,
+//! `n = normalize(N·n_obj)`, `E = normalize(−p_e)`, and per light `L = normalize(l_e − p_e)`,
+//! `c += max(n·L, 0)·(d_l·d_m) + (n·L > 0 ? max(n·H, 0)^s : 0)·(s_l·s_m)` with
+//! `H = normalize(L + E)`. The program is built for its material: one pass per light, the
+//! specular term only when the material and a light have one, and the exponent `s` (an
+//! integer 0..=128) as squarings and multiplies. Every `normalize(v)` is
+//! `v · (1 / sqrt(v·v))` (one `fsqrt`, one `fdiv`), dot products sum left to right.
+//!
+//! Output records: clip x, y, z, w, then r, g, b — what `assemble_clip` reads.
+
+use imagine_units::desc::MachineDesc;
+
+use super::kernels::finish;
+use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, Value};
+use crate::kernels::transform::{matrix_params, transform_point};
+use crate::kernels::{Vec3, dot};
+use crate::scene::model::{Material, Mesh, Object, Scene, Shader};
+
+/// Words of a shaded vertex.
+pub const SHADED_WORDS: usize = 7;
+
+/// What a vertex program is built for.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum VertexProgram {
+    /// Unlit; `per_vertex_colour`: vertices carry their colour (else it is a parameter).
+    Unlit { per_vertex_colour: bool },
+    /// Lit by `lights` lights with the specular term (when `specular`) to an integer
+    /// power `shininess`.
+    Lit {
+        lights: usize,
+        specular: bool,
+        shininess: u32,
+    },
+}
+
+impl VertexProgram {
+    /// The program an object of `scene` needs; an error for what it cannot draw yet.
+    pub fn for_object(scene: &Scene, object: &Object, general: bool) -> Result<VertexProgram, String> {
+        let m: &Material = &scene.materials[object.material];
+        match m.shader {
+            Shader::Unlit => Ok(VertexProgram::Unlit {
+                per_vertex_colour: general || !object.mesh.colours.is_empty(),
+            }),
+            Shader::Lit => {
+                if m.shininess.fract() != 0.0 || !(0.0..=128.0).contains(&m.shininess) {
+                    return Err(format!(
+                        "material `{}`: shininess {} — the vertex program raises to integer \
+                         powers 0..=128",
+                        m.name, m.shininess
+                    ));
+                }
+                if object.mesh.normals.len() != object.mesh.positions.len() {
+                    return Err(format!(
+                        "object `{}` is lit but its mesh has {} normals for {} vertices",
+                        object.name,
+                        object.mesh.normals.len(),
+                        object.mesh.positions.len()
+                    ));
+                }
+                let any_specular = m.specular.iter().any(|&c| c != 0.0)
+                    && scene.lights.iter().any(|l| l.specular.iter().any(|&c| c != 0.0));
+                Ok(VertexProgram::Lit {
+                    lights: scene.lights.len(),
+                    specular: general || any_specular,
+                    shininess: m.shininess as u32,
+                })
+            }
+        }
+    }
+
+    /// The name it is registered and reported under.
+    pub fn name(&self) -> String {
+        match self {
+            VertexProgram::Unlit { per_vertex_colour: true } => "vertex_unlit".into(),
+            VertexProgram::Unlit { per_vertex_colour: false } => "vertex_unlit_flat".into(),
+            VertexProgram::Lit {
+                lights,
+                specular,
+                shininess,
+            } => {
+                if *specular {
+                    format!("vertex_lit{lights}_s{shininess}")
+                } else {
+                    format!("vertex_lit{lights}_diffuse")
+                }
+            }
+        }
+    }
+
+    /// Words of a vertex record in memory.
+    pub fn record_words(&self) -> usize {
+        match self {
+            VertexProgram::Unlit { per_vertex_colour: false } => 3,
+            _ => 6,
+        }
+    }
+
+    /// Interpolated words per fragment the program's outputs feed (colour).
+    pub fn interpolants(&self) -> Vec<&'static str> {
+        vec!["r", "g", "b"]
+    }
+
+    /// Vertex `v` of `object`'s mesh as the program reads it.
+    pub fn vertex_words(&self, object: &Object, v: usize, out: &mut Vec<u32>) {
+        let mesh: &Mesh = &object.mesh;
+        out.extend(mesh.positions[v].map(f32::to_bits));
+        match self {
+            VertexProgram::Unlit { per_vertex_colour: true } => {
+                let c = mesh.colours.get(v).copied().unwrap_or(object.colour);
+                out.extend(c.map(f32::to_bits));
+            }
+            VertexProgram::Unlit { per_vertex_colour: false } => {}
+            VertexProgram::Lit { .. } => out.extend(mesh.normals[v].map(f32::to_bits)),
+        }
+    }
+
+    /// The OpenGL state `perbegin` reads for `object`: view, model, projection, then the
+    /// program's words, padded to whole rows of `clusters`.
+    pub fn state_words(&self, scene: &Scene, object: &Object, clusters: usize) -> Vec<u32> {
+        let camera = scene.camera_for(object);
+        let mut w: Vec<f32> = Vec::new();
+        w.extend(camera.view);
+        w.extend(object.model);
+        w.extend(camera.projection);
+        let m = &scene.materials[object.material];
+        match self {
+            VertexProgram::Unlit { per_vertex_colour: true } => {}
+            VertexProgram::Unlit { per_vertex_colour: false } => w.extend(object.colour),
+            VertexProgram::Lit { .. } => {
+                w.extend(scene.ambient);
+                w.extend(m.ambient);
+                w.extend(m.diffuse);
+                w.extend(m.specular);
+                for l in &scene.lights {
+                    w.extend(l.position);
+                    w.extend(l.ambient);
+                    w.extend(l.diffuse);
+                    w.extend(l.specular);
+                }
+            }
+        }
+        let mut words: Vec<u32> = w.into_iter().map(f32::to_bits).collect();
+        words.resize(words.len().div_ceil(clusters) * clusters, 0);
+        words
+    }
+
+    /// `perbegin` for this program.
+    pub fn perbegin(&self, desc: &MachineDesc) -> Kernel {
+        let c = desc.cluster.count;
+        let mut b = KernelBuilder::new("perbegin");
+        let state_in = b.input("state");
+        let params_out = b.output("params");
+        let words = self.state_words_len();
+        let rows: Vec<Value> = (0..words.div_ceil(c)).map(|_| b.read_f32(state_in)).collect();
+        let state: Vec<Value> = (0..words)
+            .map(|j| b.comm(rows[j / c], Perm::Broadcast((j % c) as u16)))
+            .collect();
+        let (view, model, projection) = (&state[..16], &state[16..32], &state[32..48]);
+        let modelview = mat_mul(&mut b, view, model);
+        let mvp = mat_mul(&mut b, projection, &modelview);
+        for &v in &mvp {
+            b.write(params_out, v);
+        }
+        let rest = &state[48..];
+        match self {
+            VertexProgram::Unlit { per_vertex_colour: true } => {}
+            VertexProgram::Unlit { per_vertex_colour: false } => {
+                for &v in &rest[..3] {
+                    b.write(params_out, v);
+                }
+            }
+            VertexProgram::Lit { lights, specular, .. } => {
+                for &v in &modelview[..12] {
+                    b.write(params_out, v);
+                }
+                for v in normal_matrix(&mut b, &modelview) {
+                    b.write(params_out, v);
+                }
+                let rgb = |k: usize| -> Vec3 { [rest[k], rest[k + 1], rest[k + 2]] };
+                let (global, ambient, diffuse, spec) = (rgb(0), rgb(3), rgb(6), rgb(9));
+                let light = |l: usize, k: usize| rgb(12 + 12 * l + k);
+                let mut base: Vec3 = std::array::from_fn(|i| b.fmul(global[i], ambient[i]));
+                for l in 0..*lights {
+                    let a = light(l, 3);
+                    for i in 0..3 {
+                        let t = b.fmul(a[i], ambient[i]);
+                        base[i] = b.fadd(base[i], t);
+                    }
+                }
+                for v in base {
+                    b.write(params_out, v);
+                }
+                let view: [Value; 16] = view.try_into().expect("16 words");
+                for l in 0..*lights {
+                    let p = light(l, 0);
+                    let eye = transform_point(&mut b, &view, p, None);
+                    for &v in &eye[..3] {
+                        b.write(params_out, v);
+                    }
+                    let d = light(l, 6);
+                    for i in 0..3 {
+                        let v = b.fmul(d[i], diffuse[i]);
+                        b.write(params_out, v);
+                    }
+                    if *specular {
+                        let s = light(l, 9);
+                        for i in 0..3 {
+                            let v = b.fmul(s[i], spec[i]);
+                            b.write(params_out, v);
+                        }
+                    }
+                }
+            }
+        }
+        finish(b)
+    }
+
+    /// Parameters of the vertex program (the words `perbegin` writes per cluster).
+    pub fn param_count(&self) -> usize {
+        16 + match self {
+            VertexProgram::Unlit { per_vertex_colour: true } => 0,
+            VertexProgram::Unlit { per_vertex_colour: false } => 3,
+            VertexProgram::Lit { lights, specular, .. } => 12 + 9 + 3 + lights * (6 + 3 * usize::from(*specular)),
+        }
+    }
+
+    fn state_words_len(&self) -> usize {
+        48 + match self {
+            VertexProgram::Unlit { per_vertex_colour: true } => 0,
+            VertexProgram::Unlit { per_vertex_colour: false } => 3,
+            VertexProgram::Lit { lights, .. } => 12 + 12 * lights,
+        }
+    }
+
+    /// The vertex program.
+    pub fn build(&self, _desc: &MachineDesc) -> Kernel {
+        let mut b = KernelBuilder::new(&self.name());
+        let vertices = b.input("vertices");
+        let shaded = b.output("shaded");
+        let mvp = matrix_params(&mut b, "mvp");
+        match self {
+            VertexProgram::Unlit { per_vertex_colour } => {
+                let flat: Option<Vec3> =
+                    (!per_vertex_colour).then(|| ["r", "g", "b"].map(|c| b.param_f32(&format!("colour_{c}"))));
+                b.begin_loop(LoopSpec::OverStream(vertices));
+                let position: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
+                let colour: Vec3 = match flat {
+                    Some(c) => c,
+                    None => std::array::from_fn(|_| b.read_f32(vertices)),
+                };
+                let clip = transform_point(&mut b, &mvp, position, None);
+                for v in clip.into_iter().chain(colour) {
+                    b.write(shaded, v);
+                }
+                b.end_loop();
+            }
+            VertexProgram::Lit {
+                lights,
+                specular,
+                shininess,
+            } => {
+                let mv: Vec<Value> = (0..12).map(|i| b.param_f32(&format!("mv{i}"))).collect();
+                let n: Vec<Value> = (0..9).map(|i| b.param_f32(&format!("normal{i}"))).collect();
+                let rgb = |b: &mut KernelBuilder, p: &str| ["r", "g", "b"].map(|c| b.param_f32(&format!("{p}_{c}")));
+                let base = rgb(&mut b, "base");
+                let light_params: Vec<(Vec3, Vec3, Option<Vec3>)> = (0..*lights)
+                    .map(|l| {
+                        let pos = ["x", "y", "z"].map(|c| b.param_f32(&format!("light{l}_{c}")));
+                        let d = rgb(&mut b, &format!("light{l}_diffuse"));
+                        let s = specular.then(|| rgb(&mut b, &format!("light{l}_specular")));
+                        (pos, d, s)
+                    })
+                    .collect();
+                let (zero, one) = (b.f32(0.0), b.f32(1.0));
+                b.begin_loop(LoopSpec::OverStream(vertices));
+                let position: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
+                let normal: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
+                let clip = transform_point(&mut b, &mvp, position, None);
+                let eye_pos: Vec3 = {
+                    let mut m16 = [zero; 16];
+                    m16[..12].copy_from_slice(&mv);
+                    let p = transform_point(&mut b, &m16, position, None);
+                    [p[0], p[1], p[2]]
+                };
+                let n_eye: Vec3 = std::array::from_fn(|row| {
+                    let r = &n[3 * row..3 * row + 3];
+                    let x = b.fmul(r[0], normal[0]);
+                    let y = b.fmul(r[1], normal[1]);
+                    let s = b.fadd(x, y);
+                    let z = b.fmul(r[2], normal[2]);
+                    b.fadd(s, z)
+                });
+                let unit_n = normalize(&mut b, n_eye);
+                let to_eye = eye_pos.map(|c| b.fneg(c));
+                let e = specular.then(|| normalize(&mut b, to_eye));
+                let mut colour = base;
+                for &(light_pos, dd, ss) in &light_params {
+                    let to_light: Vec3 = std::array::from_fn(|i| b.fsub(light_pos[i], eye_pos[i]));
+                    let l = normalize(&mut b, to_light);
+                    let n_dot_l = dot(&mut b, unit_n, l);
+                    let diffuse = b.fmax(n_dot_l, zero);
+                    let spec = match (e, ss) {
+                        (Some(e), Some(_)) => {
+                            let half: Vec3 = std::array::from_fn(|i| b.fadd(l[i], e[i]));
+                            let h = normalize(&mut b, half);
+                            let n_dot_h = dot(&mut b, unit_n, h);
+                            let x = b.fmax(n_dot_h, zero);
+                            let p = power(&mut b, x, *shininess, one);
+                            let lit = b.flt(zero, n_dot_l);
+                            Some(b.select(lit, p, zero))
+                        }
+                        _ => None,
+                    };
+                    for ch in 0..3 {
+                        let d = b.fmul(diffuse, dd[ch]);
+                        colour[ch] = b.fadd(colour[ch], d);
+                        if let (Some(spec), Some(ss)) = (spec, ss) {
+                            let s = b.fmul(spec, ss[ch]);
+                            colour[ch] = b.fadd(colour[ch], s);
+                        }
+                    }
+                }
+                for v in clip {
+                    b.write(shaded, v);
+                }
+                for c in colour {
+                    let above_zero = b.fmax(c, zero);
+                    let clamped = b.fmin(above_zero, one);
+                    b.write(shaded, clamped);
+                }
+                b.end_loop();
+            }
+        }
+        finish(b)
+    }
+}
+
+fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {
+    let length_squared = dot(b, v, v);
+    let length = b.fsqrt(length_squared);
+    let one = b.f32(1.0);
+    let inverse = b.fdiv(one, length);
+    v.map(|c| b.fmul(c, inverse))
+}
+
+/// `x^n` by squaring (`x^0 = 1`, as OpenGL takes it).
+fn power(b: &mut KernelBuilder, x: Value, n: u32, one: Value) -> Value {
+    let mut result: Option<Value> = None;
+    let mut square = x;
+    let mut n = n;
+    while n > 0 {
+        if n & 1 == 1 {
+            result = Some(match result {
+                Some(r) => b.fmul(r, square),
+                None => square,
+            });
+        }
+        n >>= 1;
+        if n > 0 {
+            square = b.fmul(square, square);
+        }
+    }
+    result.unwrap_or(one)
+}
+
+/// `a · b` of row-major 4×4 matrices, each entry summed left to right.
+fn mat_mul(b: &mut KernelBuilder, a: &[Value], m: &[Value]) -> Vec<Value> {
+    (0..16)
+        .map(|k| {
+            let (i, j) = (k / 4, k % 4);
+            let mut sum = b.fmul(a[4 * i], m[j]);
+            for t in 1..4 {
+                let term = b.fmul(a[4 * i + t], m[4 * t + j]);
+                sum = b.fadd(sum, term);
+            }
+            sum
+        })
+        .collect()
+}
+
+/// The inverse transpose of the upper 3×3 of `m` (row-major 4×4): its cofactors over its
+/// determinant, row-major.
+fn normal_matrix(b: &mut KernelBuilder, m: &[Value]) -> Vec<Value> {
+    let a = |r: usize, c: usize| m[4 * r + c];
+    let cofactor = |b: &mut KernelBuilder, r: usize, c: usize| {
+        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+        let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
+        let p = b.fmul(a(r1, c1), a(r2, c2));
+        let q = b.fmul(a(r1, c2), a(r2, c1));
+        b.fsub(p, q)
+    };
+    let cof: Vec<Value> = (0..9).map(|k| cofactor(b, k / 3, k % 3)).collect();
+    let d0 = b.fmul(a(0, 0), cof[0]);
+    let d1 = b.fmul(a(0, 1), cof[1]);
+    let d2 = b.fmul(a(0, 2), cof[2]);
+    let s = b.fadd(d0, d1);
+    let det = b.fadd(s, d2);
+    let one = b.f32(1.0);
+    let inv = b.fdiv(one, det);
+    cof.into_iter().map(|c| b.fmul(c, inv)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_and_record_words_follow_the_material() {
+        let lit = VertexProgram::Lit {
+            lights: 3,
+            specular: true,
+            shininess: 16,
+        };
+        assert_eq!(lit.name(), "vertex_lit3_s16");
+        assert_eq!(lit.record_words(), 6);
+        let flat = VertexProgram::Unlit { per_vertex_colour: false };
+        assert_eq!(flat.record_words(), 3);
+        let desc = MachineDesc::resolve("gold8").unwrap();
+        for p in [lit, flat, VertexProgram::Unlit { per_vertex_colour: true }] {
+            let k = p.build(&desc);
+            let pb = p.perbegin(&desc);
+            assert_eq!(k.name, p.name());
+            assert_eq!(k.params.len(), p.param_count());
+            assert!(!pb.streams.is_empty());
+        }
+    }
+}
