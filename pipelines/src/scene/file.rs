@@ -435,7 +435,7 @@ impl Cx {
             .lines()
             .find_map(|l| l.strip_prefix("in `")?.strip_suffix('`'));
         let message = match keys {
-            Some(k) => format!("`{k}`: {}", e.message()),
+            Some(k) => format!("`{}`: {}", index_tables(text, k, line), e.message()),
             None => e.message().to_string(),
         };
         SceneError::new(&self.file, line, message)
@@ -483,7 +483,8 @@ impl Cx {
     }
 
     fn matrix(&self, key: &str, m: DMat4) -> R<[f32; 16]> {
-        let rows = m.transpose().to_cols_array().map(|x| x as f32);
+        // `+ 0.0` turns the -0 entries of a look-at into 0.
+        let rows = m.transpose().to_cols_array().map(|x| x as f32 + 0.0);
         if rows.iter().any(|x| !x.is_finite()) {
             return Err(self.err(
                 key,
@@ -1114,6 +1115,30 @@ impl Cx {
     }
 }
 
+/// A key path with the index of the `[[light]]`, `[[texture]]`, `[[material]]` or
+/// `[[object]]` entry that holds `line` (toml's key paths leave it out): `object` →
+/// `object[1]`.
+fn index_tables(text: &str, keys: &str, line: Option<usize>) -> String {
+    let (table, rest) = keys.split_once('.').unwrap_or((keys, ""));
+    let Some(line) = line else {
+        return keys.into();
+    };
+    if !["light", "texture", "material", "object"].contains(&table) {
+        return keys.into();
+    }
+    let header = format!("[[{table}]]");
+    let seen = text
+        .lines()
+        .take(line)
+        .filter(|l| l.trim_start().starts_with(&header))
+        .count();
+    if seen == 0 {
+        return keys.into();
+    }
+    let dot = if rest.is_empty() { "" } else { "." };
+    format!("{table}[{}]{dot}{rest}", seen - 1)
+}
+
 fn names<'a>(it: impl Iterator<Item = &'a str>) -> String {
     let v: Vec<String> = it.map(|n| format!("`{n}`")).collect();
     if v.is_empty() {
@@ -1264,6 +1289,8 @@ mod tests {
     fn scene_file_errors_name_the_file_and_key() {
         let cases: Vec<(String, Vec<&str>)> = vec![
             (format!("{WINDOW}colr = 1\n{BALL}"), vec!["colr", "line 4"]),
+            (format!("{WINDOW}{BALL}{BALL}colr = [1, 1, 1]\n"), vec!["`object[1]`", "unknown field `colr`", "line 8"]),
+            (format!("{WINDOW}{BALL}{BALL}colour = \"red\"\n"), vec!["`object[1].colour`", "line 8"]),
             (BALL.to_string(), vec!["missing field `window`"]),
             ("[window]\nwidth = \"wide\"\nheight = 1\n".into(), vec!["window.width", "line 2"]),
             (format!("ambient = [nan, 0, 0]\n{WINDOW}{BALL}"), vec!["`ambient`", "finite"]),
