@@ -34,6 +34,9 @@ enum Command {
     /// List, show and benchmark machine descriptions
     #[command(subcommand)]
     Machine(commands::machine::MachineCommand),
+    /// List the built-in scenes and show what a scene file holds
+    #[command(subcommand)]
+    Scene(commands::scene::SceneCommand),
     /// Replay a DRAM request trace through the memory access scheduler
     Dram(commands::dram::DramArgs),
     /// Run the demonstration design (a pipelined MAC crossing into the DRAM clock domain)
@@ -47,6 +50,7 @@ fn main() -> ExitCode {
         Command::Verify(c) => commands::verify::run(c),
         Command::Kernel(c) => commands::kernel::run(c),
         Command::Machine(c) => commands::machine::run(c),
+        Command::Scene(c) => commands::scene::run(c),
         Command::Dram(a) => commands::dram::run(a),
         Command::Demo(a) => commands::demo::run(a),
     };

@@ -31,7 +31,9 @@ fn help_lists_every_subcommand() {
     let o = imagine(&["--help"]);
     assert!(o.status.success());
     let out = stdout(&o);
-    for sub in ["render", "verify", "kernel", "machine", "dram", "demo"] {
+    for sub in [
+        "render", "verify", "kernel", "machine", "scene", "dram", "demo",
+    ] {
         assert!(out.contains(sub), "`{sub}` missing from help:\n{out}");
     }
     let o = imagine(&["demo", "--help"]);
@@ -545,4 +547,72 @@ fn render_writes_png_and_stats() {
         let words = json["frame"][field].as_f64().unwrap();
         assert!(words > 0.0 && words <= 17.0 * 8.0, "{field} = {words}");
     }
+}
+
+#[test]
+fn scene_list_names_every_builtin() {
+    let o = imagine(&["scene", "list"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let list = stdout(&o);
+    for name in [
+        "SPHERE", "RATE-1", "RATE-2", "RATE-4", "RATE-8", "RATE-16", "RATE-32", "RATE-64",
+        "RATE-128",
+    ] {
+        let line = list
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap_or_else(|| panic!("{name} missing:\n{list}"));
+        assert!(
+            line.len() > name.len() + 10,
+            "{name} has no description: {line}"
+        );
+    }
+}
+
+#[test]
+fn scene_show_describes_sphere() {
+    let o = imagine(&["scene", "show", "SPHERE"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    for want in [
+        "scene        SPHERE",
+        "SPHERE.toml",
+        "720 × 720",
+        "cull back",
+        "lights       3",
+        "blue-grey: lit",
+        "shininess 16",
+        "245,760 vertices, 81,920 triangles (separate)",
+        "world space",
+        "1 objects, 245,760 vertices, 81,920 triangles, 0 textures",
+    ] {
+        assert!(out.contains(want), "`{want}` missing:\n{out}");
+    }
+    let o = imagine(&["scene", "show", "rate-8", "--size", "64", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["window"]["width"], 64);
+    assert_eq!(v["totals"]["triangles"], 512);
+    assert_eq!(v["objects"][0]["space"], "window");
+}
+
+#[test]
+fn scene_show_errors_name_the_file() {
+    let o = imagine(&["scene", "show", "nope.toml"]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    assert!(err.contains("error") && err.contains("nope.toml"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let bad = temp_file(
+        "bad-scene.toml",
+        "[window]\nwidth = 64\nheight = \"tall\"\n",
+    );
+    let o = imagine(&["scene", "show", bad.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("bad-scene.toml") && err.contains("window.height") && err.contains("line 3"),
+        "{err}"
+    );
+    assert_clear_error(&["scene", "show", "TEAPOT-9"]);
 }

@@ -6,5 +6,6 @@ pub mod dram;
 pub mod kernel;
 pub mod machine;
 pub mod render;
+pub mod scene;
 pub mod verify;
 pub mod waves;

@@ -21,7 +21,13 @@
 //! [0, 1]; counter-clockwise triangles in the window are front-facing; pixel centres sit at
 //! (x + 0.5, y + 0.5); the depth buffer clears to 1.0 and the colour buffer to black.
 
+pub mod bpt;
+pub mod file;
 pub mod model;
+pub mod obj;
+pub mod primitives;
+
+pub use file::{LoadOptions, load, load_tri};
 
 use std::fmt;
 

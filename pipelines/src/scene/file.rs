@@ -1,0 +1,1531 @@
+//! Scene files (`../shared/SCENE_FORMAT.md`): TOML read into a [`model::Scene`], every
+//! default applied, every name resolved, every asset read.
+//!
+//! Choices the format leaves open (the README lists them):
+//! * `[camera]` may be left out (view and projection are then the identity); `up` defaults
+//!   to `[0, 1, 0]`; the view comes from `eye`/`target`/`up` or `modelview`, the
+//!   projection from `fov_y`/`near`/`far`, `ortho` or `projection`, one of each.
+//! * `[pipeline]`: `kind = "opengl"`, `depth_test = "less"`, `cull = "none"` (OpenGL's
+//!   initial state), `blend = "none"`, `stop_length = 1.5`.
+//! * `[window] background` defaults to black; a material's `shader` is required.
+//! * A texture's `filter` defaults to `"nearest"` and `wrap` to `"repeat"`; a procedural
+//!   checker defaults to `size = 256`, `cells = 8`, `colours = [[1,1,1], [0,0,0]]`.
+//! * An object may have a `name` (default: its mesh or patch file's name, or its primitive's
+//!   kind) and `triangles = "shared" | "separate"` (default shared; separate gives every
+//!   triangle three vertices of its own, as SPHERE's published vertex count has it).
+//! * `tessellate` defaults to 20 (TEAPOT's OpenGL dicing), `basis` to `"bezier"`.
+//! * `cage` is refused: Catmull-Clark limit surfaces are not supported yet.
+
+use std::path::{Path, PathBuf};
+
+use glam::dcamera::rh::proj::opengl;
+use glam::{DMat4, DVec3};
+use serde::Deserialize;
+
+use super::bpt::{self, Basis};
+use super::model::{self, Mesh, Space};
+use super::obj::{self, AssetError};
+use super::{IDENTITY, MAX_WINDOW, SceneError, primitives, window_to_clip};
+
+/// How to load a scene, beyond what its file says.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoadOptions {
+    /// Draw into a `size × size` window instead of the file's (RATE-n's strips follow the
+    /// window; the camera's aspect ratio is recomputed).
+    pub size: Option<u32>,
+    /// Subdivide every icosphere this many times instead (at most
+    /// [`primitives::MAX_SUBDIVISIONS`]).
+    pub subdivisions: Option<u32>,
+}
+
+/// The built-in scenes: (name, file text), the files of the source tree's `scenes/`.
+pub const BUILTIN: &[(&str, &str)] = &[
+    ("SPHERE", include_str!("../../../scenes/SPHERE.toml")),
+    ("RATE-1", include_str!("../../../scenes/RATE-1.toml")),
+    ("RATE-2", include_str!("../../../scenes/RATE-2.toml")),
+    ("RATE-4", include_str!("../../../scenes/RATE-4.toml")),
+    ("RATE-8", include_str!("../../../scenes/RATE-8.toml")),
+    ("RATE-16", include_str!("../../../scenes/RATE-16.toml")),
+    ("RATE-32", include_str!("../../../scenes/RATE-32.toml")),
+    ("RATE-64", include_str!("../../../scenes/RATE-64.toml")),
+    ("RATE-128", include_str!("../../../scenes/RATE-128.toml")),
+];
+
+/// The source tree's `scenes/` directory, where built-in scenes find their assets.
+pub fn builtin_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("the pipelines crate sits in the workspace")
+        .join("scenes")
+}
+
+/// The first comment line of a built-in scene's file (its one-line description).
+pub fn builtin_description(text: &str) -> &str {
+    text.lines()
+        .map(str::trim)
+        .find_map(|l| l.strip_prefix('#'))
+        .map(str::trim)
+        .unwrap_or("")
+}
+
+/// A scene by built-in name (case-insensitive, see [`BUILTIN`]) or by path: `.toml` scene
+/// files and `.tri` triangle files are read from disk, assets relative to the file.
+pub fn load(name_or_path: &str, opts: &LoadOptions) -> Result<model::Scene, SceneError> {
+    let lower = name_or_path.to_ascii_lowercase();
+    if lower.ends_with(".tri") {
+        return load_tri(Path::new(name_or_path));
+    }
+    if lower.ends_with(".toml") {
+        return load_file(Path::new(name_or_path), opts);
+    }
+    match BUILTIN
+        .iter()
+        .find(|(name, _)| name.eq_ignore_ascii_case(name_or_path))
+    {
+        Some((name, text)) => parse(text, &builtin_dir().join(format!("{name}.toml")), opts),
+        None => Err(SceneError::new(
+            name_or_path,
+            None,
+            format!(
+                "unknown scene: the built-in scenes are {}; scene files end in .toml, \
+                 triangle files in .tri",
+                BUILTIN
+                    .iter()
+                    .map(|(n, _)| *n)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        )),
+    }
+}
+
+/// Reads a scene file.
+pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<model::Scene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        SceneError::new(
+            &path.display().to_string(),
+            None,
+            format!("cannot read the file: {e}"),
+        )
+    })?;
+    parse(&text, path, opts)
+}
+
+/// Reads a `.tri` file (see [`super::parse_tri`]) as a scene of one window-space object:
+/// separate unlit triangles with their own colours, depth test less, no culling, black
+/// background.
+pub fn load_tri(path: &Path) -> Result<model::Scene, SceneError> {
+    let shown = path.display().to_string();
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| SceneError::new(&shown, None, format!("cannot read the file: {e}")))?;
+    let old = super::parse_tri(&shown, &text)?;
+    let name = stem(path);
+    let triangles = (0..old.triangles() as u32)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
+    Ok(model::Scene {
+        name: name.clone(),
+        source: Some(path.to_path_buf()),
+        width: old.width,
+        height: old.height,
+        background: [0.0; 3],
+        ambient: [0.0; 3],
+        camera: model::Camera {
+            view: IDENTITY,
+            projection: window_to_clip(old.width, old.height),
+        },
+        pipeline: model::PipelineSettings {
+            kind: model::PipelineKind::OpenGl,
+            depth_test: model::DepthTest::Less,
+            cull: model::Cull::None,
+            blend: model::Blend::None,
+            stop_length: 1.5,
+        },
+        lights: Vec::new(),
+        textures: Vec::new(),
+        materials: vec![default_material()],
+        objects: vec![model::Object {
+            name,
+            material: 0,
+            model: IDENTITY,
+            colour: [1.0; 3],
+            space: Space::Window,
+            mesh: Mesh {
+                positions: old.positions,
+                normals: Vec::new(),
+                colours: old.colours,
+                texcoords: Vec::new(),
+                triangles,
+                separate: true,
+            },
+        }],
+    })
+}
+
+fn stem(path: &Path) -> String {
+    path.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.display().to_string())
+}
+
+/// The material of objects that name none: unlit, white (the object's colour).
+fn default_material() -> model::Material {
+    model::Material {
+        name: "(default)".into(),
+        shader: model::Shader::Unlit,
+        ambient: [0.2, 0.2, 0.2],
+        diffuse: [0.8, 0.8, 0.8],
+        specular: [0.0; 3],
+        shininess: 0.0,
+        textures: Vec::new(),
+        texture_mode: model::TextureMode::Modulate,
+    }
+}
+
+// ---- the file's shape ----
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    name: Option<String>,
+    ambient: Option<[f64; 3]>,
+    window: WindowFile,
+    camera: Option<CameraFile>,
+    #[serde(default)]
+    pipeline: PipelineFile,
+    #[serde(default)]
+    light: Vec<LightFile>,
+    #[serde(default)]
+    texture: Vec<TextureFile>,
+    #[serde(default)]
+    material: Vec<MaterialFile>,
+    #[serde(default)]
+    object: Vec<ObjectFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WindowFile {
+    width: u32,
+    height: u32,
+    background: Option<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraFile {
+    eye: Option<[f64; 3]>,
+    target: Option<[f64; 3]>,
+    up: Option<[f64; 3]>,
+    fov_y: Option<f64>,
+    near: Option<f64>,
+    far: Option<f64>,
+    ortho: Option<[f64; 6]>,
+    modelview: Option<[f64; 16]>,
+    projection: Option<[f64; 16]>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct PipelineFile {
+    kind: Option<KindFile>,
+    depth_test: Option<DepthFile>,
+    cull: Option<CullFile>,
+    blend: Option<BlendFile>,
+    stop_length: Option<f64>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum KindFile {
+    OpenGl,
+    Reyes,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum DepthFile {
+    Less,
+    Lequal,
+    Always,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum CullFile {
+    Back,
+    Front,
+    None,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum BlendFile {
+    None,
+    Alpha,
+    Add,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightFile {
+    position: [f64; 3],
+    ambient: Option<[f64; 3]>,
+    diffuse: Option<[f64; 3]>,
+    specular: Option<[f64; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TextureFile {
+    name: String,
+    image: Option<String>,
+    procedural: Option<ProceduralFile>,
+    filter: Option<FilterFile>,
+    wrap: Option<WrapFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProceduralFile {
+    kind: ProceduralKind,
+    size: Option<u32>,
+    cells: Option<u32>,
+    colours: Option<[[f64; 3]; 2]>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum ProceduralKind {
+    Checker,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum FilterFile {
+    Nearest,
+    Linear,
+    Trilinear,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum WrapFile {
+    Repeat,
+    Clamp,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialFile {
+    name: String,
+    shader: ShaderFile,
+    ambient: Option<[f64; 3]>,
+    diffuse: Option<[f64; 3]>,
+    specular: Option<[f64; 3]>,
+    shininess: Option<f64>,
+    #[serde(default)]
+    textures: Vec<String>,
+    texture_mode: Option<TextureModeFile>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum ShaderFile {
+    Unlit,
+    Lit,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum TextureModeFile {
+    Modulate,
+    Replace,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectFile {
+    name: Option<String>,
+    mesh: Option<String>,
+    primitive: Option<PrimitiveFile>,
+    patches: Option<String>,
+    basis: Option<BasisFile>,
+    cage: Option<String>,
+    material: Option<String>,
+    colour: Option<[f64; 3]>,
+    translate: Option<[f64; 3]>,
+    rotate: Option<[f64; 4]>,
+    scale: Option<[f64; 3]>,
+    tessellate: Option<u32>,
+    triangles: Option<TrianglesFile>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PrimitiveFile {
+    kind: PrimitiveKind,
+    subdivisions: Option<u32>,
+    rings: Option<u32>,
+    segments: Option<u32>,
+    size: Option<u32>,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+enum PrimitiveKind {
+    Icosphere,
+    UvSphere,
+    Rate,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum BasisFile {
+    Bezier,
+    Bspline,
+}
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum TrianglesFile {
+    Shared,
+    Separate,
+}
+
+// ---- resolving ----
+
+/// Most quads a patch may be diced into per side.
+pub const MAX_TESSELLATE: u32 = 256;
+
+/// Most rings or segments of a `uv_sphere`.
+pub const MAX_SPHERE_DIVISIONS: u32 = 4096;
+
+/// Reads a scene file's text; `path` names it in errors and locates its assets.
+pub fn parse(text: &str, path: &Path, opts: &LoadOptions) -> Result<model::Scene, SceneError> {
+    let cx = Cx {
+        file: path.display().to_string(),
+        dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+    };
+    let f: SceneFile = toml::from_str(text).map_err(|e| cx.toml(text, e))?;
+    cx.resolve(f, path, opts)
+}
+
+struct Cx {
+    file: String,
+    dir: PathBuf,
+}
+
+type R<T> = Result<T, SceneError>;
+
+impl Cx {
+    fn err(&self, key: &str, message: impl std::fmt::Display) -> SceneError {
+        SceneError::new(&self.file, None, format!("`{key}`: {message}"))
+    }
+
+    fn toml(&self, text: &str, e: toml::de::Error) -> SceneError {
+        let line = e
+            .span()
+            .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1);
+        // Without its input, the error prints the key path it was raised under.
+        let mut bare = e.clone();
+        bare.set_input(None);
+        let shown = bare.to_string();
+        let keys = shown
+            .lines()
+            .find_map(|l| l.strip_prefix("in `")?.strip_suffix('`'));
+        let message = match keys {
+            Some(k) => format!("`{}`: {}", index_tables(text, k, line), e.message()),
+            None => e.message().to_string(),
+        };
+        SceneError::new(&self.file, line, message)
+    }
+
+    fn asset(&self, key: &str, path: &Path, e: AssetError) -> SceneError {
+        let at = match e.line {
+            Some(l) => format!("`{}` line {l}", path.display()),
+            None => format!("`{}`", path.display()),
+        };
+        self.err(key, format!("{at}: {}", e.message))
+    }
+
+    fn read(&self, key: &str, file: &str) -> R<(PathBuf, Vec<u8>)> {
+        let path = self.dir.join(file);
+        let bytes = std::fs::read(&path)
+            .map_err(|e| self.err(key, format!("cannot read `{}`: {e}", path.display())))?;
+        Ok((path, bytes))
+    }
+
+    fn finite(&self, key: &str, v: &[f64]) -> R<()> {
+        if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+            return Err(self.err(key, format!("{x} is not a finite number")));
+        }
+        Ok(())
+    }
+
+    fn vec3(&self, key: &str, v: [f64; 3]) -> R<[f32; 3]> {
+        self.finite(key, &v)?;
+        Ok(v.map(|c| c as f32))
+    }
+
+    fn colour(&self, key: &str, v: Option<[f64; 3]>, default: f32) -> R<[f32; 3]> {
+        let Some(v) = v else {
+            return Ok([default; 3]);
+        };
+        self.finite(key, &v)?;
+        if let Some(x) = v.iter().find(|x| !(0.0..=1.0).contains(*x)) {
+            return Err(self.err(
+                key,
+                format!("{x} is outside [0, 1] (colours are linear RGB)"),
+            ));
+        }
+        Ok(v.map(|c| c as f32))
+    }
+
+    fn matrix(&self, key: &str, m: DMat4) -> R<[f32; 16]> {
+        // `+ 0.0` turns the -0 entries of a look-at into 0.
+        let rows = m.transpose().to_cols_array().map(|x| x as f32 + 0.0);
+        if rows.iter().any(|x| !x.is_finite()) {
+            return Err(self.err(
+                key,
+                "the matrix has an entry that is not a finite fp32 number",
+            ));
+        }
+        Ok(rows)
+    }
+
+    fn resolve(&self, f: SceneFile, path: &Path, opts: &LoadOptions) -> R<model::Scene> {
+        let (width, height) = match opts.size {
+            Some(s) => (s, s),
+            None => (f.window.width, f.window.height),
+        };
+        for (key, v) in [("window.width", width), ("window.height", height)] {
+            if !(1..=MAX_WINDOW).contains(&v) {
+                return Err(self.err(key, format!("{v} is outside 1..={MAX_WINDOW} pixels")));
+            }
+        }
+        if let Some(s) = opts.subdivisions
+            && s > primitives::MAX_SUBDIVISIONS
+        {
+            return Err(self.err(
+                "primitive.subdivisions",
+                format!(
+                    "the override {s} is beyond {}",
+                    primitives::MAX_SUBDIVISIONS
+                ),
+            ));
+        }
+        let background = self.colour("window.background", f.window.background, 0.0)?;
+        let ambient = self.colour("ambient", f.ambient, 0.0)?;
+        let camera = match &f.camera {
+            Some(c) => self.camera(c, width, height)?,
+            None => model::Camera {
+                view: IDENTITY,
+                projection: IDENTITY,
+            },
+        };
+        let pipeline = self.pipeline(&f.pipeline)?;
+        if f.light.len() > model::MAX_LIGHTS {
+            return Err(self.err(
+                "light",
+                format!(
+                    "{} lights; a scene has at most {}",
+                    f.light.len(),
+                    model::MAX_LIGHTS
+                ),
+            ));
+        }
+        let lights = f
+            .light
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                let key = |k: &str| format!("light[{i}].{k}");
+                Ok(model::Light {
+                    position: self.vec3(&key("position"), l.position)?,
+                    ambient: self.colour(&key("ambient"), l.ambient, 0.0)?,
+                    diffuse: self.colour(&key("diffuse"), l.diffuse, 1.0)?,
+                    specular: self.colour(&key("specular"), l.specular, 1.0)?,
+                })
+            })
+            .collect::<R<Vec<_>>>()?;
+        let mut textures = Vec::new();
+        for (i, t) in f.texture.iter().enumerate() {
+            if textures.iter().any(|u: &model::Texture| u.name == t.name) {
+                return Err(self.err(
+                    &format!("texture[{i}].name"),
+                    format!("a texture named `{}` comes before", t.name),
+                ));
+            }
+            textures.push(self.texture(i, t)?);
+        }
+        let mut materials = Vec::new();
+        for (i, m) in f.material.iter().enumerate() {
+            if materials.iter().any(|u: &model::Material| u.name == m.name) {
+                return Err(self.err(
+                    &format!("material[{i}].name"),
+                    format!("a material named `{}` comes before", m.name),
+                ));
+            }
+            materials.push(self.material(i, m, &textures)?);
+        }
+        if f.object.is_empty() {
+            return Err(self.err("object", "the scene has no [[object]]"));
+        }
+        let mut default = None;
+        let mut objects = Vec::new();
+        for (i, o) in f.object.iter().enumerate() {
+            let material = match &o.material {
+                Some(name) => materials
+                    .iter()
+                    .position(|m| &m.name == name)
+                    .ok_or_else(|| {
+                        self.err(
+                            &format!("object[{i}].material"),
+                            format!(
+                                "no [[material]] is named `{name}` (the materials are: {})",
+                                names(materials.iter().map(|m| m.name.as_str()))
+                            ),
+                        )
+                    })?,
+                None => *default.get_or_insert_with(|| {
+                    materials.push(default_material());
+                    materials.len() - 1
+                }),
+            };
+            let lit = materials[material].shader == model::Shader::Lit;
+            objects.push(self.object(i, o, material, lit, width, height, opts)?);
+        }
+        Ok(model::Scene {
+            name: f.name.unwrap_or_else(|| stem(path)),
+            source: Some(path.to_path_buf()),
+            width,
+            height,
+            background,
+            ambient,
+            camera,
+            pipeline,
+            lights,
+            textures,
+            materials,
+            objects,
+        })
+    }
+
+    fn camera(&self, c: &CameraFile, width: u32, height: u32) -> R<model::Camera> {
+        let view = match (c.modelview, c.eye, c.target) {
+            (Some(m), None, None) if c.up.is_none() => {
+                self.finite("camera.modelview", &m)?;
+                DMat4::from_cols_array(&m).transpose()
+            }
+            (Some(_), ..) => {
+                return Err(self.err(
+                    "camera.modelview",
+                    "give either `modelview` or `eye`, `target` and `up`, not both",
+                ));
+            }
+            (None, Some(eye), Some(target)) => {
+                let up = c.up.unwrap_or([0.0, 1.0, 0.0]);
+                for (k, v) in [("eye", eye), ("target", target), ("up", up)] {
+                    self.finite(&format!("camera.{k}"), &v)?;
+                }
+                let (eye, target, up) = (DVec3::from(eye), DVec3::from(target), DVec3::from(up));
+                let forward = target - eye;
+                if forward.length_squared() == 0.0 {
+                    return Err(self.err("camera.target", "the target is the eye"));
+                }
+                if forward.cross(up).length_squared() == 0.0 {
+                    return Err(self.err("camera.up", "`up` is parallel to the view direction"));
+                }
+                glam::dcamera::rh::view::look_at_mat4(eye, target, up)
+            }
+            (None, None, _) => {
+                return Err(self.err("camera.eye", "missing (or give `modelview`)"));
+            }
+            (None, Some(_), None) => return Err(self.err("camera.target", "missing")),
+        };
+        let aspect = f64::from(width) / f64::from(height);
+        let projection = match (c.fov_y, c.ortho, c.projection) {
+            (Some(fov), None, None) => {
+                self.finite("camera.fov_y", &[fov])?;
+                if !(fov > 0.0 && fov < 180.0) {
+                    return Err(
+                        self.err("camera.fov_y", format!("{fov} is outside (0, 180) degrees"))
+                    );
+                }
+                let near = c
+                    .near
+                    .ok_or_else(|| self.err("camera.near", "missing (fov_y needs near and far)"))?;
+                let far = c
+                    .far
+                    .ok_or_else(|| self.err("camera.far", "missing (fov_y needs near and far)"))?;
+                self.finite("camera.near", &[near])?;
+                self.finite("camera.far", &[far])?;
+                if near <= 0.0 {
+                    return Err(self.err("camera.near", format!("{near} is not positive")));
+                }
+                if far <= near {
+                    return Err(
+                        self.err("camera.far", format!("{far} is not beyond near = {near}"))
+                    );
+                }
+                opengl::perspective(fov.to_radians(), aspect, near, far)
+            }
+            (None, Some(o), None) => {
+                self.finite("camera.ortho", &o)?;
+                if c.near.is_some() || c.far.is_some() {
+                    return Err(self.err(
+                        if c.near.is_some() {
+                            "camera.near"
+                        } else {
+                            "camera.far"
+                        },
+                        "`ortho` gives near and far itself",
+                    ));
+                }
+                let [l, r, b, t, n, f] = o;
+                if l == r || b == t || n == f {
+                    return Err(
+                        self.err("camera.ortho", "left = right, bottom = top or near = far")
+                    );
+                }
+                opengl::orthographic(l, r, b, t, n, f)
+            }
+            (None, None, Some(p)) => {
+                self.finite("camera.projection", &p)?;
+                if c.near.is_some() || c.far.is_some() {
+                    return Err(self.err(
+                        if c.near.is_some() {
+                            "camera.near"
+                        } else {
+                            "camera.far"
+                        },
+                        "only with `fov_y`",
+                    ));
+                }
+                DMat4::from_cols_array(&p).transpose()
+            }
+            (None, None, None) => {
+                return Err(self.err(
+                    "camera.fov_y",
+                    "missing: give `fov_y`, `near` and `far`, or `ortho`, or `projection`",
+                ));
+            }
+            _ => {
+                return Err(self.err(
+                    "camera.projection",
+                    "give one of `fov_y`, `ortho` and `projection`",
+                ));
+            }
+        };
+        Ok(model::Camera {
+            view: self.matrix("camera.modelview", view)?,
+            projection: self.matrix("camera.projection", projection)?,
+        })
+    }
+
+    fn pipeline(&self, p: &PipelineFile) -> R<model::PipelineSettings> {
+        let stop_length = p.stop_length.unwrap_or(1.5);
+        self.finite("pipeline.stop_length", &[stop_length])?;
+        if stop_length <= 0.0 {
+            return Err(self.err(
+                "pipeline.stop_length",
+                format!("{stop_length} is not a positive length"),
+            ));
+        }
+        Ok(model::PipelineSettings {
+            kind: match p.kind.unwrap_or(KindFile::OpenGl) {
+                KindFile::OpenGl => model::PipelineKind::OpenGl,
+                KindFile::Reyes => model::PipelineKind::Reyes,
+            },
+            depth_test: match p.depth_test.unwrap_or(DepthFile::Less) {
+                DepthFile::Less => model::DepthTest::Less,
+                DepthFile::Lequal => model::DepthTest::Lequal,
+                DepthFile::Always => model::DepthTest::Always,
+            },
+            cull: match p.cull.unwrap_or(CullFile::None) {
+                CullFile::Back => model::Cull::Back,
+                CullFile::Front => model::Cull::Front,
+                CullFile::None => model::Cull::None,
+            },
+            blend: match p.blend.unwrap_or(BlendFile::None) {
+                BlendFile::None => model::Blend::None,
+                BlendFile::Alpha => model::Blend::Alpha,
+                BlendFile::Add => model::Blend::Add,
+            },
+            stop_length: stop_length as f32,
+        })
+    }
+
+    fn texture(&self, i: usize, t: &TextureFile) -> R<model::Texture> {
+        let key = |k: &str| format!("texture[{i}].{k}");
+        let (width, height, texels) = match (&t.image, &t.procedural) {
+            (Some(file), None) => {
+                let (path, bytes) = self.read(&key("image"), file)?;
+                let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
+                    .map_err(|e| {
+                        self.err(
+                            &key("image"),
+                            format!("`{}` is not a PNG image: {e}", path.display()),
+                        )
+                    })?;
+                use image::ColorType as C;
+                if !matches!(img.color(), C::L8 | C::La8 | C::Rgb8 | C::Rgba8) {
+                    return Err(self.err(
+                        &key("image"),
+                        format!(
+                            "`{}` has {:?} pixels; textures are 8-bit grey, RGB or RGBA",
+                            path.display(),
+                            img.color()
+                        ),
+                    ));
+                }
+                let rgba = img.to_rgba8();
+                let (w, h) = rgba.dimensions();
+                if w > MAX_WINDOW || h > MAX_WINDOW {
+                    return Err(self.err(
+                        &key("image"),
+                        format!(
+                            "`{}` is {w}x{h}, beyond {MAX_WINDOW} texels a side",
+                            path.display()
+                        ),
+                    ));
+                }
+                // Row 0 of the file is the top; row 0 of the texture is the bottom.
+                let texels = (0..h)
+                    .rev()
+                    .flat_map(|row| (0..w).map(move |col| (col, row)))
+                    .map(|(col, row)| u32::from_le_bytes(rgba.get_pixel(col, row).0))
+                    .collect();
+                (w, h, texels)
+            }
+            (None, Some(p)) => {
+                let ProceduralKind::Checker = p.kind;
+                let size = p.size.unwrap_or(256);
+                let cells = p.cells.unwrap_or(8);
+                if !(1..=MAX_WINDOW).contains(&size) {
+                    return Err(self.err(
+                        &key("procedural.size"),
+                        format!("{size} is outside 1..={MAX_WINDOW} texels"),
+                    ));
+                }
+                if !(1..=size).contains(&cells) {
+                    return Err(self.err(
+                        &key("procedural.cells"),
+                        format!("{cells} is outside 1..={size} (the texture's size)"),
+                    ));
+                }
+                let colours = match p.colours {
+                    Some([a, b]) => [
+                        self.colour(&key("procedural.colours"), Some(a), 0.0)?,
+                        self.colour(&key("procedural.colours"), Some(b), 0.0)?,
+                    ],
+                    None => [[1.0; 3], [0.0; 3]],
+                };
+                (size, size, primitives::checker(size, cells, colours))
+            }
+            (Some(_), Some(_)) => {
+                return Err(self.err(&key("procedural"), "give `image` or `procedural`, not both"));
+            }
+            (None, None) => {
+                return Err(self.err(&key("image"), "missing (or give `procedural`)"));
+            }
+        };
+        Ok(model::Texture {
+            name: t.name.clone(),
+            width,
+            height,
+            texels,
+            filter: match t.filter.unwrap_or(FilterFile::Nearest) {
+                FilterFile::Nearest => model::Filter::Nearest,
+                FilterFile::Linear => model::Filter::Linear,
+                FilterFile::Trilinear => model::Filter::Trilinear,
+            },
+            wrap: match t.wrap.unwrap_or(WrapFile::Repeat) {
+                WrapFile::Repeat => model::Wrap::Repeat,
+                WrapFile::Clamp => model::Wrap::Clamp,
+            },
+        })
+    }
+
+    fn material(
+        &self,
+        i: usize,
+        m: &MaterialFile,
+        textures: &[model::Texture],
+    ) -> R<model::Material> {
+        let key = |k: &str| format!("material[{i}].{k}");
+        let shininess = m.shininess.unwrap_or(0.0);
+        self.finite(&key("shininess"), &[shininess])?;
+        if !(0.0..=128.0).contains(&shininess) {
+            return Err(self.err(&key("shininess"), format!("{shininess} is outside 0..=128")));
+        }
+        let textures = m
+            .textures
+            .iter()
+            .map(|name| {
+                textures
+                    .iter()
+                    .position(|t| &t.name == name)
+                    .ok_or_else(|| {
+                        self.err(
+                            &key("textures"),
+                            format!(
+                                "no [[texture]] is named `{name}` (the textures are: {})",
+                                names(textures.iter().map(|t| t.name.as_str()))
+                            ),
+                        )
+                    })
+            })
+            .collect::<R<Vec<_>>>()?;
+        Ok(model::Material {
+            name: m.name.clone(),
+            shader: match m.shader {
+                ShaderFile::Unlit => model::Shader::Unlit,
+                ShaderFile::Lit => model::Shader::Lit,
+            },
+            ambient: self.colour(&key("ambient"), m.ambient, 0.2)?,
+            diffuse: self.colour(&key("diffuse"), m.diffuse, 0.8)?,
+            specular: self.colour(&key("specular"), m.specular, 0.0)?,
+            shininess: shininess as f32,
+            textures,
+            texture_mode: match m.texture_mode.unwrap_or(TextureModeFile::Modulate) {
+                TextureModeFile::Modulate => model::TextureMode::Modulate,
+                TextureModeFile::Replace => model::TextureMode::Replace,
+            },
+        })
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn object(
+        &self,
+        i: usize,
+        o: &ObjectFile,
+        material: usize,
+        lit: bool,
+        width: u32,
+        height: u32,
+        opts: &LoadOptions,
+    ) -> R<model::Object> {
+        let key = |k: &str| format!("object[{i}].{k}");
+        let sources = [
+            o.mesh.is_some(),
+            o.primitive.is_some(),
+            o.patches.is_some(),
+            o.cage.is_some(),
+        ];
+        match sources.iter().filter(|&&s| s).count() {
+            0 => {
+                return Err(self.err(
+                    &key("mesh"),
+                    "missing: give one of `mesh`, `primitive`, `patches` and `cage`",
+                ));
+            }
+            1 => {}
+            _ => {
+                return Err(self.err(
+                    &key("mesh"),
+                    "give only one of `mesh`, `primitive`, `patches` and `cage`",
+                ));
+            }
+        }
+        if o.patches.is_none() {
+            if o.basis.is_some() {
+                return Err(self.err(&key("basis"), "only for `patches`"));
+            }
+            if o.tessellate.is_some() {
+                return Err(self.err(&key("tessellate"), "only for `patches`"));
+            }
+        }
+        let mut space = Space::World;
+        let (name, mesh) = if let Some(file) = &o.mesh {
+            let (path, bytes) = self.read(&key("mesh"), file)?;
+            let text = String::from_utf8(bytes).map_err(|_| {
+                self.err(
+                    &key("mesh"),
+                    format!("`{}` is not UTF-8 text", path.display()),
+                )
+            })?;
+            let mesh = obj::parse(&text, lit).map_err(|e| self.asset(&key("mesh"), &path, e))?;
+            (file.clone(), mesh)
+        } else if let Some(file) = &o.patches {
+            let (path, bytes) = self.read(&key("patches"), file)?;
+            let text = String::from_utf8(bytes).map_err(|_| {
+                self.err(
+                    &key("patches"),
+                    format!("`{}` is not UTF-8 text", path.display()),
+                )
+            })?;
+            let patches = bpt::parse(&text).map_err(|e| self.asset(&key("patches"), &path, e))?;
+            let n = o.tessellate.unwrap_or(20);
+            if !(1..=MAX_TESSELLATE).contains(&n) {
+                return Err(self.err(
+                    &key("tessellate"),
+                    format!("{n} is outside 1..={MAX_TESSELLATE}"),
+                ));
+            }
+            let basis = match o.basis.unwrap_or(BasisFile::Bezier) {
+                BasisFile::Bezier => Basis::Bezier,
+                BasisFile::Bspline => Basis::BSpline,
+            };
+            (file.clone(), bpt::tessellate(&patches, basis, n))
+        } else if o.cage.is_some() {
+            return Err(self.err(
+                &key("cage"),
+                "Catmull-Clark control cages are not supported yet",
+            ));
+        } else {
+            let p = o.primitive.as_ref().expect("one source");
+            let pkey = |k: &str| key(&format!("primitive.{k}"));
+            let allowed: &[&str] = match p.kind {
+                PrimitiveKind::Icosphere => &["subdivisions"],
+                PrimitiveKind::UvSphere => &["rings", "segments"],
+                PrimitiveKind::Rate => &["size"],
+            };
+            for (k, given) in [
+                ("subdivisions", p.subdivisions.is_some()),
+                ("rings", p.rings.is_some()),
+                ("segments", p.segments.is_some()),
+                ("size", p.size.is_some()),
+            ] {
+                if given && !allowed.contains(&k) {
+                    return Err(self.err(&pkey(k), "not a key of this primitive's kind"));
+                }
+                if !given && allowed.contains(&k) {
+                    return Err(self.err(&pkey(k), "missing"));
+                }
+            }
+            match p.kind {
+                PrimitiveKind::Icosphere => {
+                    let s = opts.subdivisions.or(p.subdivisions).expect("checked");
+                    if s > primitives::MAX_SUBDIVISIONS {
+                        return Err(self.err(
+                            &pkey("subdivisions"),
+                            format!("{s} is beyond {}", primitives::MAX_SUBDIVISIONS),
+                        ));
+                    }
+                    ("icosphere".into(), primitives::icosphere(s))
+                }
+                PrimitiveKind::UvSphere => {
+                    let (r, s) = (p.rings.expect("checked"), p.segments.expect("checked"));
+                    if !(2..=MAX_SPHERE_DIVISIONS).contains(&r) {
+                        return Err(self.err(
+                            &pkey("rings"),
+                            format!("{r} is outside 2..={MAX_SPHERE_DIVISIONS}"),
+                        ));
+                    }
+                    if !(3..=MAX_SPHERE_DIVISIONS).contains(&s) {
+                        return Err(self.err(
+                            &pkey("segments"),
+                            format!("{s} is outside 3..={MAX_SPHERE_DIVISIONS}"),
+                        ));
+                    }
+                    ("uv_sphere".into(), primitives::uv_sphere(r, s))
+                }
+                PrimitiveKind::Rate => {
+                    if lit {
+                        return Err(self.err(&key("material"), "the rate primitive is unlit"));
+                    }
+                    for (k, given) in [
+                        ("translate", o.translate.is_some()),
+                        ("rotate", o.rotate.is_some()),
+                        ("scale", o.scale.is_some()),
+                    ] {
+                        if given {
+                            return Err(self.err(
+                                &key(k),
+                                "the rate primitive is in window pixels: it has no model matrix",
+                            ));
+                        }
+                    }
+                    space = Space::Window;
+                    let n = p.size.expect("checked");
+                    let mesh = primitives::rate(n, width, height)
+                        .map_err(|e| self.err(&pkey("size"), e))?;
+                    (format!("rate-{n}"), mesh)
+                }
+            }
+        };
+        let mesh = match o.triangles.unwrap_or(TrianglesFile::Shared) {
+            TrianglesFile::Shared => mesh,
+            TrianglesFile::Separate => primitives::separate(&mesh),
+        };
+        self.check_mesh(&key("mesh"), &mesh)?;
+        let model = match space {
+            Space::Window => IDENTITY,
+            Space::World => self.model_matrix(i, o)?,
+        };
+        Ok(model::Object {
+            name: o.name.clone().unwrap_or(name),
+            material,
+            model,
+            colour: self.colour(&key("colour"), o.colour, 1.0)?,
+            space,
+            mesh,
+        })
+    }
+
+    fn model_matrix(&self, i: usize, o: &ObjectFile) -> R<[f32; 16]> {
+        let key = |k: &str| format!("object[{i}].{k}");
+        let t = o.translate.unwrap_or([0.0; 3]);
+        let r = o.rotate.unwrap_or([0.0, 0.0, 0.0, 1.0]);
+        let s = o.scale.unwrap_or([1.0; 3]);
+        self.finite(&key("translate"), &t)?;
+        self.finite(&key("rotate"), &r)?;
+        self.finite(&key("scale"), &s)?;
+        let axis = DVec3::new(r[1], r[2], r[3]);
+        let rotation = if r[0] == 0.0 {
+            DMat4::IDENTITY
+        } else if axis.length_squared() == 0.0 {
+            return Err(self.err(&key("rotate"), "the rotation axis is zero"));
+        } else {
+            DMat4::from_axis_angle(axis.normalize(), r[0].to_radians())
+        };
+        let m =
+            DMat4::from_translation(DVec3::from(t)) * rotation * DMat4::from_scale(DVec3::from(s));
+        self.matrix(&key("scale"), m)
+    }
+
+    fn check_mesh(&self, key: &str, m: &Mesh) -> R<()> {
+        if m.triangles.is_empty() {
+            return Err(self.err(key, "the mesh has no triangles"));
+        }
+        let n = m.positions.len();
+        for (what, len) in [
+            ("normals", m.normals.len()),
+            ("colours", m.colours.len()),
+            ("texture coordinates", m.texcoords.len()),
+        ] {
+            if len != 0 && len != n {
+                return Err(self.err(key, format!("{len} {what} for {n} vertices")));
+            }
+        }
+        if let Some(t) = m
+            .triangles
+            .iter()
+            .find(|t| t.iter().any(|&i| i as usize >= n))
+        {
+            return Err(self.err(key, format!("triangle {t:?} names a vertex beyond the {n}")));
+        }
+        let finite = |v: &[f32]| v.iter().all(|c| c.is_finite());
+        if let Some(i) = m.positions.iter().position(|p| !finite(p)) {
+            return Err(self.err(key, format!("vertex {i} is not at a finite position")));
+        }
+        Ok(())
+    }
+}
+
+/// A key path with the index of the `[[light]]`, `[[texture]]`, `[[material]]` or
+/// `[[object]]` entry that holds `line` (toml's key paths leave it out): `object` →
+/// `object[1]`.
+fn index_tables(text: &str, keys: &str, line: Option<usize>) -> String {
+    let (table, rest) = keys.split_once('.').unwrap_or((keys, ""));
+    let Some(line) = line else {
+        return keys.into();
+    };
+    if !["light", "texture", "material", "object"].contains(&table) {
+        return keys.into();
+    }
+    let header = format!("[[{table}]]");
+    let seen = text
+        .lines()
+        .take(line)
+        .filter(|l| l.trim_start().starts_with(&header))
+        .count();
+    if seen == 0 {
+        return keys.into();
+    }
+    let dot = if rest.is_empty() { "" } else { "." };
+    format!("{table}[{}]{dot}{rest}", seen - 1)
+}
+
+fn names<'a>(it: impl Iterator<Item = &'a str>) -> String {
+    let v: Vec<String> = it.map(|n| format!("`{n}`")).collect();
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.join(", ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::model::{
+        Blend, Cull, DepthTest, Filter, PipelineKind, Shader, TextureMode, Wrap,
+    };
+
+    /// A fresh directory for one test's files.
+    fn dir(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("imagine-scene-{}-{tag}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn parse_in(d: &Path, text: &str) -> Result<model::Scene, SceneError> {
+        let path = d.join("test.toml");
+        std::fs::write(&path, text).unwrap();
+        load(path.to_str().unwrap(), &LoadOptions::default())
+    }
+
+    fn text(text: &str) -> Result<model::Scene, SceneError> {
+        parse(
+            text,
+            Path::new("/nowhere/test.toml"),
+            &LoadOptions::default(),
+        )
+    }
+
+    const WINDOW: &str = "[window]\nwidth = 64\nheight = 32\n";
+    const BALL: &str = "[[object]]\nprimitive = { kind = \"icosphere\", subdivisions = 0 }\n";
+
+    #[test]
+    fn scene_file_defaults() {
+        let s = text(&format!(
+            "{WINDOW}[[light]]\nposition = [1, 2, 3]\n[[texture]]\nname = \"c\"\n\
+             procedural = {{ kind = \"checker\" }}\n[[material]]\nname = \"m\"\nshader = \"lit\"\n\
+             {BALL}material = \"m\"\n{BALL}"
+        ))
+        .unwrap();
+        assert_eq!(s.name, "test");
+        assert_eq!((s.width, s.height), (64, 32));
+        assert_eq!((s.background, s.ambient), ([0.0; 3], [0.0; 3]));
+        assert_eq!(s.camera.view, IDENTITY);
+        assert_eq!(s.camera.projection, IDENTITY);
+        let p = s.pipeline;
+        assert_eq!(
+            (p.kind, p.depth_test, p.cull, p.blend, p.stop_length),
+            (
+                PipelineKind::OpenGl,
+                DepthTest::Less,
+                Cull::None,
+                Blend::None,
+                1.5
+            )
+        );
+        let l = s.lights[0];
+        assert_eq!(l.position, [1.0, 2.0, 3.0]);
+        assert_eq!(
+            (l.ambient, l.diffuse, l.specular),
+            ([0.0; 3], [1.0; 3], [1.0; 3])
+        );
+        let t = &s.textures[0];
+        assert_eq!(
+            (t.width, t.height, t.filter, t.wrap),
+            (256, 256, Filter::Nearest, Wrap::Repeat)
+        );
+        assert_eq!((t.texels[0], t.texels[32]), (0xffff_ffff, 0xff00_0000));
+        let m = &s.materials[0];
+        assert_eq!(
+            (m.ambient, m.diffuse, m.specular),
+            ([0.2; 3], [0.8; 3], [0.0; 3])
+        );
+        assert_eq!((m.shininess, m.texture_mode), (0.0, TextureMode::Modulate));
+        assert!(m.textures.is_empty());
+        let d = &s.materials[s.objects[1].material];
+        assert_eq!((d.shader, s.materials.len()), (Shader::Unlit, 2));
+        let o = &s.objects[1];
+        assert_eq!(
+            (o.name.as_str(), o.colour, o.model, o.space),
+            ("icosphere", [1.0; 3], IDENTITY, Space::World)
+        );
+        assert_eq!(
+            (
+                o.mesh.positions.len(),
+                o.mesh.triangles.len(),
+                o.mesh.separate
+            ),
+            (12, 20, false)
+        );
+        assert_eq!(s.objects[0].material, 0);
+    }
+
+    #[test]
+    fn scene_file_camera_and_model_matrices() {
+        let s = text(&format!(
+            "{WINDOW}[camera]\neye = [0, 0, 3]\ntarget = [0, 0, 0]\nfov_y = 90\nnear = 1\nfar = 3\n\
+             [[object]]\nprimitive = {{ kind = \"icosphere\", subdivisions = 0 }}\n\
+             translate = [1, 2, 3]\nrotate = [90, 0, 0, 2]\nscale = [2, 2, 2]\n"
+        ))
+        .unwrap();
+        let v = s.camera.view;
+        assert_eq!(
+            v,
+            [
+                1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, -3.0, 0.0, 0.0, 0.0, 1.0
+            ]
+        );
+        let p = s.camera.projection;
+        assert!(
+            (p[0] - 0.5).abs() < 1e-7 && (p[5] - 1.0).abs() < 1e-7,
+            "{p:?}"
+        );
+        assert_eq!((p[10], p[11], p[14]), (-2.0, -3.0, -1.0));
+        let m = s.objects[0].model;
+        let want = [
+            0.0, -2.0, 0.0, 1.0, 2.0, 0.0, 0.0, 2.0, 0.0, 0.0, 2.0, 3.0, 0.0, 0.0, 0.0, 1.0,
+        ];
+        for (a, b) in m.iter().zip(want) {
+            assert!((a - b).abs() < 1e-6, "{m:?}");
+        }
+        let s = text(&format!(
+            "{WINDOW}[camera]\nmodelview = [1,0,0,5, 0,1,0,0, 0,0,1,0, 0,0,0,1]\n\
+             ortho = [-1, 1, -1, 1, 1, 3]\n{BALL}"
+        ))
+        .unwrap();
+        assert_eq!(s.camera.view[3], 5.0);
+        assert_eq!(s.camera.projection[10], -1.0);
+    }
+
+    fn assert_error(result: Result<model::Scene, SceneError>, wants: &[&str]) {
+        let e = result.expect_err("the scene loaded").to_string();
+        for w in wants {
+            assert!(e.contains(w), "`{w}` missing from: {e}");
+        }
+    }
+
+    #[test]
+    fn scene_file_errors_name_the_file_and_key() {
+        let cases: Vec<(String, Vec<&str>)> = vec![
+            (format!("{WINDOW}colr = 1\n{BALL}"), vec!["colr", "line 4"]),
+            (format!("{WINDOW}{BALL}{BALL}colr = [1, 1, 1]\n"), vec!["`object[1]`", "unknown field `colr`", "line 8"]),
+            (format!("{WINDOW}{BALL}{BALL}colour = \"red\"\n"), vec!["`object[1].colour`", "line 8"]),
+            (BALL.to_string(), vec!["missing field `window`"]),
+            ("[window]\nwidth = \"wide\"\nheight = 1\n".into(), vec!["window.width", "line 2"]),
+            (format!("ambient = [nan, 0, 0]\n{WINDOW}{BALL}"), vec!["`ambient`", "finite"]),
+            (format!("{WINDOW}[[light]]\nposition = [inf, 0, 0]\n{BALL}"), vec!["`light[0].position`", "finite"]),
+            (format!("{WINDOW}background = [2, 0, 0]\n{BALL}"), vec!["`window.background`", "outside [0, 1]"]),
+            (format!("{WINDOW}{BALL}material = \"nope\"\n"), vec!["`object[0].material`", "`nope`"]),
+            (format!("{WINDOW}{}{BALL}", "[[light]]\nposition = [0, 0, 0]\n".repeat(9)), vec!["`light`", "at most 8"]),
+            (format!("{WINDOW}[[material]]\nname = \"m\"\nshader = \"lit\"\nshininess = 200\n{BALL}"), vec!["`material[0].shininess`"]),
+            (format!("{WINDOW}[[material]]\nname = \"m\"\n{BALL}"), vec!["shader"]),
+            (format!("{WINDOW}[[material]]\nname = \"m\"\nshader = \"unlit\"\ntextures = [\"t\"]\n{BALL}"), vec!["`material[0].textures`", "`t`"]),
+            ("[window]\nwidth = 0\nheight = 1\n[[object]]\nprimitive = { kind = \"icosphere\", subdivisions = 0 }\n".into(), vec!["`window.width`", "1..=4096"]),
+            (WINDOW.into(), vec!["no [[object]]"]),
+            (format!("{WINDOW}[[object]]\ncage = \"a.obj\"\n"), vec!["`object[0].cage`", "not supported yet"]),
+            (format!("{WINDOW}[[object]]\nprimitive = {{ kind = \"icosphere\" }}\n"), vec!["`object[0].primitive.subdivisions`", "missing"]),
+            (format!("{WINDOW}[[object]]\nprimitive = {{ kind = \"rate\", size = 3 }}\n"), vec!["`object[0].primitive.size`", "power of two"]),
+            (format!("{WINDOW}[pipeline]\ncull = \"sideways\"\n{BALL}"), vec!["pipeline.cull", "sideways"]),
+            (format!("{WINDOW}[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 0]\n{BALL}"), vec!["`camera.fov_y`", "missing"]),
+            (format!("{WINDOW}[camera]\nmodelview = [1, 2]\northo = [-1, 1, -1, 1, -1, 1]\n{BALL}"), vec!["camera.modelview", "16"]),
+        ];
+        for (t, wants) in cases {
+            let mut wants = wants.clone();
+            wants.push("/nowhere/test.toml");
+            assert_error(text(&t), &wants);
+        }
+    }
+
+    #[test]
+    fn scene_file_assets_are_read_and_bad_ones_named() {
+        let d = dir("assets");
+        std::fs::write(
+            d.join("quad.obj"),
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n",
+        )
+        .unwrap();
+        std::fs::write(
+            d.join("bad.obj"),
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\n# comment\nf 1 2 7\n",
+        )
+        .unwrap();
+        std::fs::write(d.join("bad.png"), "not a png").unwrap();
+        let mut img = image::RgbImage::new(2, 2);
+        img.put_pixel(0, 0, image::Rgb([255, 0, 0])); // top left
+        img.put_pixel(1, 1, image::Rgb([0, 0, 255])); // bottom right
+        img.save(d.join("t.png")).unwrap();
+        let s = parse_in(
+            &d,
+            &format!(
+                "{WINDOW}[[texture]]\nname = \"t\"\nimage = \"t.png\"\nfilter = \"trilinear\"\n\
+                 [[material]]\nname = \"m\"\nshader = \"lit\"\ntextures = [\"t\"]\n\
+                 [[object]]\nmesh = \"quad.obj\"\nmaterial = \"m\"\n"
+            ),
+        )
+        .unwrap();
+        let t = &s.textures[0];
+        assert_eq!((t.width, t.height, t.filter), (2, 2, Filter::Trilinear));
+        assert_eq!(
+            t.texels,
+            vec![0xff00_0000, 0xffff_0000, 0xff00_00ff, 0xff00_0000]
+        );
+        let m = &s.objects[0].mesh;
+        assert_eq!(
+            (m.positions.len(), m.triangles.len()),
+            (6, 2),
+            "lit: geometric normals"
+        );
+        assert!(m.normals.iter().all(|&n| n == [0.0, 0.0, 1.0]));
+        assert_eq!(s.objects[0].name, "quad.obj");
+        assert_eq!(s.materials[0].textures, vec![0]);
+
+        assert_error(
+            parse_in(&d, &format!("{WINDOW}[[object]]\nmesh = \"bad.obj\"\n")),
+            &[
+                "test.toml",
+                "`object[0].mesh`",
+                "bad.obj` line 5",
+                "index 7 is out of range",
+            ],
+        );
+        assert_error(
+            parse_in(&d, &format!("{WINDOW}[[object]]\nmesh = \"gone.obj\"\n")),
+            &["`object[0].mesh`", "cannot read", "gone.obj"],
+        );
+        assert_error(
+            parse_in(
+                &d,
+                &format!("{WINDOW}[[texture]]\nname = \"t\"\nimage = \"bad.png\"\n{BALL}"),
+            ),
+            &["`texture[0].image`", "bad.png` is not a PNG image"],
+        );
+        assert_error(
+            parse_in(&d, &format!("{WINDOW}[[object]]\npatches = \"gone.bpt\"\n")),
+            &["`object[0].patches`", "gone.bpt"],
+        );
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn scene_file_patches_and_uv_spheres() {
+        let d = dir("patches");
+        let mut bpt = String::from("1\n3 3\n");
+        for row in 0..4 {
+            for col in 0..4 {
+                bpt += &format!("{col} {row} 0\n");
+            }
+        }
+        std::fs::write(d.join("flat.bpt"), bpt).unwrap();
+        let s = parse_in(
+            &d,
+            &format!(
+                "{WINDOW}[[object]]\npatches = \"flat.bpt\"\ntessellate = 2\n\
+                 [[object]]\npatches = \"flat.bpt\"\nbasis = \"bspline\"\n\
+                 [[object]]\nprimitive = {{ kind = \"uv_sphere\", rings = 4, segments = 8 }}\ntriangles = \"separate\"\n"
+            ),
+        )
+        .unwrap();
+        assert_eq!(
+            (
+                s.objects[0].mesh.positions.len(),
+                s.objects[0].mesh.triangles.len()
+            ),
+            (9, 8)
+        );
+        assert_eq!(s.objects[1].mesh.triangles.len(), 2 * 20 * 20);
+        let u = &s.objects[2].mesh;
+        assert_eq!(
+            (u.positions.len(), u.triangles.len(), u.separate),
+            (3 * 64, 64, true)
+        );
+        assert_eq!(u.triangles[5], [15, 16, 17]);
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    #[test]
+    fn scene_file_builtin_sphere_is_the_old_sphere() {
+        let s = load("sphere", &LoadOptions::default()).unwrap();
+        assert_eq!(s.name, "SPHERE");
+        assert_eq!((s.triangles(), s.vertices()), (81_920, 245_760));
+        let old = crate::scene::sphere(6, 720);
+        let o = &s.objects[0];
+        assert!(o.mesh.separate);
+        assert_eq!(o.mesh.positions, old.positions);
+        assert_eq!(o.mesh.normals, old.normals);
+        assert_eq!(s.camera.view, old.modelview);
+        for (a, b) in s.camera.projection.iter().zip(old.projection) {
+            assert!(
+                (a - b).abs() <= 1e-6 * b.abs(),
+                "{:?} vs {:?}",
+                s.camera.projection,
+                old.projection
+            );
+        }
+        assert_eq!(s.pipeline.cull, Cull::Back);
+        assert_eq!(s.lights.len(), 3);
+        assert_eq!(s.lights[1].diffuse, [0.5, 0.3, 0.2]);
+        assert_eq!(s.materials[o.material].shininess, 16.0);
+        assert_eq!(s.ambient, [1.0; 3]);
+        assert!(s.source.as_ref().unwrap().ends_with("scenes/SPHERE.toml"));
+        let small = load(
+            "SPHERE",
+            &LoadOptions {
+                size: Some(64),
+                subdivisions: Some(2),
+            },
+        )
+        .unwrap();
+        assert_eq!((small.width, small.triangles()), (64, 320));
+        assert!(
+            load(
+                "SPHERE",
+                &LoadOptions {
+                    size: None,
+                    subdivisions: Some(8)
+                }
+            )
+            .is_err()
+        );
+    }
+
+    #[test]
+    fn scene_file_builtin_rate_is_the_old_rate() {
+        for n in [1, 2, 4, 8, 16, 32, 64, 128] {
+            let s = load(
+                &format!("rate-{n}"),
+                &LoadOptions {
+                    size: Some(64),
+                    subdivisions: None,
+                },
+            )
+            .unwrap();
+            let old = crate::scene::rate(n, 64).unwrap();
+            let o = &s.objects[0];
+            assert_eq!(o.space, Space::Window);
+            assert_eq!(o.mesh.positions, old.positions, "RATE-{n}");
+            assert_eq!(o.mesh.colours, old.colours, "RATE-{n}");
+            assert_eq!(s.materials[o.material].shader, Shader::Unlit);
+            assert_eq!(
+                (s.pipeline.cull, s.pipeline.depth_test),
+                (Cull::None, DepthTest::Less)
+            );
+            let c = s.camera_for(o);
+            assert_eq!(c.projection, window_to_clip(64, 64));
+        }
+        let s = load("RATE-8", &LoadOptions::default()).unwrap();
+        assert_eq!((s.width, s.triangles()), (720, 720 * 720 / 8));
+        for (name, text) in BUILTIN {
+            assert!(!builtin_description(text).is_empty(), "{name}");
+        }
+        assert_error(
+            load("TEAPOT-9", &LoadOptions::default()),
+            &["unknown scene", "SPHERE", "RATE-8"],
+        );
+    }
+
+    #[test]
+    fn scene_file_tri_files_load() {
+        let d = dir("tri");
+        let path = d.join("two.tri");
+        std::fs::write(&path, "4 3\n0 0 0.5 1 0 0  4 0 0.5 0 1 0  0 3 0.5 0 0 1\n").unwrap();
+        let s = load(path.to_str().unwrap(), &LoadOptions::default()).unwrap();
+        assert_eq!(
+            (s.name.as_str(), s.width, s.height, s.triangles()),
+            ("two", 4, 3, 1)
+        );
+        let o = &s.objects[0];
+        assert_eq!(
+            (o.space, o.mesh.separate, o.mesh.triangles[0]),
+            (Space::Window, true, [0, 1, 2])
+        );
+        assert_eq!(o.mesh.colours[1], [0.0, 1.0, 0.0]);
+        assert_eq!(s.materials[o.material].shader, Shader::Unlit);
+        std::fs::write(&path, "4 3\n1 2 3\n").unwrap();
+        assert_error(
+            load(path.to_str().unwrap(), &LoadOptions::default()),
+            &["two.tri", "line 2"],
+        );
+        let _ = std::fs::remove_dir_all(&d);
+    }
+}
