@@ -22,13 +22,12 @@
 //!   position is `modelview · (p, 1)`, its normal goes through the inverse transpose of
 //!   the model-view's upper 3 × 3 and is renormalised (`GL_NORMALIZE`). With
 //!   `GL_LIGHT_MODEL_LOCAL_VIEWER` true the direction to the eye is `E = normalize(−v)`;
-//!   for each light `L = normalize(l − v)`, `H = normalize(L + E)`, and
-//!   `c = a_global·a_m + Σ_l [a_l·a_m + max(n·L, 0)·d_l·d_m
-//!   + (n·L > 0 ? max(n·H, 0)^s : 0)·s_l·s_m]`, clamped to [0, 1] per channel, with
-//!   `0^0 = 1` as GL's `pow` (the `LIT` instruction) has it. No attenuation, no spotlights,
-//!   no emission, one-sided. A mesh without normals gets each triangle's geometric normal
-//!   `(p_1 − p_0) × (p_2 − p_0)` in object space (the format's rule for OBJ faces without
-//!   normals), so its corners are lit per triangle.
+//!   for each light `L = normalize(l − v)` and `H = normalize(L + E)`; the colour is
+//!   `c = a_global·a_m + Σ_l [a_l·a_m + max(n·L, 0)·d_l·d_m + (n·L > 0 ? max(n·H, 0)^s : 0)·s_l·s_m]`,
+//!   clamped to [0, 1] per channel, with `0^0 = 1` (OpenGL's value for a shininess of 0)
+//!   — no attenuation, no spotlights, no emission, one-sided. A mesh without normals
+//!   gets each triangle's geometric normal `(p_1 − p_0) × (p_2 − p_0)` in object space (the
+//!   format's rule for OBJ faces without normals), so its corners are lit per triangle.
 //!
 //! # Fragments
 //!
@@ -128,7 +127,7 @@ pub fn lit_colour(
         let h = normalize_or_zero(std::array::from_fn(|k| l[k] + e[k]));
         let n_dot_l = dot(n, l);
         let diffuse = n_dot_l.max(0.0);
-        // f64::powf has 0^0 = 1, as GL's LIT.
+        // f64::powf has 0^0 = 1, as OpenGL has it for a shininess of 0.
         let specular = if n_dot_l > 0.0 {
             dot(n, h).max(0.0).powf(shininess)
         } else {
