@@ -55,7 +55,9 @@
 //!    channel (round half up of `clamp(c, 0, 1)·255`) with alpha 255.
 //!
 //! [`for_each_fragment`] exposes steps 1–6 without the depth test (for coverage tests);
-//! [`render`] adds step 7.
+//! [`render`] adds step 7. Steps 1–6 for one triangle are [`rasterize_triangle`], which
+//! the scene-file renderer ([`crate::reference_model`]) shares, with culling of back, front
+//! or no faces and the depth tests of [`depth_passes`].
 //!
 //! # Other tie rules
 //!
