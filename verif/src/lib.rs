@@ -5,5 +5,6 @@ pub mod image;
 #[cfg(feature = "osmesa")]
 pub mod osmesa;
 pub mod reference;
+pub mod reference_model;
 pub mod stress;
 pub mod testfloat;

@@ -19,12 +19,16 @@
 //! so the comparison is about rasterization, interpolation and depth, not about GL's own
 //! lighting model. The buffer's row 0 is the bottom row, like [`Image`].
 //!
+//! [`render_model`] draws a scene file's scene ([`model::Scene`]) with GL's *own*
+//! fixed-function lighting, as the format's contract describes it (see its documentation).
+//!
 //! OSMesa keeps a current context per thread and Mesa has global state; renders are
 //! serialised by a lock.
 
 use crate::image::Image;
 use crate::reference;
-use imagine_pipelines::scene::Scene;
+use imagine_pipelines::scene::model::{self, Cull, DepthTest, Shader, Space};
+use imagine_pipelines::scene::{IDENTITY, Scene, window_to_clip};
 use std::ffi::{CStr, c_char, c_void};
 use std::sync::Mutex;
 
@@ -54,6 +58,23 @@ const GL_DEPTH_BUFFER_BIT: GLbitfield = 0x0100;
 const GL_RENDERER: GLenum = 0x1F01;
 const GL_VERSION: GLenum = 0x1F02;
 const GL_NO_ERROR: GLenum = 0;
+const GL_LEQUAL: GLenum = 0x0203;
+const GL_ALWAYS: GLenum = 0x0207;
+const GL_FRONT: GLenum = 0x0404;
+const GL_FRONT_AND_BACK: GLenum = 0x0408;
+const GL_LIGHTING: GLenum = 0x0B50;
+const GL_LIGHT_MODEL_LOCAL_VIEWER: GLenum = 0x0B51;
+const GL_LIGHT_MODEL_TWO_SIDE: GLenum = 0x0B52;
+const GL_LIGHT_MODEL_AMBIENT: GLenum = 0x0B53;
+const GL_COLOR_MATERIAL: GLenum = 0x0B57;
+const GL_NORMALIZE: GLenum = 0x0BA1;
+const GL_AMBIENT: GLenum = 0x1200;
+const GL_DIFFUSE: GLenum = 0x1201;
+const GL_SPECULAR: GLenum = 0x1202;
+const GL_POSITION: GLenum = 0x1203;
+const GL_EMISSION: GLenum = 0x1600;
+const GL_SHININESS: GLenum = 0x1601;
+const GL_LIGHT0: GLenum = 0x4000;
 const OSMESA_RGBA: GLenum = GL_RGBA;
 
 #[link(name = "OSMesa")]
@@ -90,6 +111,15 @@ unsafe extern "C" {
     fn glBegin(mode: GLenum);
     fn glEnd();
     fn glColor3f(r: GLfloat, g: GLfloat, b: GLfloat);
+    fn glNormal3f(x: GLfloat, y: GLfloat, z: GLfloat);
+    fn glMultMatrixf(m: *const GLfloat);
+    fn glPushMatrix();
+    fn glPopMatrix();
+    fn glLightfv(light: GLenum, pname: GLenum, params: *const GLfloat);
+    fn glLightModelfv(pname: GLenum, params: *const GLfloat);
+    fn glLightModeli(pname: GLenum, param: GLint);
+    fn glMaterialfv(face: GLenum, pname: GLenum, params: *const GLfloat);
+    fn glMaterialf(face: GLenum, pname: GLenum, param: GLfloat);
     fn glVertex3f(x: GLfloat, y: GLfloat, z: GLfloat);
     fn glFinish();
     fn glGetError() -> GLenum;
@@ -219,6 +249,174 @@ pub fn render(scene: &Scene) -> Result<Image, String> {
             glVertex3f(p[0], p[1], p[2]);
         }
         glEnd();
+        glFinish();
+        glGetError()
+    };
+    if error != GL_NO_ERROR {
+        return Err(format!(
+            "OpenGL error 0x{error:04X} while rendering `{}`",
+            scene.name
+        ));
+    }
+    Ok(Image {
+        width,
+        height,
+        pixels: context.buffer.clone(),
+    })
+}
+
+/// A row-major matrix in GL's column-major order: element (row i, column j) at j·4 + i.
+fn column_major(m: &[f32; 16]) -> [f32; 16] {
+    std::array::from_fn(|k| m[(k % 4) * 4 + k / 4])
+}
+
+fn rgba(c: [f32; 3]) -> [f32; 4] {
+    [c[0], c[1], c[2], 1.0]
+}
+
+/// Renders a scene file's scene with OSMesa and GL's own fixed-function pipeline:
+///
+/// * `glViewport` = window; `GL_PROJECTION` = the camera's projection and `GL_MODELVIEW`
+///   = its view (transposed: GL is column-major); with that view loaded, each light gets
+///   `glLightfv(GL_POSITION, (x, y, z, 1))` — GL transforms it to eye space — and its
+///   ambient, diffuse and specular colours; `GL_LIGHT_MODEL_AMBIENT` = the scene's
+///   ambient, `GL_LIGHT_MODEL_LOCAL_VIEWER` = 1, two-sided lighting off, `GL_NORMALIZE`
+///   on, `GL_COLOR_MATERIAL` off, no emission;
+/// * per object in order: for a world-space object `glPushMatrix`, `glMultMatrixf(model)`,
+///   draw, `glPopMatrix`; a window-space object gets `window_to_clip` as its projection and
+///   its model matrix alone as model-view (the camera's matrices are restored after);
+/// * a `lit` material enables `GL_LIGHTING` and sets `glMaterialfv` ambient, diffuse and
+///   specular and `glMaterialf` shininess on `GL_FRONT_AND_BACK`, then each corner gets
+///   `glNormal3f` (the mesh's normal, or the triangle's geometric normal when the mesh
+///   has none) and `glVertex3f`; an `unlit` one disables lighting and gives each corner
+///   `glColor3f` (the mesh's colour or the object's);
+/// * depth test per the scene (`GL_LESS`, `GL_LEQUAL`, `GL_ALWAYS`), cull face per the
+///   scene (counter-clockwise front faces), smooth shading, dithering off, colour cleared
+///   to the background and depth to 1.0.
+///
+/// Textures and blending are refused, as by the reference
+/// ([`crate::reference_model::check`]).
+pub fn render_model(scene: &model::Scene) -> Result<Image, String> {
+    crate::reference_model::check(scene).map_err(|e| e.to_string())?;
+    let (width, height) = (scene.width, scene.height);
+    let _guard = LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    let context = Context::new(width, height)?;
+    let projection = column_major(&scene.camera.projection);
+    let view = column_major(&scene.camera.view);
+    let window_projection = column_major(&window_to_clip(width, height));
+    let identity = column_major(&IDENTITY);
+    let [br, bg, bb] = scene.background;
+    // SAFETY: a context is current on this thread (we hold the lock); all arguments are
+    // plain values or pointers to 4 or 16 floats that outlive the calls.
+    let error = unsafe {
+        glViewport(0, 0, width as GLsizei, height as GLsizei);
+        glMatrixMode(GL_PROJECTION);
+        glLoadMatrixf(projection.as_ptr());
+        glMatrixMode(GL_MODELVIEW);
+        glLoadMatrixf(view.as_ptr());
+        for (i, light) in scene.lights.iter().enumerate() {
+            let id = GL_LIGHT0 + i as GLenum;
+            let [x, y, z] = light.position;
+            glLightfv(id, GL_POSITION, [x, y, z, 1.0].as_ptr());
+            glLightfv(id, GL_AMBIENT, rgba(light.ambient).as_ptr());
+            glLightfv(id, GL_DIFFUSE, rgba(light.diffuse).as_ptr());
+            glLightfv(id, GL_SPECULAR, rgba(light.specular).as_ptr());
+            glEnable(id);
+        }
+        glLightModelfv(GL_LIGHT_MODEL_AMBIENT, rgba(scene.ambient).as_ptr());
+        glLightModeli(GL_LIGHT_MODEL_LOCAL_VIEWER, 1);
+        glLightModeli(GL_LIGHT_MODEL_TWO_SIDE, 0);
+        glMaterialfv(
+            GL_FRONT_AND_BACK,
+            GL_EMISSION,
+            [0.0, 0.0, 0.0, 1.0].as_ptr(),
+        );
+        glDisable(GL_COLOR_MATERIAL);
+        glEnable(GL_NORMALIZE);
+        glEnable(GL_DEPTH_TEST);
+        glDepthFunc(match scene.pipeline.depth_test {
+            DepthTest::Less => GL_LESS,
+            DepthTest::Lequal => GL_LEQUAL,
+            DepthTest::Always => GL_ALWAYS,
+        });
+        glShadeModel(GL_SMOOTH);
+        glDisable(GL_DITHER);
+        glFrontFace(GL_CCW);
+        match scene.pipeline.cull {
+            Cull::Back => {
+                glCullFace(GL_BACK);
+                glEnable(GL_CULL_FACE);
+            }
+            Cull::Front => {
+                glCullFace(GL_FRONT);
+                glEnable(GL_CULL_FACE);
+            }
+            Cull::None => glDisable(GL_CULL_FACE),
+        }
+        glClearColor(br, bg, bb, 1.0);
+        glClearDepth(1.0);
+        glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+
+        for object in &scene.objects {
+            let window = object.space == Space::Window;
+            if window {
+                glMatrixMode(GL_PROJECTION);
+                glLoadMatrixf(window_projection.as_ptr());
+                glMatrixMode(GL_MODELVIEW);
+                glLoadMatrixf(identity.as_ptr());
+            } else {
+                glPushMatrix();
+            }
+            glMultMatrixf(column_major(&object.model).as_ptr());
+            let material = &scene.materials[object.material];
+            let lit = material.shader == Shader::Lit;
+            if lit {
+                glEnable(GL_LIGHTING);
+                glMaterialfv(
+                    GL_FRONT_AND_BACK,
+                    GL_AMBIENT,
+                    rgba(material.ambient).as_ptr(),
+                );
+                glMaterialfv(
+                    GL_FRONT_AND_BACK,
+                    GL_DIFFUSE,
+                    rgba(material.diffuse).as_ptr(),
+                );
+                glMaterialfv(
+                    GL_FRONT_AND_BACK,
+                    GL_SPECULAR,
+                    rgba(material.specular).as_ptr(),
+                );
+                glMaterialf(GL_FRONT_AND_BACK, GL_SHININESS, material.shininess);
+            } else {
+                glDisable(GL_LIGHTING);
+            }
+            let mesh = &object.mesh;
+            glBegin(GL_TRIANGLES);
+            for &t in &mesh.triangles {
+                let normals = crate::reference_model::corner_normals(mesh, t);
+                for (&i, n) in t.iter().zip(normals) {
+                    let i = i as usize;
+                    if lit {
+                        glNormal3f(n[0] as f32, n[1] as f32, n[2] as f32);
+                    } else {
+                        let [r, g, b] = *mesh.colours.get(i).unwrap_or(&object.colour);
+                        glColor3f(r, g, b);
+                    }
+                    let [x, y, z] = mesh.positions[i];
+                    glVertex3f(x, y, z);
+                }
+            }
+            glEnd();
+            if window {
+                glMatrixMode(GL_PROJECTION);
+                glLoadMatrixf(projection.as_ptr());
+                glMatrixMode(GL_MODELVIEW);
+                glLoadMatrixf(view.as_ptr());
+            } else {
+                glPopMatrix();
+            }
+        }
         glFinish();
         glGetError()
     };

@@ -55,7 +55,9 @@
 //!    channel (round half up of `clamp(c, 0, 1)·255`) with alpha 255.
 //!
 //! [`for_each_fragment`] exposes steps 1–6 without the depth test (for coverage tests);
-//! [`render`] adds step 7.
+//! [`render`] adds step 7. Steps 1–6 for one triangle are [`rasterize_triangle`], which
+//! the scene-file renderer ([`crate::reference_model`]) shares, with culling of back, front
+//! or no faces and the depth tests of [`depth_passes`].
 //!
 //! # Other tie rules
 //!
@@ -69,11 +71,12 @@
 //! volume is clipped in f32 and its edges move by rounding.)
 
 use crate::image::{Image, quantise};
+use imagine_pipelines::scene::model::{Cull, DepthTest};
 use imagine_pipelines::scene::{Lighting, Scene, SceneError, Shading};
 
-type V3 = [f64; 3];
+pub(crate) type V3 = [f64; 3];
 
-fn cross(a: V3, b: V3) -> V3 {
+pub(crate) fn cross(a: V3, b: V3) -> V3 {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
@@ -81,16 +84,16 @@ fn cross(a: V3, b: V3) -> V3 {
     ]
 }
 
-fn dot(a: V3, b: V3) -> f64 {
+pub(crate) fn dot(a: V3, b: V3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-fn normalize(v: V3) -> V3 {
+pub(crate) fn normalize(v: V3) -> V3 {
     let length = dot(v, v).sqrt();
     v.map(|c| c / length)
 }
 
-fn widen(v: [f32; 3]) -> V3 {
+pub(crate) fn widen(v: [f32; 3]) -> V3 {
     v.map(f64::from)
 }
 
@@ -202,6 +205,97 @@ fn pixel_range(min: f64, max: f64, size: u32) -> Option<(u32, u32)> {
     (lo <= hi).then_some((lo as u32, hi as u32))
 }
 
+/// Steps 1–6 of the module comment for one triangle: `clip` holds its clip-space vertices
+/// and `colours` their colours, in a `width × height` window. Triangles of the winding
+/// `cull` names are dropped (counter-clockwise in the window, `det > 0`, is front;
+/// zero-area ones always are). Calls `f(x, y, depth, colour)` for every covered sample
+/// with `0 ≤ depth ≤ 1`, bottom row up, left to right; no depth test. Both the old scene's
+/// renderer and [`crate::reference_model`] draw through this.
+pub fn rasterize_triangle(
+    clip: &[[f64; 4]; 3],
+    colours: &[[f64; 3]; 3],
+    (width, height): (u32, u32),
+    cull: Cull,
+    rule: TieRule,
+    mut f: impl FnMut(u32, u32, f64, [f64; 3]),
+) {
+    let (c, col) = (clip, colours);
+    if width == 0 || height == 0 || trivially_rejected(c) {
+        return;
+    }
+    let (half_w, half_h) = (f64::from(width) / 2.0, f64::from(height) / 2.0);
+    let v: [V3; 3] = c.map(|p| [(p[0] + p[3]) * half_w, (p[1] + p[3]) * half_h, p[3]]);
+    let mut edges = [cross(v[1], v[2]), cross(v[2], v[0]), cross(v[0], v[1])];
+    let det = dot(v[0], edges[0]);
+    let culled = match cull {
+        Cull::Back => det < 0.0,
+        Cull::Front => det > 0.0,
+        Cull::None => false,
+    };
+    if det == 0.0 || !det.is_finite() || culled || !edges.iter().flatten().all(|e| e.is_finite()) {
+        return;
+    }
+    if det < 0.0 {
+        for e in &mut edges {
+            *e = e.map(|k| -k);
+        }
+    }
+    let owns_ties = edges.map(|[a, b, _]| rule.owns(a, b));
+
+    let bounds = if v.iter().all(|p| p[2] > 0.0) {
+        let xs = v.map(|p| p[0] / p[2]);
+        let ys = v.map(|p| p[1] / p[2]);
+        let min = |a: [f64; 3]| a[0].min(a[1]).min(a[2]);
+        let max = |a: [f64; 3]| a[0].max(a[1]).max(a[2]);
+        pixel_range(min(xs), max(xs), width).zip(pixel_range(min(ys), max(ys), height))
+    } else {
+        Some(((0, width - 1), (0, height - 1)))
+    };
+    let Some(((x0, x1), (y0, y1))) = bounds else {
+        return;
+    };
+
+    for py in y0..=y1 {
+        let y = f64::from(py) + 0.5;
+        'pixel: for px in x0..=x1 {
+            let x = f64::from(px) + 0.5;
+            let mut e = [0.0; 3];
+            for i in 0..3 {
+                let [a, b, k] = edges[i];
+                let value = a * x + b * y + k;
+                if value < 0.0 || (value == 0.0 && !owns_ties[i]) {
+                    continue 'pixel;
+                }
+                e[i] = value;
+            }
+            let sum = e[0] + e[1] + e[2];
+            if sum <= 0.0 {
+                continue;
+            }
+            let l = e.map(|ei| ei / sum);
+            let z = l[0] * c[0][2] + l[1] * c[1][2] + l[2] * c[2][2];
+            let w = l[0] * c[0][3] + l[1] * c[1][3] + l[2] * c[2][3];
+            let depth = (z / w + 1.0) / 2.0;
+            if !(0.0..=1.0).contains(&depth) {
+                continue;
+            }
+            let colour =
+                std::array::from_fn(|k| l[0] * col[0][k] + l[1] * col[1][k] + l[2] * col[2][k]);
+            f(px, py, depth, colour);
+        }
+    }
+}
+
+/// Whether a fragment at `depth` passes `test` against the stored depth `stored` (step 7,
+/// generalised: the old scenes always use [`DepthTest::Less`]).
+pub fn depth_passes(test: DepthTest, depth: f64, stored: f64) -> bool {
+    match test {
+        DepthTest::Less => depth < stored,
+        DepthTest::Lequal => depth <= stored,
+        DepthTest::Always => true,
+    }
+}
+
 /// Runs steps 1–6 of the module comment over a scene, calling `f` for every fragment in
 /// drawing order (triangle by triangle, then bottom row up, left to right). No depth test.
 pub fn for_each_fragment(scene: &Scene, f: impl FnMut(&Fragment)) -> Result<(), SceneError> {
@@ -221,83 +315,34 @@ pub fn for_each_fragment_with(
         .map(|&p| clip_position(&scene.projection, &scene.modelview, p))
         .collect();
     let colours = vertex_colours(scene);
-    let (width, height) = (scene.width, scene.height);
-    let (half_w, half_h) = (f64::from(width) / 2.0, f64::from(height) / 2.0);
-
+    let cull = if scene.cull_back {
+        Cull::Back
+    } else {
+        Cull::None
+    };
     for (triangle, (c, col)) in clip
         .chunks_exact(3)
         .zip(colours.chunks_exact(3))
         .enumerate()
     {
         let c: [[f64; 4]; 3] = [c[0], c[1], c[2]];
-        if trivially_rejected(&c) {
-            continue;
-        }
-        let v: [V3; 3] = c.map(|p| [(p[0] + p[3]) * half_w, (p[1] + p[3]) * half_h, p[3]]);
-        let mut edges = [cross(v[1], v[2]), cross(v[2], v[0]), cross(v[0], v[1])];
-        let det = dot(v[0], edges[0]);
-        if det == 0.0
-            || !det.is_finite()
-            || (scene.cull_back && det < 0.0)
-            || !edges.iter().flatten().all(|e| e.is_finite())
-        {
-            continue;
-        }
-        if det < 0.0 {
-            for e in &mut edges {
-                *e = e.map(|k| -k);
-            }
-        }
-        let owns_ties = edges.map(|[a, b, _]| rule.owns(a, b));
-
-        let bounds = if v.iter().all(|p| p[2] > 0.0) {
-            let xs = v.map(|p| p[0] / p[2]);
-            let ys = v.map(|p| p[1] / p[2]);
-            let min = |a: [f64; 3]| a[0].min(a[1]).min(a[2]);
-            let max = |a: [f64; 3]| a[0].max(a[1]).max(a[2]);
-            pixel_range(min(xs), max(xs), width).zip(pixel_range(min(ys), max(ys), height))
-        } else {
-            Some(((0, width - 1), (0, height - 1)))
-        };
-        let Some(((x0, x1), (y0, y1))) = bounds else {
-            continue;
-        };
-
-        for py in y0..=y1 {
-            let y = f64::from(py) + 0.5;
-            'pixel: for px in x0..=x1 {
-                let x = f64::from(px) + 0.5;
-                let mut e = [0.0; 3];
-                for i in 0..3 {
-                    let [a, b, k] = edges[i];
-                    let value = a * x + b * y + k;
-                    if value < 0.0 || (value == 0.0 && !owns_ties[i]) {
-                        continue 'pixel;
-                    }
-                    e[i] = value;
-                }
-                let sum = e[0] + e[1] + e[2];
-                if sum <= 0.0 {
-                    continue;
-                }
-                let l = e.map(|ei| ei / sum);
-                let z = l[0] * c[0][2] + l[1] * c[1][2] + l[2] * c[2][2];
-                let w = l[0] * c[0][3] + l[1] * c[1][3] + l[2] * c[2][3];
-                let depth = (z / w + 1.0) / 2.0;
-                if !(0.0..=1.0).contains(&depth) {
-                    continue;
-                }
-                let colour =
-                    std::array::from_fn(|k| l[0] * col[0][k] + l[1] * col[1][k] + l[2] * col[2][k]);
+        let col: [[f64; 3]; 3] = [col[0], col[1], col[2]];
+        rasterize_triangle(
+            &c,
+            &col,
+            (scene.width, scene.height),
+            cull,
+            rule,
+            |x, y, depth, colour| {
                 f(&Fragment {
                     triangle,
-                    x: px,
-                    y: py,
+                    x,
+                    y,
                     depth,
                     colour,
-                });
-            }
-        }
+                })
+            },
+        );
     }
     Ok(())
 }
@@ -314,7 +359,7 @@ pub fn render_with(scene: &Scene, rule: TieRule) -> Result<Image, SceneError> {
     let width = scene.width as usize;
     for_each_fragment_with(scene, rule, |f| {
         let i = f.y as usize * width + f.x as usize;
-        if f.depth < depth[i] {
+        if depth_passes(DepthTest::Less, f.depth, depth[i]) {
             depth[i] = f.depth;
             let [r, g, b] = f.colour.map(quantise);
             image.pixels[i] = [r, g, b, 255];
