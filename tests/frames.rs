@@ -3,10 +3,19 @@
 //! reduced size (full 720×720 frames are `#[ignore]`d: `cargo test --release -- --ignored`).
 
 use imagine_pipelines::opengl::render::{Frame, render};
-use imagine_pipelines::scene::{self, Scene};
+use imagine_pipelines::scene::model::Scene;
+use imagine_pipelines::scene::{self, LoadOptions, window_scene};
 use imagine_units::desc::MachineDesc;
 use imagine_verif::image::{Image, Metrics, compare};
-use imagine_verif::{reference, stress};
+use imagine_verif::{reference_model as reference, stress};
+
+fn builtin(name: &str, size: u32, subdivisions: Option<u32>) -> Scene {
+    let opts = LoadOptions {
+        size: Some(size),
+        subdivisions,
+    };
+    scene::load(name, &opts).unwrap()
+}
 
 fn image_of(f: &Frame) -> Image {
     Image::from_rgba8_words(f.width, f.height, &f.pixels)
@@ -16,7 +25,7 @@ fn draw(scene: &Scene, machine: &str) -> (Frame, Metrics) {
     let desc = MachineDesc::resolve(machine).unwrap();
     let frame = render(scene, &desc, None, |_, _| {})
         .unwrap_or_else(|e| panic!("{} on {machine}: {e}", scene.name));
-    let m = compare(&image_of(&frame), &reference::render(scene)).unwrap();
+    let m = compare(&image_of(&frame), &reference::render(scene).unwrap()).unwrap();
     println!(
         "{} on {machine}: {} cycles, PSNR {:.2} dB, max {} , differing {:.4} %, coverage {:.4} %",
         scene.name,
@@ -41,7 +50,7 @@ fn hash(pixels: &[u32]) -> u64 {
 
 #[test]
 fn small_sphere_matches_the_reference_and_its_stored_hash() {
-    let scene = scene::sphere(3, 96);
+    let scene = builtin("SPHERE", 96, Some(3));
     let (frame, m) = draw(&scene, "gold8");
     assert!(m.psnr_db > 60.0, "PSNR {}", m.psnr_db);
     assert!(m.max_abs_error <= 1, "max error {}", m.max_abs_error);
@@ -56,7 +65,7 @@ fn small_sphere_matches_the_reference_and_its_stored_hash() {
 
 #[test]
 fn the_frame_is_the_same_on_every_cluster_count_and_run() {
-    let scene = scene::sphere(2, 48);
+    let scene = builtin("SPHERE", 48, Some(2));
     let (a, _) = draw(&scene, "gold8");
     let (b, _) = draw(&scene, "gold8");
     assert_eq!(a.pixels, b.pixels);
@@ -70,7 +79,7 @@ fn the_frame_is_the_same_on_every_cluster_count_and_run() {
 #[test]
 fn rate_scenes_cover_every_pixel_once() {
     for n in [2, 32] {
-        let scene = scene::rate(n, 64).unwrap();
+        let scene = builtin(&format!("RATE-{n}"), 64, None);
         let (frame, m) = draw(&scene, "gold8");
         assert_eq!(m.coverage_mismatch_share, 0.0, "RATE-{n}");
         assert!(
@@ -93,6 +102,7 @@ fn stress_scenes_stay_close_to_the_reference() {
     // points exactly on edges, where the machine's fp32 edge functions (from clip space)
     // and the reference's f64 ones may round to opposite sides: a few pixels differ.
     for scene in stress::all(7, 48, 40) {
+        let scene = window_scene(scene);
         let (frame, m) = draw(&scene, "gold8");
         let on_edges = scene.name.contains("half-pixel");
         let (coverage, psnr) = if on_edges { (0.005, 25.0) } else { (0.0, 60.0) };
@@ -140,7 +150,7 @@ fn stacked_scene() -> Scene {
             2.0 + j
         ));
     }
-    scene::parse_tri("stacked", &text).unwrap()
+    window_scene(scene::parse_tri("stacked", &text).unwrap())
 }
 
 #[test]
@@ -151,6 +161,7 @@ fn merging_stacked_fragments_keeps_the_image_and_saves_rounds() {
         let desc = MachineDesc::resolve(name).unwrap();
         let plain = RenderOptions {
             merge_min_conflicts: None,
+            ..RenderOptions::default()
         };
         let a = render_with(&scene, &desc, plain, None, |_, _| {}).unwrap();
         let b = render_with(&scene, &desc, RenderOptions::default(), None, |_, _| {}).unwrap();
@@ -193,7 +204,7 @@ fn the_stacked_scene_matches_the_reference() {
 #[test]
 #[ignore = "a full 720x720 SPHERE frame: run with --release -- --ignored"]
 fn sphere_720() {
-    let scene = scene::builtin("SPHERE", 720).unwrap();
+    let scene = builtin("SPHERE", 720, None);
     let (frame, m) = draw(&scene, "gold8");
     println!("{:#?}", frame.stats);
     assert!(m.psnr_db > 50.0 && m.coverage_mismatch_share < 0.001);
@@ -215,9 +226,10 @@ fn tri_scenes_match_osmesa() {
         )
         .unwrap(),
     );
-    for scene in scenes {
+    for old in scenes {
+        let mesa = osmesa::render(&old).unwrap();
+        let scene = window_scene(old);
         let (frame, _) = draw(&scene, "gold8");
-        let mesa = osmesa::render(&scene).unwrap();
         let m = compare(&image_of(&frame), &mesa).unwrap();
         let colour =
             imagine_verif::image::covered_error_histogram(&image_of(&frame), &mesa).unwrap();

@@ -3,6 +3,7 @@
 use imagine_pipelines::compile::compile;
 use imagine_pipelines::kernels::{records_to_stream, stream_to_records};
 use imagine_pipelines::opengl::kernels::{self, FrameShape};
+use imagine_pipelines::opengl::vertex_program::VertexProgram;
 use imagine_pipelines::scene::model::{Cull, DepthTest};
 use imagine_units::desc::MachineDesc;
 
@@ -22,9 +23,19 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             depth_test: DepthTest::Less,
             batch: rows * c,
         };
+        let lit = VertexProgram::Lit {
+            lights: 3,
+            specular: true,
+            shininess: 16,
+        };
         for k in [
-            kernels::perbegin(&desc, 27),
-            kernels::vertex_unlit(&desc),
+            lit.perbegin(&desc),
+            lit.build(&desc),
+            VertexProgram::Unlit {
+                per_vertex_colour: true,
+            }
+            .build(&desc),
+            kernels::clear(&desc),
             kernels::assemble_clip(&desc),
             kernels::viewport_cull(&desc, shape),
             kernels::xyprep(&desc, shape),
@@ -392,48 +403,38 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
 }
 
 #[test]
-fn perbegin_composes_the_matrices_as_the_host_does_and_passes_the_rest_through() {
+fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
     use imagine_pipelines::kernel::KernelInputs;
-    use imagine_pipelines::scene::{builtin, mat_mul};
+    use imagine_pipelines::scene::{LoadOptions, load, mat_mul};
     use imagine_units::arith::fp32::testgen::SplitMix64;
-    let sphere = builtin("SPHERE", 64).unwrap();
+    let mut sphere = load("SPHERE", &LoadOptions { size: Some(64), subdivisions: Some(1) }).unwrap();
     let mut rng = SplitMix64::new(7);
     let mut random = || f32::from_bits(rng.next_u32() & 0xBFFF_FFFF) - 1.5;
     let random_matrix: [f32; 16] = std::array::from_fn(|_| random());
-    let passthrough: Vec<u32> = (0..27).map(|_| random().to_bits()).collect();
+    sphere.objects[0].model = random_matrix;
+    let unlit = VertexProgram::Unlit {
+        per_vertex_colour: false,
+    };
+    let lit = VertexProgram::for_object(&sphere, &sphere.objects[0], false).unwrap();
     for name in ["gold1", "gold8", "gold32"] {
         let desc = MachineDesc::resolve(name).unwrap();
         let c = desc.cluster.count;
-        for (modelview, projection) in [
-            (sphere.modelview, sphere.projection),
-            (random_matrix, sphere.projection),
-            (sphere.modelview, random_matrix),
-        ] {
-            for extra in [0, passthrough.len()] {
-                let k = kernels::perbegin(&desc, extra);
-                let compiled = compile(&k, &desc).unwrap();
-                let mut state: Vec<u32> = modelview
-                    .iter()
-                    .chain(&projection)
-                    .map(|x| x.to_bits())
-                    .chain(passthrough[..extra].iter().copied())
-                    .collect();
-                state.resize(state.len().div_ceil(c) * c, 0);
-                let inputs = KernelInputs {
-                    streams: vec![state, vec![]],
-                    params: vec![],
-                };
-                let out = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
-                let want: Vec<u32> = mat_mul(&projection, &modelview)
-                    .iter()
-                    .map(|x| x.to_bits())
-                    .chain(passthrough[..extra].iter().copied())
-                    .flat_map(|w| std::iter::repeat_n(w, c))
-                    .collect();
-                assert_eq!(out[1], want, "{name}: parameter rows");
-                let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
-                assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
-            }
+        for vp in [&lit, &unlit] {
+            let k = vp.perbegin(&desc);
+            let compiled = compile(&k, &desc).unwrap();
+            let state = vp.state_words(&sphere, &sphere.objects[0], c);
+            let inputs = KernelInputs {
+                streams: vec![state, vec![]],
+                params: vec![],
+            };
+            let out = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
+            assert_eq!(out[1].len(), vp.param_count() * c, "{name}: one row per parameter");
+            let cam = sphere.camera;
+            let mvp = mat_mul(&cam.projection, &mat_mul(&cam.view, &random_matrix));
+            let want: Vec<u32> = mvp.iter().flat_map(|x| std::iter::repeat_n(x.to_bits(), c)).collect();
+            assert_eq!(out[1][..16 * c], want[..], "{name}: P·(V·M), row by row");
+            let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
+            assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
         }
     }
 }

@@ -1,37 +1,171 @@
-//! Frames through the OpenGL-like pipeline on the clocked machine.
+//! Frames through the OpenGL-like pipeline on the clocked machine: what the pipeline built
+//! for a scene computes and leaves out.
 
-use imagine_pipelines::opengl::render::render;
-use imagine_pipelines::scene::parse_tri;
+use imagine_pipelines::opengl::render::{RenderOptions, render, render_with};
+use imagine_pipelines::scene::model::{Cull, DepthTest, Scene};
+use imagine_pipelines::scene::{self, LoadOptions, parse_tri, window_scene};
 use imagine_units::desc::MachineDesc;
+
+fn two_triangles() -> Scene {
+    window_scene(
+        parse_tri(
+            "two",
+            "32 32\n\
+             2 2 0.5 1 0 0  30 2 0.5 1 0 0  2 30 0.5 1 0 0\n\
+             4 4 0.25 0 1 0  28 4 0.25 0 1 0  16 28 0.75 0 1 0\n",
+        )
+        .unwrap(),
+    )
+}
 
 #[test]
 fn two_overlapping_triangles() {
-    let scene = parse_tri(
-        "two",
-        "32 32\n\
-         2 2 0.5 1 0 0  30 2 0.5 1 0 0  2 30 0.5 1 0 0\n\
-         4 4 0.25 0 1 0  28 4 0.25 0 1 0  16 28 0.75 0 1 0\n",
-    )
-    .unwrap();
+    let scene = two_triangles();
     let desc = MachineDesc::gold8();
     let f = render(&scene, &desc, None, |_, _| {}).unwrap();
-    println!("{:#?}", f.stats);
-    for y in (0..32).rev() {
-        let row: String = (0..32)
-            .map(|x| match f.pixels[y * 32 + x] & 0xFFFFFF {
-                0 => '.',
-                0xFF => 'R',
-                0xFF00 => 'G',
-                _ => '?',
-            })
-            .collect();
-        println!("{row}");
-    }
-    println!("{:x?}", &f.pixels[..32]);
     assert_eq!(f.pixels[3 * 32 + 3] & 0xFFFFFF, 0xFF, "red corner");
-    assert_eq!(
-        f.pixels[8 * 32 + 16] & 0xFFFFFF,
-        0xFF00,
-        "green in front at the bottom"
+    assert_eq!(f.pixels[8 * 32 + 16] & 0xFFFFFF, 0xFF00, "green in front at the bottom");
+    assert_eq!(f.pixels[31 * 32 + 31], 0xFF00_0000, "the clear colour");
+    assert!(f.stats.phases.clear_cycles > 0 && f.stats.phases.readback_cycles > 0);
+    assert!(f.stats.phases.frame_plus_clear_cycles == f.stats.cycles + f.stats.phases.clear_cycles);
+}
+
+#[test]
+fn depth_tests_and_culling_follow_the_scene() {
+    let desc = MachineDesc::gold8();
+    let mut scene = two_triangles();
+    // ALWAYS: the later (green) triangle wins where they overlap, even behind.
+    scene.pipeline.depth_test = DepthTest::Always;
+    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    assert_eq!(f.pixels[17 * 32 + 12] & 0xFFFFFF, 0xFF00, "ALWAYS: the later triangle");
+    scene.pipeline.depth_test = DepthTest::Less;
+    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    assert_eq!(f.pixels[17 * 32 + 12] & 0xFFFFFF, 0xFF, "LESS: the nearer triangle");
+    // Both triangles are counter-clockwise (front-facing): culling front faces leaves the
+    // clear colour.
+    scene.pipeline.cull = Cull::Front;
+    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    assert!(f.pixels.iter().all(|&p| p == 0xFF00_0000), "front faces culled");
+    scene.pipeline.cull = Cull::Back;
+    scene.background = [1.0, 0.0, 0.0];
+    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    assert_eq!(f.pixels[8 * 32 + 16] & 0xFFFFFF, 0xFF00, "back culling keeps them");
+    assert_eq!(f.pixels[31 * 32 + 31], 0xFF00_00FF, "the background clears red");
+}
+
+/// A 12×12 grid of quads in window space (288 triangles) with colours per vertex, as a
+/// mesh of shared vertices or as separate triangles.
+fn grid(separate: bool) -> Scene {
+    let mut text = String::from("48 48\n");
+    let colour = |x: u32, y: u32| [x as f32 / 48.0, y as f32 / 48.0, 0.5];
+    for j in 0..12u32 {
+        for i in 0..12u32 {
+            let (x0, y0) = (i * 4, j * 4);
+            let corners = [(x0, y0), (x0 + 4, y0), (x0 + 4, y0 + 4), (x0, y0 + 4)];
+            for tri in [[0, 1, 2], [0, 2, 3]] {
+                for k in tri {
+                    let (x, y) = corners[k];
+                    let [r, g, b] = colour(x, y);
+                    text += &format!("{x} {y} 0.5 {r} {g} {b}  ");
+                }
+                text += "\n";
+            }
+        }
+    }
+    let mut scene = window_scene(parse_tri("grid", &text).unwrap());
+    if !separate {
+        // Merge equal positions into shared vertices.
+        let mesh = &mut scene.objects[0].mesh;
+        let mut positions: Vec<[f32; 3]> = Vec::new();
+        let mut colours = Vec::new();
+        let mut index = Vec::new();
+        for (p, c) in mesh.positions.iter().zip(&mesh.colours) {
+            let i = positions.iter().position(|q| q == p).unwrap_or_else(|| {
+                positions.push(*p);
+                colours.push(*c);
+                positions.len() - 1
+            });
+            index.push(i as u32);
+        }
+        mesh.triangles = index.chunks(3).map(|t| [t[0], t[1], t[2]]).collect();
+        mesh.positions = positions;
+        mesh.colours = colours;
+        mesh.separate = false;
+    }
+    scene
+}
+
+#[test]
+fn a_mesh_shades_each_vertex_once_per_batch_and_draws_what_separate_triangles_draw() {
+    let desc = MachineDesc::gold8();
+    let shared = render(&grid(false), &desc, None, |_, _| {}).unwrap();
+    let separate = render(&grid(true), &desc, None, |_, _| {}).unwrap();
+    assert_eq!(shared.pixels, separate.pixels, "the same image");
+    assert_eq!(separate.stats.vertices, 3 * 288);
+    // 169 distinct vertices; a batch of 64 triangles (about 2.7 rows of the grid) uses
+    // about 4.7 rows of 13: far fewer than 3 per triangle.
+    assert!(
+        shared.stats.vertices < 288 + 13 * 5 * 5,
+        "{} vertices shaded",
+        shared.stats.vertices
     );
+    let kernels = |f: &imagine_pipelines::opengl::render::Frame| f.stats.kernels.iter().map(|k| k.kernel.clone()).collect::<Vec<_>>();
+    assert!(kernels(&shared).contains(&"vertex_unlit".to_string()));
+}
+
+#[test]
+fn an_unlit_scene_builds_no_lighting_and_no_merge_it_never_reaches() {
+    let desc = MachineDesc::gold8();
+    let scene = scene::load(
+        "RATE-8",
+        &LoadOptions {
+            size: Some(32),
+            subdivisions: None,
+        },
+    )
+    .unwrap();
+    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    let sp = &f.stats.specialisation;
+    assert!(sp.specialised);
+    assert!(
+        sp.kernels_built.iter().all(|k| !k.contains("lit") || k.contains("unlit")),
+        "{:?}",
+        sp.kernels_built
+    );
+    assert!(sp.kernels_built.iter().all(|k| k != "sort32" && k != "mergefrag"));
+    assert_eq!(sp.kernels_not_reached, ["sort32", "mergefrag"]);
+    assert!(sp.left_out.iter().any(|f| f == "lighting"));
+    let general = render_with(
+        &scene,
+        &desc,
+        RenderOptions {
+            specialise: false,
+            ..RenderOptions::default()
+        },
+        None,
+        |_, _| {},
+    )
+    .unwrap();
+    assert_eq!(general.pixels, f.pixels, "the general pipeline draws the same");
+    assert!(general.stats.specialisation.kernels_built.iter().any(|k| k == "sort32"));
+}
+
+#[test]
+fn unsupported_scenes_and_shapes_are_refused_by_name() {
+    let desc = MachineDesc::gold8();
+    let mut scene = two_triangles();
+    scene.pipeline.blend = imagine_pipelines::scene::model::Blend::Add;
+    let e = render(&scene, &desc, None, |_, _| {}).unwrap_err().to_string();
+    assert!(e.contains("blend"), "{e}");
+    let mut lit = scene::load(
+        "SPHERE",
+        &LoadOptions {
+            size: Some(16),
+            subdivisions: Some(0),
+        },
+    )
+    .unwrap();
+    lit.materials[0].shininess = 12.5;
+    let e = render(&lit, &desc, None, |_, _| {}).unwrap_err().to_string();
+    assert!(e.contains("shininess"), "{e}");
 }

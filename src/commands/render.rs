@@ -7,33 +7,41 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use imagine_pipelines::opengl::render::{Frame, render};
-use imagine_pipelines::scene::{self, DEFAULT_SIZE, Scene};
+use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
+use imagine_pipelines::scene::model::Scene;
+use imagine_pipelines::scene::{self, LoadOptions};
 use imagine_units::desc::MachineDesc;
 use imagine_verif::image::{Image, Metrics, compare};
-use imagine_verif::reference;
+use imagine_verif::reference_model as reference;
 
 use super::waves::WaveArgs;
 
 #[derive(Args)]
 pub struct RenderArgs {
-    /// Scene: SPHERE, RATE-n (n = 1, 2, 4, ..., 128) or a .tri file [default: SPHERE]
+    /// Scene: a built-in name (`imagine scene list`: SPHERE, RATE-1 … RATE-128) or a
+    /// `.toml` scene file or `.tri` triangle file [default: SPHERE]
     scene: Option<String>,
     /// Machine description name or file
     #[arg(long, default_value = "gold8")]
     machine: String,
-    /// Window side in pixels for the built-in scenes (.tri files give their own)
-    #[arg(long, default_value_t = DEFAULT_SIZE)]
-    size: u32,
-    /// SPHERE's icosahedron subdivisions (6 gives the published 81,920 triangles)
-    #[arg(long, default_value_t = scene::SPHERE_SUBDIVISIONS)]
-    subdivisions: u32,
+    /// Window side in pixels: overrides the scene's window with a square one
+    #[arg(long)]
+    size: Option<u32>,
+    /// Icosphere subdivisions: overrides every icosphere's (SPHERE has 6: 81,920 triangles)
+    #[arg(long)]
+    subdivisions: Option<u32>,
+    /// Build the general pipeline instead of one specialised for the scene (to compare)
+    #[arg(long)]
+    no_specialize: bool,
     /// Write the frame as PNG
     #[arg(long)]
     png: Option<PathBuf>,
     /// Write statistics as JSON
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// Write one CSV row per batch (cycles, kernel cycles, fragments, DRAM words, SRF use)
+    #[arg(long)]
+    stats_csv: Option<PathBuf>,
     /// Also write the reference renderer's frame as PNG
     #[arg(long)]
     reference_png: Option<PathBuf>,
@@ -43,24 +51,16 @@ pub struct RenderArgs {
 
 fn load_scene(a: &RenderArgs) -> Result<Scene> {
     let name = a.scene.as_deref().unwrap_or("SPHERE");
-    if name.ends_with(".tri") {
-        let text =
-            std::fs::read_to_string(name).with_context(|| format!("cannot read scene `{name}`"))?;
-        return Ok(scene::parse_tri(name, &text)?);
+    if let Some(size) = a.size
+        && (size == 0 || size > scene::MAX_WINDOW)
+    {
+        bail!("--size {size} is outside 1..={}", scene::MAX_WINDOW);
     }
-    if a.size == 0 || a.size > scene::MAX_WINDOW {
-        bail!("--size {} is outside 1..={}", a.size, scene::MAX_WINDOW);
-    }
-    if name.eq_ignore_ascii_case("SPHERE") {
-        if a.subdivisions > 7 {
-            bail!(
-                "--subdivisions {} is more than 7 (1.3 M triangles)",
-                a.subdivisions
-            );
-        }
-        return Ok(scene::sphere(a.subdivisions, a.size));
-    }
-    Ok(scene::builtin(name, a.size)?)
+    let opts = LoadOptions {
+        size: a.size,
+        subdivisions: a.subdivisions,
+    };
+    Ok(scene::load(name, &opts)?)
 }
 
 /// The machine's frame as an image.
@@ -81,7 +81,11 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     // The bar is redrawn at each whole percent, and only on a terminal (a log gets no bar).
     let terminal = stderr.is_terminal();
     let mut drawn = None;
-    let frame = render(&scene, &desc, on_start, |done, total| {
+    let options = RenderOptions {
+        specialise: !a.no_specialize,
+        ..RenderOptions::default()
+    };
+    let frame = render_with(&scene, &desc, options, on_start, |done, total| {
         let width = 40;
         let filled = done * width / total.max(1);
         let percent = done * 100 / total.max(1);
@@ -101,7 +105,7 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
         }
     })?;
     let image = image_of(&frame);
-    let reference_image = reference::render(&scene);
+    let reference_image = reference::render(&scene)?;
     let metrics = compare(&image, &reference_image).map_err(anyhow::Error::msg)?;
     if let Some(p) = &a.png {
         image.write_png(p).map_err(anyhow::Error::msg)?;
@@ -112,6 +116,10 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     if let Some(p) = &a.stats {
         let json = serde_json::json!({ "frame": frame.stats, "reference_error": metrics });
         std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")
+            .with_context(|| format!("cannot write `{}`", p.display()))?;
+    }
+    if let Some(p) = &a.stats_csv {
+        std::fs::write(p, frame.stats.batches_csv())
             .with_context(|| format!("cannot write `{}`", p.display()))?;
     }
     print_stats(&frame, &metrics);
@@ -125,7 +133,14 @@ fn print_stats(f: &Frame, m: &Metrics) {
         s.scene, s.width, s.height, s.triangles
     );
     println!("machine            {} at {} MHz", s.machine, s.core_mhz);
-    println!("cycles             {}", s.cycles);
+    println!(
+        "cycles             {} (frame; {} with the clear)",
+        s.cycles, s.phases.frame_plus_clear_cycles
+    );
+    println!(
+        "host phases        load {} cycles, clear {}, read-back {}",
+        s.phases.load_cycles, s.phases.clear_cycles, s.phases.readback_cycles
+    );
     println!("frames/s           {:.2}", s.frames_per_second);
     println!("vertices/s         {:.2} M", s.vertices_per_second / 1e6);
     println!(
@@ -166,6 +181,18 @@ fn print_stats(f: &Frame, m: &Metrics) {
         s.lrf_writes_per_cycle,
         lrf_words * 4.0 * s.core_mhz * 1e6 / 1e9
     );
+    let sp = &s.specialisation;
+    println!(
+        "pipeline           {} ({} words per vertex, interpolants {})",
+        if sp.specialised { "specialised for the scene" } else { "general (--no-specialize)" },
+        sp.words_per_vertex,
+        sp.interpolants.join(" ")
+    );
+    println!("  kernels built    {}", sp.kernels_built.join(", "));
+    if !sp.kernels_not_reached.is_empty() {
+        println!("  not reached      {} (not compiled)", sp.kernels_not_reached.join(", "));
+    }
+    println!("  left out         {}", sp.left_out.join(", "));
     println!("kernel breakdown   (share of frame cycles)");
     for k in &s.kernels {
         println!(
@@ -184,8 +211,10 @@ fn print_stats(f: &Frame, m: &Metrics) {
         100.0 * m.coverage_mismatch_share
     );
     println!(
-        "host               {:.2} s ({:.2} M simulated cycles/s)",
+        "host               {:.2} s: compiling {:.2} s, simulating {:.2} s ({:.2} M cycles/s)",
         s.host_seconds,
+        s.compile_seconds,
+        s.simulate_seconds,
         s.simulated_cycles_per_second / 1e6
     );
 }

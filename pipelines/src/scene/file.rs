@@ -119,13 +119,23 @@ pub fn load_tri(path: &Path) -> Result<model::Scene, SceneError> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| SceneError::new(&shown, None, format!("cannot read the file: {e}")))?;
     let old = super::parse_tri(&shown, &text)?;
-    let name = stem(path);
+    let mut scene = window_scene(old);
+    scene.name = stem(path);
+    scene.objects[0].name = scene.name.clone();
+    scene.source = Some(path.to_path_buf());
+    Ok(scene)
+}
+
+/// A scene of window-space triangles (the `.tri` format's: unlit, per-vertex colours,
+/// depth test LESS, no culling) as a scene model: one window-space object of separate
+/// triangles.
+pub fn window_scene(old: super::Scene) -> model::Scene {
     let triangles = (0..old.triangles() as u32)
         .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
         .collect();
-    Ok(model::Scene {
-        name: name.clone(),
-        source: Some(path.to_path_buf()),
+    model::Scene {
+        name: old.name.clone(),
+        source: None,
         width: old.width,
         height: old.height,
         background: [0.0; 3],
@@ -145,7 +155,7 @@ pub fn load_tri(path: &Path) -> Result<model::Scene, SceneError> {
         textures: Vec::new(),
         materials: vec![default_material()],
         objects: vec![model::Object {
-            name,
+            name: old.name,
             material: 0,
             model: IDENTITY,
             colour: [1.0; 3],
@@ -159,7 +169,7 @@ pub fn load_tri(path: &Path) -> Result<model::Scene, SceneError> {
                 separate: true,
             },
         }],
-    })
+    }
 }
 
 fn stem(path: &Path) -> String {

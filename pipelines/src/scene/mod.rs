@@ -27,7 +27,7 @@ pub mod model;
 pub mod obj;
 pub mod primitives;
 
-pub use file::{LoadOptions, load, load_tri};
+pub use file::{LoadOptions, load, load_tri, window_scene};
 
 use std::fmt;
 
