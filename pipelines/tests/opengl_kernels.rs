@@ -21,19 +21,19 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             batch: rows * c,
         };
         for k in [
-            kernels::perbegin(&desc, 27),
-            kernels::vertex_unlit(&desc),
-            kernels::assemble_clip(&desc),
-            kernels::viewport_cull(&desc, shape),
-            kernels::xyprep(&desc, shape),
-            kernels::baryprep(&desc),
-            kernels::xyrast(&desc, shape),
-            kernels::irast(&desc),
-            kernels::hash(&desc, shape),
-            kernels::zcompare(&desc, shape),
-            kernels::compact_recycle(&desc, [0, 1]),
-            imagine_pipelines::opengl::mergefrag::sort32(&desc, shape),
-            imagine_pipelines::opengl::mergefrag::mergefrag(&desc, shape),
+            kernels::perbegin(&desc, 27).unwrap(),
+            kernels::vertex_unlit(&desc).unwrap(),
+            kernels::assemble_clip(&desc).unwrap(),
+            kernels::viewport_cull(&desc, shape).unwrap(),
+            kernels::xyprep(&desc, shape).unwrap(),
+            kernels::baryprep(&desc).unwrap(),
+            kernels::xyrast(&desc, shape).unwrap(),
+            kernels::irast(&desc).unwrap(),
+            kernels::hash(&desc, shape).unwrap(),
+            kernels::zcompare(&desc, shape).unwrap(),
+            kernels::compact_recycle(&desc, [0, 1]).unwrap(),
+            imagine_pipelines::opengl::mergefrag::sort32(&desc, shape).unwrap(),
+            imagine_pipelines::opengl::mergefrag::mergefrag(&desc, shape).unwrap(),
         ] {
             let c = compile(&k, &desc).unwrap_or_else(|e| panic!("{name}: {e}"));
             println!(
@@ -125,7 +125,7 @@ fn xyrast_covers_exactly_the_pixels_the_edges_cover() {
             cull_back: false,
             batch: rows * c,
         };
-        let k = kernels::xyrast(&desc, shape);
+        let k = kernels::xyrast(&desc, shape).unwrap();
         let compiled = compile(&k, &desc).unwrap();
         // Boxes of many widths (runs that end inside and past the box) and heights, empty
         // ones among them; four kinds of edges.
@@ -266,7 +266,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             })
             .collect();
         let assembled = run_checked(
-            &kernels::assemble_clip(&desc),
+            &kernels::assemble_clip(&desc).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![records_to_stream(&vertices, c), vec![], vec![]],
@@ -295,7 +295,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
         // outside one clip plane.
         assert!(clipped.iter().all(|r| r[9] == 1), "{name}: trivial reject");
         let viewed = run_checked(
-            &kernels::viewport_cull(&desc, shape),
+            &kernels::viewport_cull(&desc, shape).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![assembled[1].clone(), vec![], vec![]],
@@ -309,7 +309,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             "{name}: {kept} of {tris} triangles face the eye"
         );
         let bary = run_checked(
-            &kernels::baryprep(&desc),
+            &kernels::baryprep(&desc).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![assembled[2].clone(), viewed[2].clone(), vec![]],
@@ -326,7 +326,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             );
         }
         let prepped = run_checked(
-            &kernels::xyprep(&desc, shape),
+            &kernels::xyprep(&desc, shape).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![viewed[1].clone(), vec![], vec![]],
@@ -406,7 +406,7 @@ fn perbegin_composes_the_matrices_as_the_host_does_and_passes_the_rest_through()
             (sphere.modelview, random_matrix),
         ] {
             for extra in [0, passthrough.len()] {
-                let k = kernels::perbegin(&desc, extra);
+                let k = kernels::perbegin(&desc, extra).unwrap();
                 let compiled = compile(&k, &desc).unwrap();
                 let mut state: Vec<u32> = modelview
                     .iter()
@@ -474,7 +474,7 @@ fn hash_holds_back_exactly_the_fragments_an_earlier_one_shares_a_stamp_key_with(
             cull_back: false,
             batch: c,
         };
-        let k = kernels::hash(&desc, shape);
+        let k = kernels::hash(&desc, shape).unwrap();
         let compiled = compile(&k, &desc).unwrap();
         // 256 fragments in a 40 × 8 corner ((x + 32, y) and (x, y + 1) alias), many of them on the same
         // pixel, some in the same row of clusters; and nulls (the trash pixel).
@@ -641,8 +641,8 @@ fn sort32_and_mergefrag_keep_the_fragment_zcompare_would_keep_per_pixel_and_grou
         let round = merge_round(n, shape, 0x1234_5678 + c as u32);
         let groups = round.conflict.len();
         assert!(groups > n || c == 32);
-        let sort = mergefrag::sort32(&desc, shape);
-        let merge = mergefrag::mergefrag(&desc, shape);
+        let sort = mergefrag::sort32(&desc, shape).unwrap();
+        let merge = mergefrag::mergefrag(&desc, shape).unwrap();
         let sort_inputs = KernelInputs {
             streams: vec![
                 round.conflict.clone(),

@@ -168,7 +168,7 @@ fn compile_all(
         Shading::Lit(_) => crate::kernels::vertex::build(desc),
         Shading::Unlit => kernels::vertex_unlit(desc),
     };
-    let list = vec![
+    let list = [
         kernels::perbegin(desc, passthrough(scene).len()),
         vertex,
         kernels::assemble_clip(desc),
@@ -183,7 +183,10 @@ fn compile_all(
         kernels::compact_recycle(desc, [shape.trash(), 0]),
         mergefrag::sort32(desc, shape),
         mergefrag::mergefrag(desc, shape),
-    ];
+    ]
+    .into_iter()
+    .collect::<Result<Vec<_>, _>>()
+    .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
     let compiled = compile_in_parallel(list, desc)
         .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))?;
     Ok(Kernels {
@@ -1003,13 +1006,14 @@ pub fn render_with(
     scene.validate().map_err(|e| RenderError(e.to_string()))?;
     let host_start = Instant::now();
     let clusters = desc.cluster.count;
+    crate::kernel::Needs::new("xyrast", desc)
+        .scratchpad_words(
+            2 * RASTER_WORDS + 1,
+            "a raster record, a sentinel and the word read past it",
+            true,
+        )
+        .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
     let rows = kernels::xyrast_rows(desc);
-    if rows == 0 {
-        return Err(RenderError(format!(
-            "machine `{}`: the scratchpad cannot hold a raster record",
-            desc.name
-        )));
-    }
     let batch = batch_size(scene.triangles(), clusters, rows);
     let shape = FrameShape {
         width: scene.width,
