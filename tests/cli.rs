@@ -616,3 +616,110 @@ fn scene_show_errors_name_the_file() {
     );
     assert_clear_error(&["scene", "show", "TEAPOT-9"]);
 }
+
+/// A machine file derived from gold8 with `table` (TOML) laid over it.
+fn machine_file(name: &str, table: &str) -> std::path::PathBuf {
+    temp_file(
+        &format!("{name}.toml"),
+        &format!("name = \"{name}\"\nbase = \"gold8\"\n{table}"),
+    )
+}
+
+/// Machines the kernels cannot serve are refused before anything is compiled: a clear
+/// error naming the kernel and what it needs, never a panic.
+#[test]
+fn machine_shapes_the_kernels_cannot_serve_are_named() {
+    for (name, table, render_wants, check_wants) in [
+        (
+            "c6",
+            "[cluster]\ncount = 6",
+            "kernel `assemble_clip` needs a power-of-two cluster count (machine `c6` has 6 clusters)",
+            "kernel `turbulence` needs a cluster count dividing the 256 entries",
+        ),
+        (
+            "c12",
+            "[cluster]\ncount = 12",
+            "kernel `assemble_clip` needs a power-of-two cluster count (machine `c12` has 12 clusters)",
+            "kernel `turbulence` needs a cluster count dividing the 256 entries",
+        ),
+        (
+            "c64",
+            "[cluster]\ncount = 64",
+            "kernel `sort32` needs a power-of-two cluster count up to 32 (machine `c64` has 64 clusters)",
+            "kernel `sort32` needs a power-of-two cluster count up to 32 (machine `c64` has 64 clusters)",
+        ),
+        (
+            "cc1",
+            "[cluster]\ncondition_codes = 1",
+            "kernel `sort32` needs at least 9 condition codes",
+            "condition codes per cluster",
+        ),
+        (
+            "sp16",
+            "[scratchpad]\nwords = 16",
+            "kernel `xyrast` needs 27 scratchpad words",
+            "kernel `turbulence` needs 256 scratchpad words",
+        ),
+    ] {
+        let file = machine_file(name, table);
+        let file = file.to_str().unwrap();
+        for (args, want) in [
+            (
+                vec!["render", "RATE-8", "--size", "64", "--machine", file],
+                render_wants,
+            ),
+            (
+                vec!["kernel", "check", "all", "--machine", file],
+                check_wants,
+            ),
+        ] {
+            let start = std::time::Instant::now();
+            let o = imagine(&args);
+            let err = stderr(&o);
+            assert!(!o.status.success(), "{args:?} succeeded");
+            assert!(
+                err.starts_with("error:") && err.contains(want) && err.contains("kernel `"),
+                "{args:?}: {err}"
+            );
+            assert!(!err.contains("panicked"), "{args:?}: {err}");
+            assert!(o.stdout.is_empty(), "{args:?}: {}", stdout(&o));
+            assert!(
+                start.elapsed().as_secs() < 20,
+                "{args:?} took {:?}",
+                start.elapsed()
+            );
+        }
+    }
+}
+
+/// The description itself refuses what the model cannot hold, naming the file and the key.
+#[test]
+fn machine_shapes_the_model_cannot_hold_name_the_file_and_key() {
+    for (name, table, key) in [
+        ("c0", "[cluster]\ncount = 0", "cluster.count"),
+        ("c257", "[cluster]\ncount = 257", "cluster.count"),
+        ("nocomm", "[cluster]\ncomm_units = 0", "cluster.comm_units"),
+        ("noadd", "[cluster]\nadders = 0", "cluster.adders"),
+        (
+            "cc0",
+            "[cluster]\ncondition_codes = 0",
+            "cluster.condition_codes",
+        ),
+        (
+            "ks65",
+            "[srf]\nkernel_streams = 65\nstream_buffers = 80",
+            "srf.kernel_streams",
+        ),
+    ] {
+        let file = machine_file(name, table);
+        let file = file.to_str().unwrap();
+        for args in [
+            vec!["machine", "show", file],
+            vec!["render", "RATE-8", "--size", "64", "--machine", file],
+        ] {
+            assert_clear_error(&args);
+            let err = stderr(&imagine(&args));
+            assert!(err.contains(file) && err.contains(key), "{args:?}: {err}");
+        }
+    }
+}

@@ -9,7 +9,7 @@ use imagine_units::desc::MachineDesc;
 fn check_all(machine: &str) {
     let desc = MachineDesc::resolve(machine).unwrap();
     for lk in library() {
-        let k = (lk.build)(&desc);
+        let k = (lk.build)(&desc).unwrap();
         let c = compile(&k, &desc).unwrap_or_else(|e| panic!("{e}"));
         let inputs = (lk.inputs)(&desc, 3, 11);
         let r = check(&k, &c, &desc, &inputs).unwrap_or_else(|e| panic!("{}: {e}", lk.name));
@@ -55,7 +55,7 @@ fn library_on_gold32() {
 fn schedules_stay_near_their_bounds() {
     let desc = MachineDesc::gold8();
     for lk in library() {
-        let c = compile(&(lk.build)(&desc), &desc).unwrap();
+        let c = compile(&(lk.build)(&desc).unwrap(), &desc).unwrap();
         let (ii, mii) = (c.report.ii.unwrap(), c.report.mii());
         let allowed = match lk.name {
             "compact" => mii + 1,
@@ -83,7 +83,7 @@ fn schedules_stay_near_their_bounds() {
 fn vertex_reaches_its_bound_with_more_units() {
     let desc = MachineDesc::resolve("gold8+F").unwrap();
     let lk = library().iter().find(|lk| lk.name == "vertex").unwrap();
-    let k = (lk.build)(&desc);
+    let k = (lk.build)(&desc).unwrap();
     let c = compile(&k, &desc).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(c.report.ii, Some(c.report.mii()), "{}", c.report.text());
     let r = check(&k, &c, &desc, &(lk.inputs)(&desc, 3, 11)).unwrap();

@@ -35,18 +35,18 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
                 per_vertex_colour: true,
             }
             .build(&desc),
-            kernels::clear(&desc),
-            kernels::assemble_clip(&desc),
-            kernels::viewport_cull(&desc, shape),
-            kernels::xyprep(&desc, shape),
-            kernels::baryprep(&desc),
-            kernels::xyrast(&desc, shape),
-            kernels::irast(&desc),
-            kernels::hash(&desc, shape),
-            kernels::zcompare(&desc, shape),
-            kernels::compact_recycle(&desc, [0, 1]),
-            imagine_pipelines::opengl::mergefrag::sort32(&desc, shape),
-            imagine_pipelines::opengl::mergefrag::mergefrag(&desc, shape),
+            kernels::clear(&desc).unwrap(),
+            kernels::assemble_clip(&desc).unwrap(),
+            kernels::viewport_cull(&desc, shape).unwrap(),
+            kernels::xyprep(&desc, shape).unwrap(),
+            kernels::baryprep(&desc).unwrap(),
+            kernels::xyrast(&desc, shape).unwrap(),
+            kernels::irast(&desc).unwrap(),
+            kernels::hash(&desc, shape).unwrap(),
+            kernels::zcompare(&desc, shape).unwrap(),
+            kernels::compact_recycle(&desc, [0, 1]).unwrap(),
+            imagine_pipelines::opengl::mergefrag::sort32(&desc, shape).unwrap(),
+            imagine_pipelines::opengl::mergefrag::mergefrag(&desc, shape).unwrap(),
         ] {
             let c = compile(&k, &desc).unwrap_or_else(|e| panic!("{name}: {e}"));
             println!(
@@ -139,7 +139,7 @@ fn xyrast_covers_exactly_the_pixels_the_edges_cover() {
             depth_test: DepthTest::Less,
             batch: rows * c,
         };
-        let k = kernels::xyrast(&desc, shape);
+        let k = kernels::xyrast(&desc, shape).unwrap();
         let compiled = compile(&k, &desc).unwrap();
         // Boxes of many widths (runs that end inside and past the box) and heights, empty
         // ones among them; four kinds of edges.
@@ -281,7 +281,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             })
             .collect();
         let assembled = run_checked(
-            &kernels::assemble_clip(&desc),
+            &kernels::assemble_clip(&desc).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![records_to_stream(&vertices, c), vec![], vec![]],
@@ -310,7 +310,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
         // outside one clip plane.
         assert!(clipped.iter().all(|r| r[9] == 1), "{name}: trivial reject");
         let viewed = run_checked(
-            &kernels::viewport_cull(&desc, shape),
+            &kernels::viewport_cull(&desc, shape).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![assembled[1].clone(), vec![], vec![]],
@@ -324,7 +324,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             "{name}: {kept} of {tris} triangles face the eye"
         );
         let bary = run_checked(
-            &kernels::baryprep(&desc),
+            &kernels::baryprep(&desc).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![assembled[2].clone(), viewed[2].clone(), vec![]],
@@ -341,7 +341,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             );
         }
         let prepped = run_checked(
-            &kernels::xyprep(&desc, shape),
+            &kernels::xyprep(&desc, shape).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![viewed[1].clone(), vec![], vec![]],
@@ -407,7 +407,14 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
     use imagine_pipelines::kernel::KernelInputs;
     use imagine_pipelines::scene::{LoadOptions, load, mat_mul};
     use imagine_units::arith::fp32::testgen::SplitMix64;
-    let mut sphere = load("SPHERE", &LoadOptions { size: Some(64), subdivisions: Some(1) }).unwrap();
+    let mut sphere = load(
+        "SPHERE",
+        &LoadOptions {
+            size: Some(64),
+            subdivisions: Some(1),
+        },
+    )
+    .unwrap();
     let mut rng = SplitMix64::new(7);
     let mut random = || f32::from_bits(rng.next_u32() & 0xBFFF_FFFF) - 1.5;
     let random_matrix: [f32; 16] = std::array::from_fn(|_| random());
@@ -428,10 +435,17 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
                 params: vec![],
             };
             let out = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
-            assert_eq!(out[1].len(), vp.param_count() * c, "{name}: one row per parameter");
+            assert_eq!(
+                out[1].len(),
+                vp.param_count() * c,
+                "{name}: one row per parameter"
+            );
             let cam = sphere.camera;
             let mvp = mat_mul(&cam.projection, &mat_mul(&cam.view, &random_matrix));
-            let want: Vec<u32> = mvp.iter().flat_map(|x| std::iter::repeat_n(x.to_bits(), c)).collect();
+            let want: Vec<u32> = mvp
+                .iter()
+                .flat_map(|x| std::iter::repeat_n(x.to_bits(), c))
+                .collect();
             assert_eq!(out[1][..16 * c], want[..], "{name}: P·(V·M), row by row");
             let r = imagine_pipelines::run::check(&k, &compiled, &desc, &inputs).unwrap();
             assert!(r.mismatch.is_none(), "{name}: {:?}", r.mismatch);
@@ -480,7 +494,7 @@ fn hash_holds_back_exactly_the_fragments_an_earlier_one_shares_a_stamp_key_with(
             depth_test: DepthTest::Less,
             batch: c,
         };
-        let k = kernels::hash(&desc, shape);
+        let k = kernels::hash(&desc, shape).unwrap();
         let compiled = compile(&k, &desc).unwrap();
         // 256 fragments in a 40 × 8 corner ((x + 32, y) and (x, y + 1) alias), many of them on the same
         // pixel, some in the same row of clusters; and nulls (the trash pixel).
@@ -648,8 +662,8 @@ fn sort32_and_mergefrag_keep_the_fragment_zcompare_would_keep_per_pixel_and_grou
         let round = merge_round(n, shape, 0x1234_5678 + c as u32);
         let groups = round.conflict.len();
         assert!(groups > n || c == 32);
-        let sort = mergefrag::sort32(&desc, shape);
-        let merge = mergefrag::mergefrag(&desc, shape);
+        let sort = mergefrag::sort32(&desc, shape).unwrap();
+        let merge = mergefrag::mergefrag(&desc, shape).unwrap();
         let sort_inputs = KernelInputs {
             streams: vec![
                 round.conflict.clone(),

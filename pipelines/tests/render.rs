@@ -24,7 +24,11 @@ fn two_overlapping_triangles() {
     let desc = MachineDesc::gold8();
     let f = render(&scene, &desc, None, |_, _| {}).unwrap();
     assert_eq!(f.pixels[3 * 32 + 3] & 0xFFFFFF, 0xFF, "red corner");
-    assert_eq!(f.pixels[8 * 32 + 16] & 0xFFFFFF, 0xFF00, "green in front at the bottom");
+    assert_eq!(
+        f.pixels[8 * 32 + 16] & 0xFFFFFF,
+        0xFF00,
+        "green in front at the bottom"
+    );
     assert_eq!(f.pixels[31 * 32 + 31], 0xFF00_0000, "the clear colour");
     assert!(f.stats.phases.clear_cycles > 0 && f.stats.phases.readback_cycles > 0);
     assert!(f.stats.phases.frame_plus_clear_cycles == f.stats.cycles + f.stats.phases.clear_cycles);
@@ -37,20 +41,39 @@ fn depth_tests_and_culling_follow_the_scene() {
     // ALWAYS: the later (green) triangle wins where they overlap, even behind.
     scene.pipeline.depth_test = DepthTest::Always;
     let f = render(&scene, &desc, None, |_, _| {}).unwrap();
-    assert_eq!(f.pixels[17 * 32 + 12] & 0xFFFFFF, 0xFF00, "ALWAYS: the later triangle");
+    assert_eq!(
+        f.pixels[17 * 32 + 12] & 0xFFFFFF,
+        0xFF00,
+        "ALWAYS: the later triangle"
+    );
     scene.pipeline.depth_test = DepthTest::Less;
     let f = render(&scene, &desc, None, |_, _| {}).unwrap();
-    assert_eq!(f.pixels[17 * 32 + 12] & 0xFFFFFF, 0xFF, "LESS: the nearer triangle");
+    assert_eq!(
+        f.pixels[17 * 32 + 12] & 0xFFFFFF,
+        0xFF,
+        "LESS: the nearer triangle"
+    );
     // Both triangles are counter-clockwise (front-facing): culling front faces leaves the
     // clear colour.
     scene.pipeline.cull = Cull::Front;
     let f = render(&scene, &desc, None, |_, _| {}).unwrap();
-    assert!(f.pixels.iter().all(|&p| p == 0xFF00_0000), "front faces culled");
+    assert!(
+        f.pixels.iter().all(|&p| p == 0xFF00_0000),
+        "front faces culled"
+    );
     scene.pipeline.cull = Cull::Back;
     scene.background = [1.0, 0.0, 0.0];
     let f = render(&scene, &desc, None, |_, _| {}).unwrap();
-    assert_eq!(f.pixels[8 * 32 + 16] & 0xFFFFFF, 0xFF00, "back culling keeps them");
-    assert_eq!(f.pixels[31 * 32 + 31], 0xFF00_00FF, "the background clears red");
+    assert_eq!(
+        f.pixels[8 * 32 + 16] & 0xFFFFFF,
+        0xFF00,
+        "back culling keeps them"
+    );
+    assert_eq!(
+        f.pixels[31 * 32 + 31],
+        0xFF00_00FF,
+        "the background clears red"
+    );
 }
 
 /// A 12×12 grid of quads in window space (288 triangles) with colours per vertex, as a
@@ -109,7 +132,13 @@ fn a_mesh_shades_each_vertex_once_per_batch_and_draws_what_separate_triangles_dr
         "{} vertices shaded",
         shared.stats.vertices
     );
-    let kernels = |f: &imagine_pipelines::opengl::render::Frame| f.stats.kernels.iter().map(|k| k.kernel.clone()).collect::<Vec<_>>();
+    let kernels = |f: &imagine_pipelines::opengl::render::Frame| {
+        f.stats
+            .kernels
+            .iter()
+            .map(|k| k.kernel.clone())
+            .collect::<Vec<_>>()
+    };
     assert!(kernels(&shared).contains(&"vertex_unlit".to_string()));
 }
 
@@ -128,11 +157,17 @@ fn an_unlit_scene_builds_no_lighting_and_no_merge_it_never_reaches() {
     let sp = &f.stats.specialisation;
     assert!(sp.specialised);
     assert!(
-        sp.kernels_built.iter().all(|k| !k.contains("lit") || k.contains("unlit")),
+        sp.kernels_built
+            .iter()
+            .all(|k| !k.contains("lit") || k.contains("unlit")),
         "{:?}",
         sp.kernels_built
     );
-    assert!(sp.kernels_built.iter().all(|k| k != "sort32" && k != "mergefrag"));
+    assert!(
+        sp.kernels_built
+            .iter()
+            .all(|k| k != "sort32" && k != "mergefrag")
+    );
     assert_eq!(sp.kernels_not_reached, ["sort32", "mergefrag"]);
     assert!(sp.left_out.iter().any(|f| f == "lighting"));
     let general = render_with(
@@ -146,8 +181,18 @@ fn an_unlit_scene_builds_no_lighting_and_no_merge_it_never_reaches() {
         |_, _| {},
     )
     .unwrap();
-    assert_eq!(general.pixels, f.pixels, "the general pipeline draws the same");
-    assert!(general.stats.specialisation.kernels_built.iter().any(|k| k == "sort32"));
+    assert_eq!(
+        general.pixels, f.pixels,
+        "the general pipeline draws the same"
+    );
+    assert!(
+        general
+            .stats
+            .specialisation
+            .kernels_built
+            .iter()
+            .any(|k| k == "sort32")
+    );
 }
 
 #[test]
@@ -155,7 +200,9 @@ fn unsupported_scenes_and_shapes_are_refused_by_name() {
     let desc = MachineDesc::gold8();
     let mut scene = two_triangles();
     scene.pipeline.blend = imagine_pipelines::scene::model::Blend::Add;
-    let e = render(&scene, &desc, None, |_, _| {}).unwrap_err().to_string();
+    let e = render(&scene, &desc, None, |_, _| {})
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("blend"), "{e}");
     let mut lit = scene::load(
         "SPHERE",
@@ -166,6 +213,8 @@ fn unsupported_scenes_and_shapes_are_refused_by_name() {
     )
     .unwrap();
     lit.materials[0].shininess = 12.5;
-    let e = render(&lit, &desc, None, |_, _| {}).unwrap_err().to_string();
+    let e = render(&lit, &desc, None, |_, _| {})
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("shininess"), "{e}");
 }

@@ -205,7 +205,7 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
         } => {
             let desc = MachineDesc::resolve(&machine)?;
             let lk = find_kernel(&name)?;
-            let compiled = compile(&(lk.build)(&desc), &desc)?;
+            let compiled = compile(&(lk.build)(&desc)?, &desc)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&compiled.report)?);
             } else {
@@ -228,10 +228,15 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             } else {
                 vec![find_kernel(&name)?]
             };
+            // Every kernel is built first, so a machine one of them cannot serve is refused
+            // before anything is compiled.
+            let kernels = kernels
+                .into_iter()
+                .map(|lk| Ok((lk, (lk.build)(&desc)?)))
+                .collect::<Result<Vec<_>>>()?;
             let mut results = Vec::new();
             let mut failed = false;
-            for lk in kernels {
-                let kernel = (lk.build)(&desc);
+            for (lk, kernel) in kernels {
                 let compiled = compile(&kernel, &desc)?;
                 let inputs = (lk.inputs)(&desc, rows.max(1), seed);
                 let check =

@@ -184,13 +184,20 @@ fn print_stats(f: &Frame, m: &Metrics) {
     let sp = &s.specialisation;
     println!(
         "pipeline           {} ({} words per vertex, interpolants {})",
-        if sp.specialised { "specialised for the scene" } else { "general (--no-specialize)" },
+        if sp.specialised {
+            "specialised for the scene"
+        } else {
+            "general (--no-specialize)"
+        },
         sp.words_per_vertex,
         sp.interpolants.join(" ")
     );
     println!("  kernels built    {}", sp.kernels_built.join(", "));
     if !sp.kernels_not_reached.is_empty() {
-        println!("  not reached      {} (not compiled)", sp.kernels_not_reached.join(", "));
+        println!(
+            "  not reached      {} (not compiled)",
+            sp.kernels_not_reached.join(", ")
+        );
     }
     println!("  left out         {}", sp.left_out.join(", "));
     println!("kernel breakdown   (share of frame cycles)");

@@ -218,6 +218,8 @@ pub enum DescError {
     },
     Invalid {
         machine: String,
+        /// The file (or built-in name) the description came from, once known.
+        source: Option<String>,
         key: &'static str,
         problem: String,
     },
@@ -234,17 +236,28 @@ impl fmt::Display for DescError {
             }
             DescError::Invalid {
                 machine,
+                source,
                 key,
                 problem,
-            } => write!(f, "machine `{machine}`: `{key}` {problem}"),
+            } => match source {
+                Some(source) if source != machine => {
+                    write!(f, "machine `{machine}` ({source}): `{key}` {problem}")
+                }
+                _ => write!(f, "machine `{machine}`: `{key}` {problem}"),
+            },
         }
     }
 }
 
 impl std::error::Error for DescError {}
 
-/// Upper bounds that keep the model's state and the probe hierarchy sane.
-const MAX_CLUSTERS: usize = 256;
+// Upper bounds that keep the model's state and the probe hierarchy sane.
+/// The most clusters a machine may have (the model keeps per-cluster state in arrays of
+/// this size).
+pub const MAX_CLUSTERS: usize = 256;
+/// The most streams one kernel may address (`srf.kernel_streams`; the model keeps
+/// per-stream state of a kernel in arrays of this size).
+pub const MAX_KERNEL_STREAMS: usize = 64;
 const MAX_UNITS: usize = 32;
 const MAX_LATENCY: u32 = 256;
 const MAX_MHZ: u64 = 100_000;
@@ -283,7 +296,20 @@ impl MachineDesc {
                     source: source.into(),
                     message: e.to_string(),
                 })?;
-        desc.validate()?;
+        desc.validate().map_err(|e| match e {
+            DescError::Invalid {
+                machine,
+                key,
+                problem,
+                ..
+            } => DescError::Invalid {
+                machine,
+                source: Some(source.into()),
+                key,
+                problem,
+            },
+            e => e,
+        })?;
         Ok(desc)
     }
 
@@ -362,6 +388,7 @@ impl MachineDesc {
         let bad = |key, problem: String| {
             Err(DescError::Invalid {
                 machine: self.name.clone(),
+                source: None,
                 key,
                 problem,
             })
@@ -393,7 +420,12 @@ impl MachineDesc {
             ("srf.block_words", self.srf.block_words, 1, 1 << 16),
             ("srf.words_per_cycle", self.srf.words_per_cycle, 1, 1 << 12),
             ("srf.stream_buffers", self.srf.stream_buffers, 2, 256),
-            ("srf.kernel_streams", self.srf.kernel_streams, 1, 256),
+            (
+                "srf.kernel_streams",
+                self.srf.kernel_streams,
+                1,
+                MAX_KERNEL_STREAMS,
+            ),
             (
                 "srf.cluster_words_per_cycle",
                 self.srf.cluster_words_per_cycle,
@@ -503,6 +535,7 @@ impl MachineDesc {
         let bad = |key, problem: String| {
             Err(DescError::Invalid {
                 machine: self.name.clone(),
+                source: None,
                 key,
                 problem,
             })
@@ -870,6 +903,22 @@ mod tests {
             let e = MachineDesc::parse(&GOLD8.replace(from, to), "t").unwrap_err();
             assert!(e.to_string().contains(key), "{from}: {e}");
         }
+        // More kernel streams than the model keeps state for, with the buffers to serve them.
+        let e = MachineDesc::parse(
+            &GOLD8
+                .replace("kernel_streams = 8", "kernel_streams = 65")
+                .replace("stream_buffers = 22", "stream_buffers = 80"),
+            "t",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("srf.kernel_streams"), "{e}");
+        // A file's errors name the file as well as the machine.
+        let e = MachineDesc::parse(&GOLD8.replace("count = 8", "count = 257"), "dir/big.toml")
+            .unwrap_err();
+        assert!(
+            e.to_string().contains("dir/big.toml") && e.to_string().contains("cluster.count"),
+            "{e}"
+        );
         let m = MachineDesc::gold8();
         assert_eq!(
             (m.dram.channels, m.dram.banks, m.dram.rows, m.dram.columns),

@@ -106,7 +106,7 @@ impl StreamSink for Streams<'_> {
         match mask {
             None => self.srf.write(stream as usize, values),
             Some(m) => {
-                let mut packed = [0u32; 256];
+                let mut packed = [0u32; crate::desc::MAX_CLUSTERS];
                 let mut n = 0;
                 for c in 0..self.lanes {
                     if m[c] {
@@ -562,8 +562,8 @@ impl Machine {
         {
             return Ok(false);
         }
-        let mut need_in = [0usize; 64];
-        let mut need_out = [0usize; 64];
+        let mut need_in = [0usize; crate::desc::MAX_KERNEL_STREAMS];
+        let mut need_out = [0usize; crate::desc::MAX_KERNEL_STREAMS];
         for s in inst.sin.iter().flatten().filter(|s| live.live(s.stage)) {
             need_in[s.stream as usize] += match s.cond {
                 None => self.lanes,

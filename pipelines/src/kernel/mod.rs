@@ -25,6 +25,7 @@
 
 pub mod builder;
 pub mod interp;
+pub mod requirement;
 pub mod verify;
 
 use std::fmt;
@@ -33,6 +34,7 @@ use imagine_units::ops::Op;
 
 pub use builder::KernelBuilder;
 pub use interp::{InterpError, KernelInputs, interpret};
+pub use requirement::{MachineRequirementError, Needs};
 pub use verify::VerifyError;
 
 /// The type of a value. `Word` is an untyped 32-bit word, accepted wherever a data type is;

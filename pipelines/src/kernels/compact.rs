@@ -9,9 +9,10 @@ use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
 
 use super::{finish, uniform, uniform_words};
-use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec};
+use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError};
 
-pub fn build(_desc: &MachineDesc) -> Kernel {
+/// Any machine serves it (any cluster count; the units every description has).
+pub fn build(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("compact");
     let values = b.input("values");
     let kept = b.output("kept");
@@ -21,7 +22,7 @@ pub fn build(_desc: &MachineDesc) -> Kernel {
     let below = b.flt(v, threshold);
     b.write_if(kept, below, v);
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `rows × C` values in [-100, 100); a threshold in [-50, 50).

@@ -17,12 +17,16 @@ use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
 
 use super::{finish, records_to_stream};
-use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec};
+use crate::kernel::{
+    Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs,
+};
 
 /// Rows of the stamp: scratchpad words 0..32.
 pub const STAMP_ROWS: u16 = 32;
 
-pub fn build(_desc: &MachineDesc) -> Kernel {
+/// Needs a scratchpad that holds the stamp besides the words of its conditional outputs.
+pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+    Needs::new("hash", desc).scratchpad_words(usize::from(STAMP_ROWS), "the stamp", true)?;
     let mut b = KernelBuilder::new("hash");
     let fragments = b.input("fragments");
     let ok = b.output("ok");
@@ -51,7 +55,7 @@ pub fn build(_desc: &MachineDesc) -> Kernel {
     b.write_if(conflict, is_conflict, x);
     b.write_if(conflict, is_conflict, y);
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `rows × C` fragments with x in 0..40 and y in 0..6, so that stamp bits alias (x and

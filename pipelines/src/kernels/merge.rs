@@ -16,13 +16,16 @@ use imagine_units::desc::MachineDesc;
 
 use super::finish;
 use super::sort32::{CHUNK, Network, Order, Step, random_keys, words_per_cluster};
-use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, Perm, Value};
+use crate::kernel::{
+    Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, Perm, Value,
+};
 
-/// # Panics
-/// If the cluster count is not a power of two up to 32.
-pub fn build(desc: &MachineDesc) -> Kernel {
+/// Needs a power-of-two cluster count up to 32, and a condition code for each condition of
+/// a step between clusters (they are kept across the loop).
+pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let clusters = desc.cluster.count;
-    let k = words_per_cluster("merge", clusters);
+    let needs = Needs::new("merge", desc);
+    let k = words_per_cluster(needs)?;
     let mut b = KernelBuilder::new("merge");
     let chunks = b.input("chunks");
     let merged = b.output("merged");
@@ -34,6 +37,7 @@ pub fn build(desc: &MachineDesc) -> Kernel {
         })
         .collect();
     let network = Network::new(&mut b, clusters, 2 * k, &steps);
+    network.check_condition_codes(needs)?;
     b.begin_loop(LoopSpec::OverStream(chunks));
     let first: Vec<Value> = (0..k).map(|_| b.read(chunks)).collect();
     let second: Vec<Value> = (0..k).map(|_| b.read(chunks)).collect();
@@ -52,7 +56,7 @@ pub fn build(desc: &MachineDesc) -> Kernel {
         b.write(merged, w);
     }
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `rows` pairs of sorted chunks of random keys (with repeats and extremes).

@@ -2,7 +2,10 @@
 //! written with the [`KernelBuilder`](crate::kernel::KernelBuilder) (ARCHITECTURE §5).
 //!
 //! Each kernel is a function of the machine description (kernels that split a fixed-size
-//! problem over the clusters, like [`sort32`], are built for `desc.cluster.count`). The
+//! problem over the clusters, like [`sort32`], are built for `desc.cluster.count`). A
+//! builder first checks what the kernel needs of the machine (see
+//! [`Needs`](crate::kernel::Needs)) and returns a
+//! [`MachineRequirementError`] for a machine it cannot serve. The
 //! [`library`] registry names every kernel with a builder and a generator of random valid
 //! inputs, so tools and tests can run any of them by name.
 //!
@@ -30,13 +33,15 @@ use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
 use imagine_units::ops::UnitClass;
 
-use crate::kernel::{Kernel, KernelInputs, Node, Region};
+use crate::kernel::{Kernel, KernelInputs, MachineRequirementError, Node, Region};
 
 /// A kernel of the library: how to build it and how to make inputs for it.
 pub struct LibraryKernel {
     pub name: &'static str,
     pub description: &'static str,
-    pub build: fn(&MachineDesc) -> Kernel,
+    /// Builds the kernel for a machine, or says what the kernel needs that the machine
+    /// lacks.
+    pub build: fn(&MachineDesc) -> Result<Kernel, MachineRequirementError>,
     /// Random valid inputs for `rows` iterations of the kernel's main loop, deterministic
     /// from `seed` (one entry per stream: output streams get empty vectors).
     pub inputs: fn(&MachineDesc, rows: usize, seed: u64) -> KernelInputs,

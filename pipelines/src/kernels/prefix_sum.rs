@@ -13,9 +13,13 @@ use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
 
 use super::finish;
-use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, Perm};
+use crate::kernel::{
+    Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, Perm,
+};
 
-pub fn build(desc: &MachineDesc) -> Kernel {
+/// Serves any cluster count; needs a condition code for each of the scan's `⌈log2 C⌉`
+/// steps (whether a cluster adds, kept across the loop).
+pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let clusters = desc.cluster.count;
     let mut b = KernelBuilder::new("prefix_sum");
     let values = b.input("values");
@@ -31,6 +35,10 @@ pub fn build(desc: &MachineDesc) -> Kernel {
             (d, b.ile(distance, cluster))
         })
         .collect();
+    Needs::new("prefix_sum", desc).condition_codes(
+        steps.len(),
+        "whether a cluster adds at each step of the scan, kept across the loop",
+    )?;
 
     b.begin_loop(LoopSpec::OverStream(values));
     let total = b.carried(zero);
@@ -46,7 +54,7 @@ pub fn build(desc: &MachineDesc) -> Kernel {
     let next_total = b.comm(sum, Perm::Broadcast((clusters - 1) as u16));
     b.set_next(total, next_total);
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `rows × C` random words.

@@ -18,7 +18,9 @@ use imagine_units::desc::MachineDesc;
 use imagine_units::ops::Op;
 
 use super::finish;
-use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, Perm, Value};
+use crate::kernel::{
+    Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, Perm, Value,
+};
 
 /// Words of a chunk.
 pub const CHUNK: usize = 32;
@@ -128,6 +130,18 @@ impl Network {
         net
     }
 
+    /// Checks that the machine has a condition code for each of the network's conditions:
+    /// they are made before the loop and kept across it.
+    pub(crate) fn check_condition_codes(
+        &self,
+        needs: Needs,
+    ) -> Result<(), MachineRequirementError> {
+        needs.condition_codes(
+            self.keeps_min.len(),
+            "the conditions of its steps between clusters, kept across the loop",
+        )
+    }
+
     /// What the condition of a cross-cluster step depends on: the distance, the ordering
     /// bit if it is a cluster bit, else whether word `j`'s pairs are ascending.
     fn key(&self, step: Step, j: usize) -> (usize, Option<usize>, bool) {
@@ -165,28 +179,26 @@ impl Network {
     }
 }
 
-/// Words per cluster of a chunk: `32 / C`.
-///
-/// # Panics
-/// If `C` is not a power of two up to 32.
-pub(crate) fn words_per_cluster(kernel: &str, clusters: usize) -> usize {
-    assert!(
-        clusters.is_power_of_two() && clusters <= CHUNK,
-        "{kernel} needs a power-of-two cluster count up to {CHUNK}, not {clusters}"
-    );
-    CHUNK / clusters
+/// Words per cluster of a chunk, `32 / C`, if the machine has a power-of-two cluster count
+/// up to 32 (a chunk spread evenly over the clusters, exchanges between clusters by
+/// `Xor(d)`).
+pub(crate) fn words_per_cluster(needs: Needs) -> Result<usize, MachineRequirementError> {
+    needs.power_of_two_clusters(Some(CHUNK))?;
+    Ok(CHUNK / needs.clusters())
 }
 
-/// # Panics
-/// If the cluster count is not a power of two up to 32.
-pub fn build(desc: &MachineDesc) -> Kernel {
+/// Needs a power-of-two cluster count up to 32, and a condition code for each condition of
+/// a step between clusters (they are kept across the loop).
+pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let clusters = desc.cluster.count;
-    let k = words_per_cluster("sort32", clusters);
+    let needs = Needs::new("sort32", desc);
+    let k = words_per_cluster(needs)?;
     let mut b = KernelBuilder::new("sort32");
     let keys = b.input("keys");
     let sorted = b.output("sorted");
     let steps = sort_steps(CHUNK);
     let network = Network::new(&mut b, clusters, k, &steps);
+    network.check_condition_codes(needs)?;
     b.begin_loop(LoopSpec::OverStream(keys));
     let mut words: Vec<Value> = (0..k).map(|_| b.read(keys)).collect();
     for &step in &steps {
@@ -196,7 +208,7 @@ pub fn build(desc: &MachineDesc) -> Kernel {
         b.write(sorted, w);
     }
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `rows` chunks of random keys, with a few repeated keys and extremes mixed in.

@@ -11,7 +11,9 @@ use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
 
 use super::{finish, records_to_stream, uniform_words};
-use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, Value};
+use crate::kernel::{
+    Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Value,
+};
 
 /// Declares the 16 matrix parameters `{prefix}0..{prefix}15` (row-major).
 pub(crate) fn matrix_params(b: &mut KernelBuilder, prefix: &str) -> [Value; 16] {
@@ -41,7 +43,8 @@ pub(crate) fn transform_point(
     })
 }
 
-pub fn build(_desc: &MachineDesc) -> Kernel {
+/// Any machine serves it (any cluster count; the units every description has).
+pub fn build(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("transform");
     let positions = b.input("positions");
     let transformed = b.output("transformed");
@@ -57,7 +60,7 @@ pub fn build(_desc: &MachineDesc) -> Kernel {
         b.write(transformed, v);
     }
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `rows × C` positions with coordinates in [-10, 10) and w in [0.5, 2); matrix entries in

@@ -53,7 +53,9 @@ use imagine_units::desc::MachineDesc;
 use imagine_units::ops::Op;
 
 use super::{finish, records_to_stream, uniform, uniform_words};
-use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, Ty, Value};
+use crate::kernel::{
+    Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, Ty, Value,
+};
 
 /// Entries of the permutation table (scratchpad words `0..TABLE`).
 pub const TABLE: usize = 256;
@@ -320,12 +322,21 @@ fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {
     v.map(|c| b.fmul(c, y))
 }
 
-pub fn build(desc: &MachineDesc) -> Kernel {
+/// Needs a cluster count that divides the table's 256 entries (it loads the table in rows)
+/// and a scratchpad that holds the table.
+pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let clusters = desc.cluster.count;
-    assert!(
-        TABLE.is_multiple_of(clusters),
-        "turbulence loads its table in rows: {clusters} clusters do not divide {TABLE}"
-    );
+    let needs = Needs::new("turbulence", desc);
+    if !TABLE.is_multiple_of(clusters) {
+        return Err(needs.error(
+            format!(
+                "a cluster count dividing the {TABLE} entries of its permutation table, which \
+                 it loads in rows"
+            ),
+            format!("{clusters} clusters"),
+        ));
+    }
+    needs.scratchpad_words(TABLE, "the permutation table", false)?;
     let mut b = KernelBuilder::new("turbulence");
     let fragments = b.input("fragments");
     let perm = b.input("perm");
@@ -410,7 +421,7 @@ pub fn build(desc: &MachineDesc) -> Kernel {
         b.write(colours, colour);
     }
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// The table a `perm` stream holds (each word is there once per cluster).

@@ -31,7 +31,7 @@ use imagine_units::desc::MachineDesc;
 
 use super::transform::{matrix_params, transform_point};
 use super::{finish, records_to_stream, uniform};
-use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec};
+use crate::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError};
 
 /// Lights of the SPHERE vertex program.
 pub const LIGHTS: usize = 3;
@@ -57,7 +57,8 @@ fn rgb_params(b: &mut KernelBuilder, prefix: &str) -> Vec3 {
     ["r", "g", "b"].map(|c| b.param_f32(&format!("{prefix}_{c}")))
 }
 
-pub fn build(_desc: &MachineDesc) -> Kernel {
+/// Any machine serves it (any cluster count; the units every description has).
+pub fn build(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("vertex");
     let vertices = b.input("vertices");
     let shaded = b.output("shaded");
@@ -112,7 +113,7 @@ pub fn build(_desc: &MachineDesc) -> Kernel {
         b.write(shaded, clamped);
     }
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `rows × C` vertices on and around the unit sphere, with normals of length 0.5 to 2

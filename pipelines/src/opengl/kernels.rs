@@ -49,7 +49,9 @@
 use imagine_units::desc::MachineDesc;
 use imagine_units::ops::Op;
 
-use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, StreamId, Ty, Value};
+use crate::kernel::{
+    Kernel, KernelBuilder, LoopSpec, MachineRequirementError, Needs, Perm, StreamId, Ty, Value,
+};
 use crate::scene::model::{Cull, DepthTest};
 
 /// Words of a raster record (`xyprep` → `xyrast`): the bounding box's first and last pixel (`lo`, `hi`,
@@ -153,7 +155,7 @@ pub(crate) fn null_row(b: &mut KernelBuilder, outs: &[(StreamId, u32)]) {
 /// `clear`: the framebuffer clear, done by the machine: one pixel record (the clear colour,
 /// the clear depth, primitive 0) per element of `tickets` (whose words are not read for
 /// their values; they set the length). The host stores the records over the framebuffer.
-pub fn clear(_desc: &MachineDesc) -> Kernel {
+pub fn clear(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("clear");
     let tickets = b.input("tickets");
     let pixels = b.output("pixels");
@@ -168,7 +170,7 @@ pub fn clear(_desc: &MachineDesc) -> Kernel {
         b.write(pixels, w);
     }
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// Words of a `clipped` record (`assemble_clip` → `viewport_cull`): clip-space x, y and w
@@ -194,7 +196,11 @@ pub const WINDOW_WORDS: usize = 14;
 /// left is rasterized homogeneously, with no clipping).
 ///
 /// Outputs per triangle: `clipped` ([`CLIPPED_WORDS`]) and `attribs` ([`ATTRIB_WORDS`]).
-pub fn assemble_clip(desc: &MachineDesc) -> Kernel {
+///
+/// Needs a power-of-two cluster count (a vertex's row is its index shifted right by
+/// `log2 C`).
+pub fn assemble_clip(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+    Needs::new("assemble_clip", desc).power_of_two_clusters(None)?;
     let clusters = desc.cluster.count;
     let mut b = KernelBuilder::new("assemble_clip");
     let shaded = b.input("shaded");
@@ -202,7 +208,7 @@ pub fn assemble_clip(desc: &MachineDesc) -> Kernel {
     let attribs = b.output("attribs");
     // 3⁻¹ mod C (C is a power of two).
     let inverse_of_3 = (0..clusters).find(|x| 3 * x % clusters == 1 % clusters);
-    let inverse_of_3 = b.i32(inverse_of_3.expect("C is a power of two") as i32);
+    let inverse_of_3 = b.i32(inverse_of_3.unwrap_or(0) as i32);
     let mask = b.i32(clusters as i32 - 1);
     let log2_c = b.i32(clusters.trailing_zeros() as i32);
     let (zero, one, three) = (b.i32(0), b.i32(1), b.i32(3));
@@ -284,7 +290,7 @@ pub fn assemble_clip(desc: &MachineDesc) -> Kernel {
         }
     }
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `viewport_cull`: per `clipped` record — the viewport transform to window-homogeneous
@@ -293,7 +299,10 @@ pub fn assemble_clip(desc: &MachineDesc) -> Kernel {
 /// position of each corner when every w > 0 (for the bounding box).
 ///
 /// Outputs per triangle: `window` ([`WINDOW_WORDS`]) and `det` (`|det|`, one word).
-pub fn viewport_cull(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
+pub fn viewport_cull(
+    _desc: &MachineDesc,
+    shape: FrameShape,
+) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("viewport_cull");
     let clipped = b.input("clipped");
     let window = b.output("window");
@@ -439,7 +448,7 @@ pub fn viewport_cull(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     b.write(window, flags);
     b.write(det_out, abs_det);
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `xyprep`: per `window` record and scissor tile (parameters `sx0, sy0, sx1, sy1`,
@@ -451,7 +460,11 @@ pub fn viewport_cull(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
 /// iterations `xyrast` needs (the most runs of [`XYRAST_RUN`] box pixels of any cluster, at
 /// least one; the same word in every cluster), then a row of each cluster's candidate
 /// pixels, whose sum bounds the fragments `xyrast` writes.
-pub fn xyprep(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
+///
+/// Needs a power-of-two cluster count (the busiest cluster is found by butterfly
+/// exchanges).
+pub fn xyprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequirementError> {
+    Needs::new("xyprep", desc).power_of_two_clusters(None)?;
     let mut b = KernelBuilder::new("xyprep");
     let window = b.input("window");
     let raster = b.output("raster");
@@ -538,13 +551,13 @@ pub fn xyprep(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let iterations = b.imax(most, one);
     b.write(rows_out, iterations);
     b.write(rows_out, candidates0);
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `baryprep`: per triangle, the interpolation record `irast` reads ([`INTERP_WORDS`]):
 /// `z_k / |det|` of each corner, the corners' colours and the primitive number
 /// `prim_base + index + 1` (parameter `prim_base`). Inputs: `attribs` and `det`.
-pub fn baryprep(desc: &MachineDesc) -> Kernel {
+pub fn baryprep(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("baryprep");
     let attribs = b.input("attribs");
     let det = b.input("det");
@@ -575,7 +588,7 @@ pub fn baryprep(desc: &MachineDesc) -> Kernel {
     let next_index = b.iadd(index0, row_c);
     b.set_next(index0, next_index);
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `xyrast`: walks each cluster's triangles' bounding boxes, [`XYRAST_RUN`] pixels of a box
@@ -589,7 +602,10 @@ pub fn baryprep(desc: &MachineDesc) -> Kernel {
 /// boxes at its own pace: no conditional reads, and no cluster waits for the largest box
 /// of a row. The loop runs for as many iterations as the busiest cluster needs (`xyprep`
 /// counts them); a cluster that is done sits on the sentinel, which covers nothing.
-pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Kernel {
+///
+/// Needs a scratchpad that holds the batch's `batch / C` records per cluster (see
+/// [`xyrast_rows`]).
+pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("xyrast");
     let raster = b.input("raster");
     let tickets = b.input("tickets");
@@ -597,10 +613,11 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let tri_out = b.output("tri");
     let e_out: [StreamId; 3] = ["e0", "e1", "e2"].map(|n| b.output(n));
     let rows = shape.batch / shape.clusters;
-    assert!(
-        rows <= xyrast_rows(desc),
-        "xyrast: {rows} triangles per cluster do not fit the scratchpad"
-    );
+    Needs::new("xyrast", desc).scratchpad_words(
+        (rows + 1) * RASTER_WORDS + 1,
+        &format!("{rows} raster records, a sentinel and the word read past it"),
+        true,
+    )?;
     let record = b.i32(RASTER_WORDS as i32);
     let zero = b.i32(0);
 
@@ -753,13 +770,13 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let mut nulls = vec![(addr_out, shape.trash()), (tri_out, 0)];
     nulls.extend(e_out.iter().map(|&s| (s, 0)));
     null_row(&mut b, &nulls);
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `irast`: a fragment's perspective-correct colour (packed RGBA8, alpha 255) and window
 /// depth from its edge values and its triangle's interpolation record (gathered from
 /// memory by triangle index), and the triangle's primitive number.
-pub fn irast(_desc: &MachineDesc) -> Kernel {
+pub fn irast(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("irast");
     let e_in: [StreamId; 3] = ["e0", "e1", "e2"].map(|n| b.input(n));
     let interp = b.input("interp");
@@ -802,7 +819,7 @@ pub fn irast(_desc: &MachineDesc) -> Kernel {
     b.write(colour_out, colour);
     b.write(prim_out, rec[12]);
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// Bits of a pixel's x and y the composite's hash keeps: a 32×32 stamp.
@@ -849,7 +866,13 @@ pub fn reciprocal(d: u32) -> (u32, u32) {
 /// keys up in its stamp, adds "the same key as mine, and I come first", and rotates the
 /// answers back (`C − 1` comms). Then each cluster stamps its own key. The pixel's x and y
 /// come from its address `y·W + x` by a multiply by the reciprocal of `W`.
-pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
+///
+/// Needs a power-of-two cluster count (the conflicts are counted by butterfly exchanges)
+/// and a scratchpad that holds the stamp.
+pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequirementError> {
+    let needs = Needs::new("hash", desc);
+    needs.power_of_two_clusters(None)?;
+    needs.scratchpad_words(usize::from(STAMP_ROWS) + 1, "the stamp", false)?;
     let c = desc.cluster.count;
     let mut b = KernelBuilder::new("hash");
     let addr_in = b.input("addr");
@@ -934,7 +957,7 @@ pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     }
     let total = all_reduce(&mut b, c, count0, KernelBuilder::iadd);
     b.write(count_out, total);
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `zcompare`: the scene's depth test (LESS, LEQUAL or ALWAYS) of a fragment against its
@@ -947,7 +970,7 @@ pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Kernel {
 /// pixel does not change the result. Outputs, unconditional: the pixel to write back
 /// (3 words) and where (`newaddr`: the fragment's pixel if it passed, else the trash
 /// pixel).
-pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
+pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("zcompare");
     let z_in = b.input("z");
     let colour_in = b.input("colour");
@@ -1004,13 +1027,16 @@ pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let where_ = b.select(pass, addr, trash);
     b.write(newaddr_out, where_);
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `compact_recycle`: keeps the words of streams `a` and `b` whose `conflict` flag is set,
 /// in order, then a row of nulls (`nulls`): the fragments `hash` held back, for the next
 /// round.
-pub fn compact_recycle(_desc: &MachineDesc, nulls: [u32; 2]) -> Kernel {
+pub fn compact_recycle(
+    _desc: &MachineDesc,
+    nulls: [u32; 2],
+) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("compact_recycle");
     let conflict_in = b.input("conflict");
     let a_in = b.input("a");
@@ -1026,5 +1052,5 @@ pub fn compact_recycle(_desc: &MachineDesc, nulls: [u32; 2]) -> Kernel {
     b.write_if(b_out, keep, c);
     b.end_loop();
     null_row(&mut b, &[(a_out, nulls[0]), (b_out, nulls[1])]);
-    finish(b)
+    Ok(finish(b))
 }

@@ -67,7 +67,9 @@ use imagine_units::desc::MachineDesc;
 use imagine_units::ops::Op;
 
 use super::kernels::{FrameShape, NULL_DEPTH, finish, null_row};
-use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, Ty, Value};
+use crate::kernel::{
+    Kernel, KernelBuilder, LoopSpec, MachineRequirementError, Needs, Perm, Ty, Value,
+};
 use crate::kernels::sort32::{CHUNK, Network, sort_steps};
 
 /// The most fragments of a group, and the unit the host rounds the kernels' streams up to.
@@ -77,21 +79,25 @@ pub const POS_BITS: u32 = GROUP.trailing_zeros();
 
 /// Fragments of a group on `clusters` clusters: 32, but `4·C` on fewer than eight
 /// clusters, where a group of 32 would need more words per cluster than the LRFs hold
-/// while the keys are sorted (a divisor of 32 either way).
-///
-/// # Panics
-/// If the cluster count is not a power of two up to 32.
+/// while the keys are sorted (a divisor of 32 either way). Meaningful for the cluster
+/// counts the two kernels accept, powers of two up to 32 (see [`group_for`]).
 pub fn group(clusters: usize) -> usize {
-    assert!(
-        clusters.is_power_of_two() && clusters <= GROUP,
-        "sort32 and mergefrag need a power-of-two cluster count up to {GROUP}, not {clusters}"
-    );
     (4 * clusters).min(GROUP)
+}
+
+/// The group of `needs`'s machine, if the kernel can spread a group over its clusters: a
+/// power-of-two cluster count up to 32 (words `j·C + c`, exchanges between clusters by
+/// `Xor(d)`).
+fn group_for(needs: Needs) -> Result<usize, MachineRequirementError> {
+    needs.power_of_two_clusters(Some(GROUP))?;
+    Ok(group(needs.clusters()))
 }
 
 /// The largest trash address (window pixels) whose sort keys fit a word with room for the
 /// sentinel of `mergefrag`.
 pub const MAX_TRASH: u32 = (1 << (32 - POS_BITS)) - 2;
+// Every window a valid scene may have fits.
+const _: () = assert!(crate::scene::MAX_WINDOW * crate::scene::MAX_WINDOW < MAX_TRASH);
 
 /// The words of the slots `keys` name (position `key mod 32`: cluster `pos mod C`, word
 /// `pos / C`), for each of `payloads`: each cluster takes every word of the source cluster
@@ -146,12 +152,15 @@ fn fetch(
 /// slot's depth and primitive. Outputs, unconditional: `key` (`addr·32 + position`),
 /// `z_sorted`, `prim_sorted`.
 ///
+/// Needs a power-of-two cluster count up to 32 and a condition code for each condition of
+/// its network's steps between clusters (they are kept across the loop).
+///
 /// # Panics
-/// If the cluster count is not a power of two up to 32, or the window has more than
-/// [`MAX_TRASH`] pixels.
-pub fn sort32(desc: &MachineDesc, shape: FrameShape) -> Kernel {
+/// If the window has more than [`MAX_TRASH`] pixels (a valid scene has fewer).
+pub fn sort32(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequirementError> {
     let c = desc.cluster.count;
-    let n = group(c);
+    let needs = Needs::new("sort32", desc);
+    let n = group_for(needs)?;
     let k = n / c;
     assert!(
         shape.trash() <= MAX_TRASH,
@@ -169,6 +178,7 @@ pub fn sort32(desc: &MachineDesc, shape: FrameShape) -> Kernel {
     let prim_out = b.output("prim_sorted");
     let steps = sort_steps(n);
     let network = Network::new(&mut b, c, k, &steps);
+    network.check_condition_codes(needs)?;
     let zero = b.i32(0);
     let trash = b.i32(shape.trash() as i32);
     let scale = b.i32(1 << POS_BITS);
@@ -203,7 +213,7 @@ pub fn sort32(desc: &MachineDesc, shape: FrameShape) -> Kernel {
         b.write(prim_out, fetched[1][j]);
     }
     b.end_loop();
-    finish(b)
+    Ok(finish(b))
 }
 
 /// `mergefrag`: of each run of equal addresses in a sorted group, keeps the fragment with
@@ -211,11 +221,10 @@ pub fn sort32(desc: &MachineDesc, shape: FrameShape) -> Kernel {
 /// group's `colour` words in stream order); drops the trash address. Outputs, conditional:
 /// `z`, `colour`, `addr`, `prim` of the survivors, then a row of nulls.
 ///
-/// # Panics
-/// If the cluster count is not a power of two up to 32.
-pub fn mergefrag(desc: &MachineDesc, shape: FrameShape) -> Kernel {
+/// Needs a power-of-two cluster count up to 32.
+pub fn mergefrag(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequirementError> {
     let c = desc.cluster.count;
-    let n = group(c);
+    let n = group_for(Needs::new("mergefrag", desc))?;
     let k = n / c;
     let mut b = KernelBuilder::new("mergefrag");
     let key_in = b.input("key");
@@ -341,5 +350,5 @@ pub fn mergefrag(desc: &MachineDesc, shape: FrameShape) -> Kernel {
             (prim_out, 0),
         ],
     );
-    finish(b)
+    Ok(finish(b))
 }

@@ -48,17 +48,18 @@ use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
 
 use super::kernels::{
-    self, ATTRIB_WORDS, CLIPPED_WORDS, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS,
-    WINDOW_WORDS,
+    self, ATTRIB_WORDS, CLIPPED_WORDS, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS,
+    RASTER_WORDS, WINDOW_WORDS,
 };
 use super::mergefrag::{self, GROUP};
 use super::stats::{BatchRow, Phases, Specialisation};
 use super::vertex_program::{SHADED_WORDS, VertexProgram};
-use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene};
+use crate::kernel::MachineRequirementError;
 use crate::scene::MAX_WINDOW;
+use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene};
 use crate::stream::{
-    Buffer, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS, PlanError, SrfPlan,
-    SrfPlanner, StreamHost, StreamId, live, pipelined, split_to_fit, strip_mine,
+    Buffer, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS, PlanError,
+    SrfPlan, SrfPlanner, StreamHost, StreamId, live, pipelined, split_to_fit, strip_mine,
 };
 
 pub use super::stats::{FrameStats, KernelShare};
@@ -144,7 +145,16 @@ impl Default for RenderOptions {
 }
 
 /// The pipeline's batch schedule: the phases stream lifetimes are given in.
-const PHASES: [&str; 8] = ["vertex", "assemble", "cull", "baryprep", "xyprep", "xyrast", "composite", "host"];
+const PHASES: [&str; 8] = [
+    "vertex",
+    "assemble",
+    "cull",
+    "baryprep",
+    "xyprep",
+    "xyrast",
+    "composite",
+    "host",
+];
 
 /// The streams of a batch.
 struct Streams {
@@ -214,34 +224,86 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         vertices: p.stream("vertices", Layout::records(s.vertex_words), 3 * b, always),
         corner_index: p.buffers("corner_index", words, 3 * b, always),
         shaded: p.buffers("shaded", Layout::records(SHADED_WORDS), 3 * b, always),
-        corners: p.stream("corners", Layout::records(SHADED_WORDS), 3 * b, live("assemble", "assemble")),
-        clipped: p.stream("clipped", Layout::records(CLIPPED_WORDS), b, live("assemble", "cull")),
-        attribs: p.stream("attribs", Layout::records(ATTRIB_WORDS), b, live("assemble", "baryprep")),
+        corners: p.stream(
+            "corners",
+            Layout::records(SHADED_WORDS),
+            3 * b,
+            live("assemble", "assemble"),
+        ),
+        clipped: p.stream(
+            "clipped",
+            Layout::records(CLIPPED_WORDS),
+            b,
+            live("assemble", "cull"),
+        ),
+        attribs: p.stream(
+            "attribs",
+            Layout::records(ATTRIB_WORDS),
+            b,
+            live("assemble", "baryprep"),
+        ),
         det: p.stream("det", words, b, live("cull", "baryprep")),
         // Read by every tile's `xyprep`.
-        window: p.stream("window", Layout::records(WINDOW_WORDS), b, live("cull", "composite")),
+        window: p.stream(
+            "window",
+            Layout::records(WINDOW_WORDS),
+            b,
+            live("cull", "composite"),
+        ),
         // Stored to DRAM while the tiles start: live until that store has surely completed,
         // so that `xyprep` and `xyrast` do not wait for it.
-        interp: p.stream("interp", Layout::records(INTERP_WORDS), b, live("baryprep", "xyrast")),
-        raster: p.stream("raster", Layout::records(RASTER_WORDS), b, live("xyprep", "xyrast")),
+        interp: p.stream(
+            "interp",
+            Layout::records(INTERP_WORDS),
+            b,
+            live("baryprep", "xyrast"),
+        ),
+        raster: p.stream(
+            "raster",
+            Layout::records(RASTER_WORDS),
+            b,
+            live("xyprep", "xyrast"),
+        ),
         rows: p.stream("rows", words, 2 * c, live("xyprep", "xyprep")),
-        tickets: p.stream("tickets", words, TICKET_WORDS / c * c, live("xyrast", "xyrast")),
+        tickets: p.stream(
+            "tickets",
+            words,
+            TICKET_WORDS / c * c,
+            live("xyrast", "xyrast"),
+        ),
         addr: p.elastic("addr", words, live("xyrast", "composite")),
         tri: p.elastic("tri", words, live("xyrast", "composite")),
         edges: ["e0", "e1", "e2"].map(|n| p.elastic(n, words, live("xyrast", "composite"))),
-        gathered: p.buffers("gathered", Layout::records(INTERP_WORDS), chunk, live("composite", "composite")),
+        gathered: p.buffers(
+            "gathered",
+            Layout::records(INTERP_WORDS),
+            chunk,
+            live("composite", "composite"),
+        ),
         zcap: [0, 1, 2].map(|set| {
-            ["z", "colour", "addr", "prim"]
-                .map(|n| p.stream(&format!("{n}[{set}]"), words, groups + c, live("composite", "composite")))
+            ["z", "colour", "addr", "prim"].map(|n| {
+                p.stream(
+                    &format!("{n}[{set}]"),
+                    words,
+                    groups + c,
+                    live("composite", "composite"),
+                )
+            })
         }),
-        sorted: ["key", "z_sorted", "prim_sorted"].map(|n| p.stream(n, words, groups, live("composite", "composite"))),
+        sorted: ["key", "z_sorted", "prim_sorted"]
+            .map(|n| p.stream(n, words, groups, live("composite", "composite"))),
         // The framebuffer's gathers and scatters: a batch's last scatter is still running
         // when the next batch is set up, so these words are not shared with anything.
         pixel: p.stream("pixel", Layout::records(PIXEL_WORDS), chunk, always),
         new_pixel: p.stream("new_pixel", Layout::records(PIXEL_WORDS), chunk, always),
         newaddr: p.stream("newaddr", words, chunk, always),
         // `hash`'s flags and the rows of zeros after them.
-        conflict: p.stream("conflict", words, chunk + GROUP, live("composite", "composite")),
+        conflict: p.stream(
+            "conflict",
+            words,
+            chunk + GROUP,
+            live("composite", "composite"),
+        ),
         conflicts: p.stream("conflicts", words, c, live("composite", "composite")),
         chunk,
     };
@@ -269,10 +331,30 @@ fn plan_phases(desc: &MachineDesc) -> Result<(SrfPlan, PhaseStreams), PlanError>
     let pixels = CLEAR_PIXELS.div_ceil(c) * c;
     let staging_words = STAGING_WORDS.min(desc.srf.words / 4);
     let s = PhaseStreams {
-        staging: p.stream("staging", Layout::packed(1), staging_words, live("load", "readback")),
-        clear_tickets: p.stream("clear_tickets", Layout::words(), pixels, live("clear", "clear")),
-        clear_pixels: p.stream("clear_pixels", Layout::records(PIXEL_WORDS), pixels, live("clear", "clear")),
-        clear_params: p.stream("clear_params", Layout::words(), 2 * c, live("clear", "clear")),
+        staging: p.stream(
+            "staging",
+            Layout::packed(1),
+            staging_words,
+            live("load", "readback"),
+        ),
+        clear_tickets: p.stream(
+            "clear_tickets",
+            Layout::words(),
+            pixels,
+            live("clear", "clear"),
+        ),
+        clear_pixels: p.stream(
+            "clear_pixels",
+            Layout::records(PIXEL_WORDS),
+            pixels,
+            live("clear", "clear"),
+        ),
+        clear_params: p.stream(
+            "clear_params",
+            Layout::words(),
+            2 * c,
+            live("clear", "clear"),
+        ),
     };
     Ok((p.place()?, s))
 }
@@ -302,7 +384,7 @@ fn register_kernels(
     shape: FrameShape,
     programs: &[VertexProgram],
     options: RenderOptions,
-) -> Kernels {
+) -> Result<Kernels, MachineRequirementError> {
     let mut per_program: Vec<(VertexProgram, (KernelId, KernelId))> = Vec::new();
     let per_object = programs
         .iter()
@@ -319,27 +401,35 @@ fn register_kernels(
             ids
         })
         .collect();
-    let merge = (shape.depth_test == DepthTest::Less && options.merge_min_conflicts.is_some()).then(|| {
-        (
-            lib.register("sort32", mergefrag::sort32(desc, shape)),
-            lib.register("mergefrag", mergefrag::mergefrag(desc, shape)),
-        )
-    });
-    Kernels {
+    let merge = if shape.depth_test == DepthTest::Less && options.merge_min_conflicts.is_some() {
+        Some((
+            lib.register("sort32", mergefrag::sort32(desc, shape)?),
+            lib.register("mergefrag", mergefrag::mergefrag(desc, shape)?),
+        ))
+    } else {
+        None
+    };
+    Ok(Kernels {
         per_object,
-        assemble_clip: lib.register("assemble_clip", kernels::assemble_clip(desc)),
-        viewport_cull: lib.register("viewport_cull", kernels::viewport_cull(desc, shape)),
-        baryprep: lib.register("baryprep", kernels::baryprep(desc)),
-        xyprep: lib.register("xyprep", kernels::xyprep(desc, shape)),
-        xyrast: lib.register("xyrast", kernels::xyrast(desc, shape)),
-        irast: lib.register("irast", kernels::irast(desc)),
-        hash: lib.register("hash", kernels::hash(desc, shape)),
-        zcompare: lib.register("zcompare", kernels::zcompare(desc, shape)),
-        recycle_zc: lib.register("compact_recycle:z,colour", kernels::compact_recycle(desc, [NULL_DEPTH, 0])),
-        recycle_ap: lib.register("compact_recycle:addr,prim", kernels::compact_recycle(desc, [shape.trash(), 0])),
-        clear: lib.register("clear", kernels::clear(desc)),
+        assemble_clip: lib.register("assemble_clip", kernels::assemble_clip(desc)?),
+        viewport_cull: lib.register("viewport_cull", kernels::viewport_cull(desc, shape)?),
+        baryprep: lib.register("baryprep", kernels::baryprep(desc)?),
+        xyprep: lib.register("xyprep", kernels::xyprep(desc, shape)?),
+        xyrast: lib.register("xyrast", kernels::xyrast(desc, shape)?),
+        irast: lib.register("irast", kernels::irast(desc)?),
+        hash: lib.register("hash", kernels::hash(desc, shape)?),
+        zcompare: lib.register("zcompare", kernels::zcompare(desc, shape)?),
+        recycle_zc: lib.register(
+            "compact_recycle:z,colour",
+            kernels::compact_recycle(desc, [NULL_DEPTH, 0])?,
+        ),
+        recycle_ap: lib.register(
+            "compact_recycle:addr,prim",
+            kernels::compact_recycle(desc, [shape.trash(), 0])?,
+        ),
+        clear: lib.register("clear", kernels::clear(desc)?),
         merge,
-    }
+    })
 }
 
 /// One batch's work: triangles of one object.
@@ -450,9 +540,16 @@ fn check_supported(scene: &Scene) -> Result<(), RenderError> {
         return bad("blending is not supported yet (pipeline.blend must be \"none\")".into());
     }
     if let Some(m) = scene.materials.iter().find(|m| !m.textures.is_empty()) {
-        return bad(format!("material `{}` has textures, which are not supported yet", m.name));
+        return bad(format!(
+            "material `{}` has textures, which are not supported yet",
+            m.name
+        ));
     }
-    if scene.width == 0 || scene.height == 0 || scene.width > MAX_WINDOW || scene.height > MAX_WINDOW {
+    if scene.width == 0
+        || scene.height == 0
+        || scene.width > MAX_WINDOW
+        || scene.height > MAX_WINDOW
+    {
         return bad(format!(
             "window {}x{} is outside 1..={MAX_WINDOW} pixels per side",
             scene.width, scene.height
@@ -501,9 +598,17 @@ pub fn render_with(
     // Strip-mining: the largest batch up to 64 triangles (whole rows of clusters, at most
     // `rows` per cluster for `xyrast`'s scratchpad, no more than the largest object needs)
     // whose streams fit the SRF.
-    let most = scene.objects.iter().map(|o| o.mesh.triangles.len()).max().unwrap_or(0);
+    let most = scene
+        .objects
+        .iter()
+        .map(|o| o.mesh.triangles.len())
+        .max()
+        .unwrap_or(0);
     let want = 64usize.max(clusters).div_ceil(clusters) * clusters;
-    let top = want.min(most.div_ceil(clusters) * clusters).min(rows * clusters).max(clusters);
+    let top = want
+        .min(most.div_ceil(clusters) * clusters)
+        .min(rows * clusters)
+        .max(clusters);
     let candidates = (1..=top / clusters).rev().map(|r| r * clusters);
     let state_words = programs
         .iter()
@@ -511,8 +616,17 @@ pub fn render_with(
         .map(|(p, o)| p.state_words(scene, o, clusters).len())
         .max()
         .unwrap_or(clusters);
-    let params = programs.iter().map(|p| p.param_count()).max().unwrap_or(0).max(1);
-    let vertex_words = programs.iter().map(VertexProgram::record_words).max().unwrap_or(3);
+    let params = programs
+        .iter()
+        .map(|p| p.param_count())
+        .max()
+        .unwrap_or(0)
+        .max(1);
+    let vertex_words = programs
+        .iter()
+        .map(VertexProgram::record_words)
+        .max()
+        .unwrap_or(3);
     let sizes_for = |batch| Sizes {
         batch,
         state_words,
@@ -530,7 +644,8 @@ pub fn render_with(
         batch,
     };
     let mut lib = KernelLibrary::new(desc);
-    let k = register_kernels(&mut lib, desc, shape, &programs, options);
+    let k = register_kernels(&mut lib, desc, shape, &programs, options)
+        .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
     // Compile what every frame reaches now, on the host's cores; the merge stage when a
     // round first needs it (or now, for the general pipeline).
     let mut eager: Vec<KernelId> = k.per_object.iter().flat_map(|&(a, b)| [a, b]).collect();
@@ -560,7 +675,10 @@ pub fn render_with(
     let m = Memory {
         vertices: dram.buffer("vertices", input.vertex_words.len() as u64)?,
         indices: dram.buffer("corner_indices", input.index_words.len() as u64)?,
-        state: dram.buffer("state", input.states.iter().map(|(w, _)| w.len() as u64).sum())?,
+        state: dram.buffer(
+            "state",
+            input.states.iter().map(|(w, _)| w.len() as u64).sum(),
+        )?,
         shaded: [
             dram.buffer("shaded[0]", (3 * batch * SHADED_WORDS) as u64)?,
             dram.buffer("shaded[1]", (3 * batch * SHADED_WORDS) as u64)?,
@@ -598,7 +716,10 @@ pub fn render_with(
 
     // Clear: the machine writes the clear pixel and stores it over the framebuffer.
     let background = pack_rgb(scene.background);
-    host.write_params(phase_plan.whole(ps.clear_params), &[background, 1.0f32.to_bits()]);
+    host.write_params(
+        phase_plan.whole(ps.clear_params),
+        &[background, 1.0f32.to_bits()],
+    );
     let clear_rows = phase_plan.capacity(ps.clear_pixels);
     host.call(
         k.clear,
@@ -611,7 +732,13 @@ pub fn render_with(
     let mut at = 0;
     while at < fb_pixels {
         let n = clear_rows.min(fb_pixels - at);
-        host.store(phase_plan.first(ps.clear_pixels, n), Layout::records(PIXEL_WORDS), n, m.framebuffer, at as u64);
+        host.store(
+            phase_plan.first(ps.clear_pixels, n),
+            Layout::records(PIXEL_WORDS),
+            n,
+            m.framebuffer,
+            at as u64,
+        );
         at += n;
     }
     host.drain()?;
@@ -729,7 +856,10 @@ impl FrameRun<'_> {
         let bt = self.input.batches[b].clone();
         let vp = &self.programs[bt.object];
         let (perbegin, vertex) = self.k.per_object[bt.object];
-        let params = p.words(s.vertex_params, h.kernels.kernel(vertex).params.len() * h.clusters());
+        let params = p.words(
+            s.vertex_params,
+            h.kernels.kernel(vertex).params.len() * h.clusters(),
+        );
         let vertices = p.words(s.vertices, bt.vertices * vp.record_words());
         if bt.first_of_object {
             let (words, at) = &self.input.states[bt.object];
@@ -769,10 +899,23 @@ impl FrameRun<'_> {
             Some(_) => {
                 // Shared vertices: shaded once, then gathered three per triangle.
                 let shaded = Layout::records(SHADED_WORDS);
-                h.store(p.first(s.shaded[set], bt.vertices), shaded, bt.vertices, m.shaded[set], 0);
+                h.store(
+                    p.first(s.shaded[set], bt.vertices),
+                    shaded,
+                    bt.vertices,
+                    m.shaded[set],
+                    0,
+                );
                 let index = p.first(s.corner_index[set], 3 * tris);
                 let to = p.first(s.corners, 3 * tris);
-                h.gather(m.shaded[set], index, bt.vertices as u64, shaded, 3 * tris, to);
+                h.gather(
+                    m.shaded[set],
+                    index,
+                    bt.vertices as u64,
+                    shaded,
+                    3 * tris,
+                    to,
+                );
                 to
             }
         };
@@ -780,15 +923,27 @@ impl FrameRun<'_> {
         let (window, det) = (p.first(s.window, tris), p.first(s.det, tris));
         h.call(
             self.k.assemble_clip,
-            &[("shaded", corners), ("clipped", clipped), ("attribs", attribs)],
+            &[
+                ("shaded", corners),
+                ("clipped", clipped),
+                ("attribs", attribs),
+            ],
         )?;
-        h.call(self.k.viewport_cull, &[("clipped", clipped), ("window", window), ("det", det)])?;
+        h.call(
+            self.k.viewport_cull,
+            &[("clipped", clipped), ("window", window), ("det", det)],
+        )?;
         let bparams = p.whole(s.baryprep_params);
         h.write_params(bparams, &[bt.first_prim as u32]);
         let interp = p.first(s.interp, tris);
         h.call(
             self.k.baryprep,
-            &[("attribs", attribs), ("det", det), ("interp", interp), (PARAMS, bparams)],
+            &[
+                ("attribs", attribs),
+                ("det", det),
+                ("interp", interp),
+                (PARAMS, bparams),
+            ],
         )?;
         h.store(interp, Layout::records(INTERP_WORDS), tris, m.interp, 0);
         let (w, ht) = (self.scene.width as i32, self.scene.height as i32);
@@ -855,7 +1010,12 @@ impl FrameRun<'_> {
         Ok(Fit::Done)
     }
 
-    fn rasterize(&mut self, h: &mut StreamHost, rows: usize, bound: usize) -> Result<(), RenderError> {
+    fn rasterize(
+        &mut self,
+        h: &mut StreamHost,
+        rows: usize,
+        bound: usize,
+    ) -> Result<(), RenderError> {
         let (p, s) = (self.plan, self.s);
         let c = h.clusters();
         let cap = p.capacity(s.addr);
@@ -905,12 +1065,25 @@ impl FrameRun<'_> {
         let (p, s, m) = (self.plan, self.s, self.m);
         let tri = p.slice(s.tri, start, len);
         let to = p.first(s.gathered[buffer], len);
-        h.gather(m.interp, tri, m.interp_records, Layout::records(INTERP_WORDS), len, to);
+        h.gather(
+            m.interp,
+            tri,
+            m.interp_records,
+            Layout::records(INTERP_WORDS),
+            len,
+            to,
+        );
     }
 
     /// Interpolates and composites fragments `start..start + len` of the xyrast output,
     /// their interpolation records gathered into buffer `buffer`.
-    fn fragments(&mut self, h: &mut StreamHost, start: usize, len: usize, buffer: usize) -> Result<(), RenderError> {
+    fn fragments(
+        &mut self,
+        h: &mut StreamHost,
+        start: usize,
+        len: usize,
+        buffer: usize,
+    ) -> Result<(), RenderError> {
         let (p, s, m) = (self.plan, self.s, self.m);
         let c = h.clusters();
         let edge = |i: usize| p.slice(s.edges[i], start, len);
@@ -941,12 +1114,23 @@ impl FrameRun<'_> {
             let [zs, cs, addr, ps] = current;
             let pixel = p.first(s.pixel, len);
             // The pixels are gathered while `hash` looks for conflicts.
-            h.gather(m.framebuffer, view(addr, len), m.pixels, by_pixel, len, pixel);
+            h.gather(
+                m.framebuffer,
+                view(addr, len),
+                m.pixels,
+                by_pixel,
+                len,
+                pixel,
+            );
             let conflict = p.first(s.conflict, len + GROUP);
             let conflicts = p.whole(s.conflicts);
             h.call(
                 self.k.hash,
-                &[("addr", view(addr, len)), ("conflict", conflict), ("count", conflicts)],
+                &[
+                    ("addr", view(addr, len)),
+                    ("conflict", conflict),
+                    ("count", conflicts),
+                ],
             )?;
             let (new_pixel, newaddr) = (p.first(s.new_pixel, len), p.first(s.newaddr, len));
             h.call(
@@ -975,7 +1159,10 @@ impl FrameRun<'_> {
             // fragments together, on any that could merge; not again after a merge of this
             // chunk that dropped nothing.
             let merge = self.k.merge.filter(|_| {
-                !fruitless && self.merge_min_conflicts.is_some_and(|m| held >= m || (stacked && held >= 2))
+                !fruitless
+                    && self
+                        .merge_min_conflicts
+                        .is_some_and(|m| held >= m || (stacked && held >= 2))
             });
             if let Some((sort32, mergefrag)) = merge {
                 // Sort the conflicting fragments by address in groups of 32 and keep one
@@ -1076,7 +1263,12 @@ fn finish_stats(
     s.frames_per_second = 1.0 / seconds.max(1e-12);
     s.vertices_per_second = s.vertices as f64 / seconds.max(1e-12);
     s.fragments_per_second = s.fragments as f64 / seconds.max(1e-12);
-    let names: Vec<String> = p.controller().programs().iter().map(|pr| pr.name.clone()).collect();
+    let names: Vec<String> = p
+        .controller()
+        .programs()
+        .iter()
+        .map(|pr| pr.name.clone())
+        .collect();
     let mut shares: Vec<KernelShare> = Vec::new();
     let (mut busy, mut stalls, mut ops) = (0, 0, 0);
     let tags = host.batch_tags();
@@ -1108,7 +1300,9 @@ fn finish_stats(
                 busy += st.cycles;
                 stalls += st.stall_cycles;
                 ops += o;
-                if let Some(row) = batch.and_then(|b| s.batch_rows.iter_mut().find(|row| row.batch == b)) {
+                if let Some(row) =
+                    batch.and_then(|b| s.batch_rows.iter_mut().find(|row| row.batch == b))
+                {
                     row.kernel_cycles += st.cycles;
                 }
             }
@@ -1127,7 +1321,8 @@ fn finish_stats(
     s.cluster_occupancy_without_stalls = busy.saturating_sub(stalls) as f64 / cycles as f64;
     let dram: ReplayReport = imagine_units::dram::replay::report_of(
         sim,
-        imagine_units::dram::Policy::parse(&desc.memory.policy).unwrap_or(imagine_units::dram::Policy::FirstReady),
+        imagine_units::dram::Policy::parse(&desc.memory.policy)
+            .unwrap_or(imagine_units::dram::Policy::FirstReady),
         &imagine_units::dram::DramParams::of(desc),
     );
     s.dram_bytes = 4 * dram_words;
@@ -1140,17 +1335,39 @@ fn finish_stats(
     s.lrf_writes_per_cycle = lrf_written as f64 / cycles as f64;
     // Table 5.1's counting: a vertex's input words (and its corner index, for meshes);
     // a fragment's framebuffer words read and written.
-    let words_per_vertex = programs.iter().map(VertexProgram::record_words).max().unwrap_or(0);
+    let words_per_vertex = programs
+        .iter()
+        .map(VertexProgram::record_words)
+        .max()
+        .unwrap_or(0);
     s.bytes_per_vertex = 4.0 * words_per_vertex as f64;
     s.bytes_per_fragment = (4 * 2 * PIXEL_WORDS) as f64;
     let mut left_out = Vec::new();
     if !general {
-        if programs.iter().all(|p| matches!(p, VertexProgram::Unlit { .. })) {
+        if programs
+            .iter()
+            .all(|p| matches!(p, VertexProgram::Unlit { .. }))
+        {
             left_out.push("lighting".to_string());
-        } else if programs.iter().all(|p| matches!(p, VertexProgram::Lit { specular: false, .. } | VertexProgram::Unlit { .. })) {
+        } else if programs.iter().all(|p| {
+            matches!(
+                p,
+                VertexProgram::Lit {
+                    specular: false,
+                    ..
+                } | VertexProgram::Unlit { .. }
+            )
+        }) {
             left_out.push("specular lighting".to_string());
         }
-        if programs.iter().any(|p| matches!(p, VertexProgram::Unlit { per_vertex_colour: false })) {
+        if programs.iter().any(|p| {
+            matches!(
+                p,
+                VertexProgram::Unlit {
+                    per_vertex_colour: false
+                }
+            )
+        }) {
             left_out.push("per-vertex colours (a constant colour instead)".to_string());
         }
     }
@@ -1163,7 +1380,12 @@ fn finish_stats(
     s.specialisation = Specialisation {
         specialised: !general,
         kernels_built: host.kernels.built().into_iter().map(String::from).collect(),
-        kernels_not_reached: host.kernels.not_built().into_iter().map(String::from).collect(),
+        kernels_not_reached: host
+            .kernels
+            .not_built()
+            .into_iter()
+            .map(String::from)
+            .collect(),
         left_out,
         interpolants: programs
             .first()

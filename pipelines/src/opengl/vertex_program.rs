@@ -51,7 +51,11 @@ pub enum VertexProgram {
 
 impl VertexProgram {
     /// The program an object of `scene` needs; an error for what it cannot draw yet.
-    pub fn for_object(scene: &Scene, object: &Object, general: bool) -> Result<VertexProgram, String> {
+    pub fn for_object(
+        scene: &Scene,
+        object: &Object,
+        general: bool,
+    ) -> Result<VertexProgram, String> {
         let m: &Material = &scene.materials[object.material];
         match m.shader {
             Shader::Unlit => Ok(VertexProgram::Unlit {
@@ -74,7 +78,10 @@ impl VertexProgram {
                     ));
                 }
                 let any_specular = m.specular.iter().any(|&c| c != 0.0)
-                    && scene.lights.iter().any(|l| l.specular.iter().any(|&c| c != 0.0));
+                    && scene
+                        .lights
+                        .iter()
+                        .any(|l| l.specular.iter().any(|&c| c != 0.0));
                 Ok(VertexProgram::Lit {
                     lights: scene.lights.len(),
                     specular: general || any_specular,
@@ -87,8 +94,12 @@ impl VertexProgram {
     /// The name it is registered and reported under.
     pub fn name(&self) -> String {
         match self {
-            VertexProgram::Unlit { per_vertex_colour: true } => "vertex_unlit".into(),
-            VertexProgram::Unlit { per_vertex_colour: false } => "vertex_unlit_flat".into(),
+            VertexProgram::Unlit {
+                per_vertex_colour: true,
+            } => "vertex_unlit".into(),
+            VertexProgram::Unlit {
+                per_vertex_colour: false,
+            } => "vertex_unlit_flat".into(),
             VertexProgram::Lit {
                 lights,
                 specular,
@@ -106,7 +117,9 @@ impl VertexProgram {
     /// Words of a vertex record in memory.
     pub fn record_words(&self) -> usize {
         match self {
-            VertexProgram::Unlit { per_vertex_colour: false } => 3,
+            VertexProgram::Unlit {
+                per_vertex_colour: false,
+            } => 3,
             _ => 6,
         }
     }
@@ -121,11 +134,15 @@ impl VertexProgram {
         let mesh: &Mesh = &object.mesh;
         out.extend(mesh.positions[v].map(f32::to_bits));
         match self {
-            VertexProgram::Unlit { per_vertex_colour: true } => {
+            VertexProgram::Unlit {
+                per_vertex_colour: true,
+            } => {
                 let c = mesh.colours.get(v).copied().unwrap_or(object.colour);
                 out.extend(c.map(f32::to_bits));
             }
-            VertexProgram::Unlit { per_vertex_colour: false } => {}
+            VertexProgram::Unlit {
+                per_vertex_colour: false,
+            } => {}
             VertexProgram::Lit { .. } => out.extend(mesh.normals[v].map(f32::to_bits)),
         }
     }
@@ -140,8 +157,12 @@ impl VertexProgram {
         w.extend(camera.projection);
         let m = &scene.materials[object.material];
         match self {
-            VertexProgram::Unlit { per_vertex_colour: true } => {}
-            VertexProgram::Unlit { per_vertex_colour: false } => w.extend(object.colour),
+            VertexProgram::Unlit {
+                per_vertex_colour: true,
+            } => {}
+            VertexProgram::Unlit {
+                per_vertex_colour: false,
+            } => w.extend(object.colour),
             VertexProgram::Lit { .. } => {
                 w.extend(scene.ambient);
                 w.extend(m.ambient);
@@ -167,7 +188,9 @@ impl VertexProgram {
         let state_in = b.input("state");
         let params_out = b.output("params");
         let words = self.state_words_len();
-        let rows: Vec<Value> = (0..words.div_ceil(c)).map(|_| b.read_f32(state_in)).collect();
+        let rows: Vec<Value> = (0..words.div_ceil(c))
+            .map(|_| b.read_f32(state_in))
+            .collect();
         let state: Vec<Value> = (0..words)
             .map(|j| b.comm(rows[j / c], Perm::Broadcast((j % c) as u16)))
             .collect();
@@ -179,13 +202,19 @@ impl VertexProgram {
         }
         let rest = &state[48..];
         match self {
-            VertexProgram::Unlit { per_vertex_colour: true } => {}
-            VertexProgram::Unlit { per_vertex_colour: false } => {
+            VertexProgram::Unlit {
+                per_vertex_colour: true,
+            } => {}
+            VertexProgram::Unlit {
+                per_vertex_colour: false,
+            } => {
                 for &v in &rest[..3] {
                     b.write(params_out, v);
                 }
             }
-            VertexProgram::Lit { lights, specular, .. } => {
+            VertexProgram::Lit {
+                lights, specular, ..
+            } => {
                 for &v in &modelview[..12] {
                     b.write(params_out, v);
                 }
@@ -234,16 +263,26 @@ impl VertexProgram {
     /// Parameters of the vertex program (the words `perbegin` writes per cluster).
     pub fn param_count(&self) -> usize {
         16 + match self {
-            VertexProgram::Unlit { per_vertex_colour: true } => 0,
-            VertexProgram::Unlit { per_vertex_colour: false } => 3,
-            VertexProgram::Lit { lights, specular, .. } => 12 + 9 + 3 + lights * (6 + 3 * usize::from(*specular)),
+            VertexProgram::Unlit {
+                per_vertex_colour: true,
+            } => 0,
+            VertexProgram::Unlit {
+                per_vertex_colour: false,
+            } => 3,
+            VertexProgram::Lit {
+                lights, specular, ..
+            } => 12 + 9 + 3 + lights * (6 + 3 * usize::from(*specular)),
         }
     }
 
     fn state_words_len(&self) -> usize {
         48 + match self {
-            VertexProgram::Unlit { per_vertex_colour: true } => 0,
-            VertexProgram::Unlit { per_vertex_colour: false } => 3,
+            VertexProgram::Unlit {
+                per_vertex_colour: true,
+            } => 0,
+            VertexProgram::Unlit {
+                per_vertex_colour: false,
+            } => 3,
             VertexProgram::Lit { lights, .. } => 12 + 12 * lights,
         }
     }
@@ -256,8 +295,8 @@ impl VertexProgram {
         let mvp = matrix_params(&mut b, "mvp");
         match self {
             VertexProgram::Unlit { per_vertex_colour } => {
-                let flat: Option<Vec3> =
-                    (!per_vertex_colour).then(|| ["r", "g", "b"].map(|c| b.param_f32(&format!("colour_{c}"))));
+                let flat: Option<Vec3> = (!per_vertex_colour)
+                    .then(|| ["r", "g", "b"].map(|c| b.param_f32(&format!("colour_{c}"))));
                 b.begin_loop(LoopSpec::OverStream(vertices));
                 let position: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
                 let colour: Vec3 = match flat {
@@ -277,7 +316,9 @@ impl VertexProgram {
             } => {
                 let mv: Vec<Value> = (0..12).map(|i| b.param_f32(&format!("mv{i}"))).collect();
                 let n: Vec<Value> = (0..9).map(|i| b.param_f32(&format!("normal{i}"))).collect();
-                let rgb = |b: &mut KernelBuilder, p: &str| ["r", "g", "b"].map(|c| b.param_f32(&format!("{p}_{c}")));
+                let rgb = |b: &mut KernelBuilder, p: &str| {
+                    ["r", "g", "b"].map(|c| b.param_f32(&format!("{p}_{c}")))
+                };
                 let base = rgb(&mut b, "base");
                 let light_params: Vec<(Vec3, Vec3, Option<Vec3>)> = (0..*lights)
                     .map(|l| {
@@ -429,10 +470,18 @@ mod tests {
         };
         assert_eq!(lit.name(), "vertex_lit3_s16");
         assert_eq!(lit.record_words(), 6);
-        let flat = VertexProgram::Unlit { per_vertex_colour: false };
+        let flat = VertexProgram::Unlit {
+            per_vertex_colour: false,
+        };
         assert_eq!(flat.record_words(), 3);
         let desc = MachineDesc::resolve("gold8").unwrap();
-        for p in [lit, flat, VertexProgram::Unlit { per_vertex_colour: true }] {
+        for p in [
+            lit,
+            flat,
+            VertexProgram::Unlit {
+                per_vertex_colour: true,
+            },
+        ] {
             let k = p.build(&desc);
             let pb = p.perbegin(&desc);
             assert_eq!(k.name, p.name());

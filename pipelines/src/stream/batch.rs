@@ -103,7 +103,12 @@ mod tests {
         .unwrap();
         assert_eq!(ran, vec![(0, 4), (4, 8), (8, 12), (12, 16)]);
         assert_eq!(splits, 3);
-        let e = split_to_fit((0u32, 1u32), |_| Ok::<_, String>(Fit::Overflow("x".into())), |_| None, |w| w);
+        let e = split_to_fit(
+            (0u32, 1u32),
+            |_| Ok::<_, String>(Fit::Overflow("x".into())),
+            |_| None,
+            |w| w,
+        );
         assert_eq!(e.unwrap_err(), "x");
     }
 

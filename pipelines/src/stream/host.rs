@@ -147,10 +147,20 @@ impl StreamHost {
         if let Some(p) = self.kernels.entry(k).program {
             return Ok(p);
         }
-        self.kernels
-            .compile_now(&[k])
-            .map_err(|e| HostError(format!("cannot compile kernel `{}`: {e}", self.kernels.name(k))))?;
-        let code = self.kernels.entry(k).compiled.as_ref().expect("compiled").program.clone();
+        self.kernels.compile_now(&[k]).map_err(|e| {
+            HostError(format!(
+                "cannot compile kernel `{}`: {e}",
+                self.kernels.name(k)
+            ))
+        })?;
+        let code = self
+            .kernels
+            .entry(k)
+            .compiled
+            .as_ref()
+            .expect("compiled")
+            .program
+            .clone();
         let p = processor::processor_mut(&mut self.sim)
             .add_program(&self.desc, code)
             .map_err(HostError)?;
@@ -161,7 +171,11 @@ impl StreamHost {
 
     /// Queues a call of `k` with each of its streams bound by name (its parameters, if
     /// it has any, as [`super::PARAMS`]). Every stream must be bound exactly once.
-    pub fn call(&mut self, k: KernelId, bindings: &[(&str, StreamBinding)]) -> Result<Call, HostError> {
+    pub fn call(
+        &mut self,
+        k: KernelId,
+        bindings: &[(&str, StreamBinding)],
+    ) -> Result<Call, HostError> {
         let program = self.program(k)?;
         let names = self.kernels.binding_names(k);
         let kernel = self.kernels.name(k).to_string();
@@ -169,7 +183,11 @@ impl StreamHost {
             if !names.iter().any(|(n, _)| n == name) {
                 return Err(HostError(format!(
                     "kernel `{kernel}` has no stream `{name}` (its streams: {})",
-                    names.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>().join(", ")
+                    names
+                        .iter()
+                        .map(|(n, _)| n.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 )));
             }
         }
@@ -179,8 +197,12 @@ impl StreamHost {
                 let mut found = bindings.iter().filter(|(n, _)| n == name);
                 match (found.next(), found.next()) {
                     (Some(&(_, b)), None) => Ok(b),
-                    (None, _) => Err(HostError(format!("kernel `{kernel}`: stream `{name}` is not bound"))),
-                    (Some(_), Some(_)) => Err(HostError(format!("kernel `{kernel}`: stream `{name}` is bound twice"))),
+                    (None, _) => Err(HostError(format!(
+                        "kernel `{kernel}`: stream `{name}` is not bound"
+                    ))),
+                    (Some(_), Some(_)) => Err(HostError(format!(
+                        "kernel `{kernel}`: stream `{name}` is bound twice"
+                    ))),
                 }
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -219,14 +241,23 @@ impl StreamHost {
         let batch = self.batch;
         for d in now {
             self.batch = d.batch;
-            let b: Vec<(&str, StreamBinding)> = d.bindings.iter().map(|(n, b)| (n.as_str(), *b)).collect();
+            let b: Vec<(&str, StreamBinding)> =
+                d.bindings.iter().map(|(n, b)| (n.as_str(), *b)).collect();
             self.call(d.kernel, &b)?;
         }
         self.batch = batch;
         Ok(())
     }
 
-    fn mem(&mut self, kind: MemOpKind, base: u64, pattern: Pattern, layout: Layout, records: usize, srf: StreamBinding) {
+    fn mem(
+        &mut self,
+        kind: MemOpKind,
+        base: u64,
+        pattern: Pattern,
+        layout: Layout,
+        records: usize,
+        srf: StreamBinding,
+    ) {
         let row_records = if layout.cluster_rows && layout.record_words > 1 {
             self.clusters
         } else {
@@ -245,28 +276,78 @@ impl StreamHost {
     }
 
     /// Loads `records` consecutive records from record `first` of `from` into `to`.
-    pub fn load(&mut self, from: Buffer, first: u64, layout: Layout, records: usize, to: StreamBinding) {
+    pub fn load(
+        &mut self,
+        from: Buffer,
+        first: u64,
+        layout: Layout,
+        records: usize,
+        to: StreamBinding,
+    ) {
         let w = layout.record_words as u64;
         let base = self.dram.base(from) + first * w;
-        self.mem(MemOpKind::Load, base, Pattern::Strided { stride: w }, layout, records, to);
+        self.mem(
+            MemOpKind::Load,
+            base,
+            Pattern::Strided { stride: w },
+            layout,
+            records,
+            to,
+        );
     }
 
     /// Loads one word of every `stride`-word record from word `first` of `from`.
-    pub fn load_strided(&mut self, from: Buffer, first: u64, stride: u64, words: usize, to: StreamBinding) {
+    pub fn load_strided(
+        &mut self,
+        from: Buffer,
+        first: u64,
+        stride: u64,
+        words: usize,
+        to: StreamBinding,
+    ) {
         let base = self.dram.base(from) + first;
-        self.mem(MemOpKind::Load, base, Pattern::Strided { stride }, Layout::words(), words, to);
+        self.mem(
+            MemOpKind::Load,
+            base,
+            Pattern::Strided { stride },
+            Layout::words(),
+            words,
+            to,
+        );
     }
 
     /// Stores `records` records of `from` to `to` from record `first`.
-    pub fn store(&mut self, from: StreamBinding, layout: Layout, records: usize, to: Buffer, first: u64) {
+    pub fn store(
+        &mut self,
+        from: StreamBinding,
+        layout: Layout,
+        records: usize,
+        to: Buffer,
+        first: u64,
+    ) {
         let w = layout.record_words as u64;
         let base = self.dram.base(to) + first * w;
-        self.mem(MemOpKind::Store, base, Pattern::Strided { stride: w }, layout, records, from);
+        self.mem(
+            MemOpKind::Store,
+            base,
+            Pattern::Strided { stride: w },
+            layout,
+            records,
+            from,
+        );
     }
 
     /// Gathers `records` records of `from` by the record numbers in `index` (each below
     /// `bound`, which tells the scoreboard the records it may touch).
-    pub fn gather(&mut self, from: Buffer, index: StreamBinding, bound: u64, layout: Layout, records: usize, to: StreamBinding) {
+    pub fn gather(
+        &mut self,
+        from: Buffer,
+        index: StreamBinding,
+        bound: u64,
+        layout: Layout,
+        records: usize,
+        to: StreamBinding,
+    ) {
         let pattern = Pattern::Indexed {
             index_start: index.start,
             scale: layout.record_words as u64,
@@ -277,7 +358,15 @@ impl StreamHost {
     }
 
     /// Scatters `records` records of `from` to the record numbers in `index` of `to`.
-    pub fn scatter(&mut self, from: StreamBinding, index: StreamBinding, bound: u64, layout: Layout, records: usize, to: Buffer) {
+    pub fn scatter(
+        &mut self,
+        from: StreamBinding,
+        index: StreamBinding,
+        bound: u64,
+        layout: Layout,
+        records: usize,
+        to: Buffer,
+    ) {
         let pattern = Pattern::Indexed {
             index_start: index.start,
             scale: layout.record_words as u64,
@@ -299,7 +388,10 @@ impl StreamHost {
     /// Writes kernel parameters (each replicated in every cluster) at `to`.
     pub fn write_params(&mut self, to: StreamBinding, words: &[u32]) {
         let c = self.clusters;
-        let words = words.iter().flat_map(|&w| std::iter::repeat_n(w, c)).collect();
+        let words = words
+            .iter()
+            .flat_map(|&w| std::iter::repeat_n(w, c))
+            .collect();
         self.write(to, words);
     }
 
@@ -310,7 +402,11 @@ impl StreamHost {
             start: from.start,
             len: from.words,
         });
-        self.run_until(|s| processor::processor(s).controller().records()[id].completed.is_some())?;
+        self.run_until(|s| {
+            processor::processor(s).controller().records()[id]
+                .completed
+                .is_some()
+        })?;
         Ok(self.records()[id].read.clone())
     }
 
@@ -323,7 +419,10 @@ impl StreamHost {
     pub fn written(&self, call: Call, stream: &str) -> Result<usize, HostError> {
         let names = self.kernels.binding_names(call.kernel);
         let i = names.iter().position(|(n, _)| n == stream).ok_or_else(|| {
-            HostError(format!("kernel `{}` has no stream `{stream}`", self.kernels.name(call.kernel)))
+            HostError(format!(
+                "kernel `{}` has no stream `{stream}`",
+                self.kernels.name(call.kernel)
+            ))
         })?;
         let r = &self.records()[call.id];
         if r.completed.is_none() {
@@ -337,7 +436,11 @@ impl StreamHost {
 
     fn wait_id(&mut self, id: usize) -> Result<(), HostError> {
         self.flush_deferred()?;
-        self.run_until(|s| processor::processor(s).controller().records()[id].completed.is_some())
+        self.run_until(|s| {
+            processor::processor(s).controller().records()[id]
+                .completed
+                .is_some()
+        })
     }
 
     /// Runs until every queued instruction has completed and the memory is idle.
@@ -372,24 +475,49 @@ impl StreamHost {
         let block = self.desc.srf.block_words.max(1);
         let half = (staging.words / 2) / block * block;
         let halves = [
-            StreamBinding { start: staging.start, words: half },
-            StreamBinding { start: staging.start + half, words: half },
+            StreamBinding {
+                start: staging.start,
+                words: half,
+            },
+            StreamBinding {
+                start: staging.start + half,
+                words: half,
+            },
         ];
         for (i, chunk) in words.chunks(half.max(1)).enumerate() {
             let buf = halves[i % 2];
             self.write(buf, chunk.to_vec());
-            self.store(buf, Layout::words(), chunk.len(), to, first + (i * half) as u64);
+            self.store(
+                buf,
+                Layout::words(),
+                chunk.len(),
+                to,
+                first + (i * half) as u64,
+            );
         }
     }
 
     /// Reads `words` words of `from` from word `first` back to the host, `stride` words
     /// apart (1: consecutive), through the SRF at `staging`.
-    pub fn download(&mut self, from: Buffer, first: u64, stride: u64, words: usize, staging: StreamBinding) -> Result<Vec<u32>, HostError> {
+    pub fn download(
+        &mut self,
+        from: Buffer,
+        first: u64,
+        stride: u64,
+        words: usize,
+        staging: StreamBinding,
+    ) -> Result<Vec<u32>, HostError> {
         let block = self.desc.srf.block_words.max(1);
         let half = (staging.words / 2) / block * block;
         let halves = [
-            StreamBinding { start: staging.start, words: half },
-            StreamBinding { start: staging.start + half, words: half },
+            StreamBinding {
+                start: staging.start,
+                words: half,
+            },
+            StreamBinding {
+                start: staging.start + half,
+                words: half,
+            },
         ];
         let mut out = Vec::with_capacity(words);
         let mut pending: Option<(usize, StreamBinding)> = None;
@@ -399,7 +527,10 @@ impl StreamHost {
             // Queue the next load before reading the previous half back.
             let next = (done < words).then(|| {
                 let n = half.min(words - done);
-                let buf = StreamBinding { start: halves[i % 2].start, words: n };
+                let buf = StreamBinding {
+                    start: halves[i % 2].start,
+                    words: n,
+                };
                 self.load_strided(from, first + done as u64 * stride, stride, n, buf);
                 done += n;
                 i += 1;

@@ -124,7 +124,10 @@ impl KernelLibrary {
             .iter()
             .map(|s| (s.name.clone(), s.dir))
             .collect();
-        if e.compiled.as_ref().is_some_and(|c| c.params_stream.is_some()) {
+        if e.compiled
+            .as_ref()
+            .is_some_and(|c| c.params_stream.is_some())
+        {
             names.push((PARAMS.into(), Dir::In));
         }
         names
@@ -136,7 +139,10 @@ pub const PARAMS: &str = "params";
 
 /// Compiles `kernels` on as many host threads as there are cores (each kernel on its own;
 /// the microcode does not depend on which thread compiled it), in their order.
-fn compile_in_parallel(kernels: &[&Kernel], desc: &MachineDesc) -> Vec<Result<Compiled, CompileError>> {
+fn compile_in_parallel(
+    kernels: &[&Kernel],
+    desc: &MachineDesc,
+) -> Vec<Result<Compiled, CompileError>> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let next = AtomicUsize::new(0);
     let threads = std::thread::available_parallelism()

@@ -128,7 +128,13 @@ impl SrfPlanner {
         }
     }
 
-    fn declare(&mut self, name: &str, layout: Layout, records: Option<usize>, live: Lifetime) -> StreamId {
+    fn declare(
+        &mut self,
+        name: &str,
+        layout: Layout,
+        records: Option<usize>,
+        live: Lifetime,
+    ) -> StreamId {
         let live = match live {
             Lifetime::Always => (0, self.phases.len().saturating_sub(1)),
             Lifetime::Phases(a, b) => (self.phase(a), self.phase(b)),
@@ -159,7 +165,13 @@ impl SrfPlanner {
     }
 
     /// A stream of `records` records.
-    pub fn stream(&mut self, name: &str, layout: Layout, records: usize, live: Lifetime) -> StreamId {
+    pub fn stream(
+        &mut self,
+        name: &str,
+        layout: Layout,
+        records: usize,
+        live: Lifetime,
+    ) -> StreamId {
         self.declare(name, layout, Some(records), live)
     }
 
@@ -207,9 +219,7 @@ impl SrfPlanner {
             let mut busy: Vec<(usize, usize)> = placed
                 .iter()
                 .enumerate()
-                .filter_map(|(j, p)| {
-                    p.filter(|_| Self::overlaps(self.decls[j].live, d.live))
-                })
+                .filter_map(|(j, p)| p.filter(|_| Self::overlaps(self.decls[j].live, d.live)))
                 .collect();
             busy.sort();
             let mut at = 0;
@@ -243,7 +253,11 @@ impl SrfPlanner {
                 .enumerate()
                 .filter_map(|(j, p)| {
                     let d = &self.decls[j];
-                    p.filter(|_| elastic.iter().any(|&e| Self::overlaps(self.decls[e].live, d.live)))
+                    p.filter(|_| {
+                        elastic
+                            .iter()
+                            .any(|&e| Self::overlaps(self.decls[e].live, d.live))
+                    })
                 })
                 .map(|(s, l)| s + l)
                 .max()
@@ -364,7 +378,10 @@ impl SrfPlan {
             p.name,
             p.words
         );
-        StreamBinding { start: p.start, words }
+        StreamBinding {
+            start: p.start,
+            words,
+        }
     }
 
     /// The first `records` records.
@@ -452,7 +469,11 @@ mod tests {
             let q = plan.get(s);
             q.start..q.start + q.words
         };
-        assert_eq!(range(x).start, range(y).start, "x and y never live together");
+        assert_eq!(
+            range(x).start,
+            range(y).start,
+            "x and y never live together"
+        );
         let (rz, rx) = (range(z), range(x));
         assert!(rz.end <= rx.start || rx.end <= rz.start, "z overlaps x");
         for s in [x, y, z] {
@@ -476,7 +497,8 @@ mod tests {
         let mut p = SrfPlanner::new(&d, &["a", "b"]);
         let fixed = p.stream("fixed", Layout::words(), 4096, live("b", "b"));
         let early = p.stream("early", Layout::words(), 8192, live("a", "a"));
-        let e: [StreamId; 2] = [0, 1].map(|i| p.elastic(&format!("e{i}"), Layout::words(), live("b", "b")));
+        let e: [StreamId; 2] =
+            [0, 1].map(|i| p.elastic(&format!("e{i}"), Layout::words(), live("b", "b")));
         let plan = p.place().unwrap();
         let floor = plan.get(fixed).start + plan.get(fixed).words;
         assert!(plan.get(e[0]).start >= floor && plan.get(e[1]).start >= floor);
