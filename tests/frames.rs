@@ -151,6 +151,7 @@ fn merging_stacked_fragments_keeps_the_image_and_saves_rounds() {
         let desc = MachineDesc::resolve(name).unwrap();
         let plain = RenderOptions {
             merge_min_conflicts: None,
+            ..RenderOptions::default()
         };
         let a = render_with(&scene, &desc, plain, None, |_, _| {}).unwrap();
         let b = render_with(&scene, &desc, RenderOptions::default(), None, |_, _| {}).unwrap();

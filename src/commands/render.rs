@@ -7,7 +7,8 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use imagine_pipelines::opengl::render::{Frame, render};
+use imagine_pipelines::compile::CompileCache;
+use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
 use imagine_pipelines::scene::{self, DEFAULT_SIZE, Scene};
 use imagine_units::desc::MachineDesc;
 use imagine_verif::image::{Image, Metrics, compare};
@@ -37,6 +38,10 @@ pub struct RenderArgs {
     /// Also write the reference renderer's frame as PNG
     #[arg(long)]
     reference_png: Option<PathBuf>,
+    /// Compile every kernel afresh: neither read nor write the compile cache
+    /// ($IMAGINE_CACHE_DIR, else the platform's cache directory)
+    #[arg(long)]
+    no_cache: bool,
     #[command(flatten)]
     waves: WaveArgs,
 }
@@ -81,7 +86,15 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     // The bar is redrawn at each whole percent, and only on a terminal (a log gets no bar).
     let terminal = stderr.is_terminal();
     let mut drawn = None;
-    let frame = render(&scene, &desc, on_start, |done, total| {
+    let options = RenderOptions {
+        cache: if a.no_cache {
+            CompileCache::disabled()
+        } else {
+            CompileCache::from_env()
+        },
+        ..RenderOptions::default()
+    };
+    let frame = render_with(&scene, &desc, options, on_start, |done, total| {
         let width = 40;
         let filled = done * width / total.max(1);
         let percent = done * 100 / total.max(1);
@@ -187,5 +200,9 @@ fn print_stats(f: &Frame, m: &Metrics) {
         "host               {:.2} s ({:.2} M simulated cycles/s)",
         s.host_seconds,
         s.simulated_cycles_per_second / 1e6
+    );
+    println!(
+        "compile            {:.2} s, {} of {} kernels from the cache",
+        s.compile_seconds, s.kernels_from_cache, s.kernel_programs
     );
 }

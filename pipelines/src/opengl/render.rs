@@ -54,7 +54,8 @@ use super::kernels::{
     RASTER_WORDS, WINDOW_WORDS,
 };
 use super::mergefrag::{self, GROUP};
-use crate::compile::{Compiled, compile};
+use crate::compile::cache::Outcome;
+use crate::compile::{CompileCache, Compiled};
 use crate::kernel::Kernel;
 use crate::scene::{Scene, Shading};
 
@@ -126,6 +127,11 @@ pub struct FrameStats {
     pub lrf_writes_per_cycle: f64,
     pub host_seconds: f64,
     pub simulated_cycles_per_second: f64,
+    /// Host seconds spent compiling (or fetching from the compile cache) the kernels.
+    pub compile_seconds: f64,
+    /// Kernel programs the frame loads, and how many of them came from the compile cache.
+    pub kernel_programs: usize,
+    pub kernels_from_cache: usize,
 }
 
 /// A frame that could not be rendered.
@@ -157,13 +163,18 @@ struct Kernels {
     sort32: usize,
     mergefrag: usize,
     compiled: Vec<(Kernel, Compiled)>,
+    /// Of `compiled`, read from the compile cache.
+    from_cache: usize,
+    compile_seconds: f64,
 }
 
 fn compile_all(
     scene: &Scene,
     desc: &MachineDesc,
     shape: FrameShape,
+    cache: &CompileCache,
 ) -> Result<Kernels, RenderError> {
+    let start = Instant::now();
     let vertex = match scene.shading {
         Shading::Lit(_) => crate::kernels::vertex::build(desc),
         Shading::Unlit => kernels::vertex_unlit(desc),
@@ -184,7 +195,7 @@ fn compile_all(
         mergefrag::sort32(desc, shape),
         mergefrag::mergefrag(desc, shape),
     ];
-    let compiled = compile_in_parallel(list, desc)
+    let (compiled, from_cache) = compile_in_parallel(list, desc, cache)
         .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))?;
     Ok(Kernels {
         perbegin: 0,
@@ -202,21 +213,25 @@ fn compile_all(
         sort32: 12,
         mergefrag: 13,
         compiled,
+        from_cache,
+        compile_seconds: start.elapsed().as_secs_f64(),
     })
 }
 
 /// Compiles `kernels` on as many host threads as there are cores (each kernel on its own;
-/// the microcode does not depend on which thread compiled it), in their order.
+/// the microcode does not depend on which thread compiled it), in their order, through
+/// `cache`; also returns how many came from the cache.
 fn compile_in_parallel(
     kernels: Vec<Kernel>,
     desc: &MachineDesc,
-) -> Result<Vec<(Kernel, Compiled)>, crate::compile::CompileError> {
+    cache: &CompileCache,
+) -> Result<(Vec<(Kernel, Compiled)>, usize), crate::compile::CompileError> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let next = AtomicUsize::new(0);
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(kernels.len());
-    let mut done: Vec<(usize, Result<Compiled, _>)> = std::thread::scope(|scope| {
+    let mut done: Vec<(usize, (Result<Compiled, _>, Outcome))> = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..threads)
             .map(|_| {
                 scope.spawn(|| {
@@ -224,7 +239,7 @@ fn compile_in_parallel(
                     loop {
                         let i = next.fetch_add(1, Ordering::Relaxed);
                         let Some(k) = kernels.get(i) else { break };
-                        mine.push((i, compile(k, desc)));
+                        mine.push((i, cache.compile_with_outcome(k, desc)));
                     }
                     mine
                 })
@@ -236,11 +251,13 @@ fn compile_in_parallel(
             .collect()
     });
     done.sort_by_key(|&(i, _)| i);
-    kernels
+    let hits = done.iter().filter(|(_, (_, o))| *o == Outcome::Hit).count();
+    let compiled = kernels
         .into_iter()
         .zip(done)
-        .map(|(k, (_, r))| r.map(|c| (k, c)))
-        .collect()
+        .map(|(k, (_, (r, _)))| r.map(|c| (k, c)))
+        .collect::<Result<_, _>>()?;
+    Ok((compiled, hits))
 }
 
 /// SRF regions, block-aligned, bump-allocated once per frame.
@@ -956,12 +973,15 @@ fn state_words(scene: &Scene, clusters: usize) -> Vec<u32> {
 }
 
 /// How the host runs the pipeline (choices that change the cycles, never the image).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RenderOptions {
     /// Sort and merge a round's conflicting fragments (`sort32`, `mergefrag`) when `hash`
     /// holds back at least this many; else, or when `None`, recycle them as they are
     /// (`compact_recycle`).
     pub merge_min_conflicts: Option<usize>,
+    /// Where compiled kernels are kept between renders (disabled by default: the CLI
+    /// passes [`CompileCache::from_env`] unless `--no-cache`).
+    pub cache: CompileCache,
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
@@ -976,6 +996,7 @@ impl Default for RenderOptions {
     fn default() -> Self {
         RenderOptions {
             merge_min_conflicts: Some(MERGE_MIN_CONFLICTS),
+            cache: CompileCache::disabled(),
         }
     }
 }
@@ -1018,7 +1039,7 @@ pub fn render_with(
         cull_back: scene.cull_back,
         batch,
     };
-    let k = compile_all(scene, desc, shape)?;
+    let k = compile_all(scene, desc, shape, &options.cache)?;
     let state = state_words(scene, clusters);
     let params = k.compiled[k.vertex].0.params.len();
     let regions = plan(desc, batch, state.len(), params)?;
@@ -1188,5 +1209,8 @@ fn finish_stats(s: &mut FrameStats, sim: &Sim, desc: &MachineDesc, k: &Kernels, 
     s.lrf_reads_per_cycle = lrf_read as f64 / cycles.max(1) as f64;
     s.lrf_writes_per_cycle = lrf_written as f64 / cycles.max(1) as f64;
     s.host_seconds = start.elapsed().as_secs_f64();
+    s.compile_seconds = k.compile_seconds;
+    s.kernel_programs = k.compiled.len();
+    s.kernels_from_cache = k.from_cache;
     s.simulated_cycles_per_second = cycles as f64 / s.host_seconds.max(1e-9);
 }
