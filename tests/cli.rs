@@ -2,8 +2,13 @@
 
 use std::process::{Command, Output};
 
+/// Runs the CLI with its compile cache under the target directory (never the user's).
 fn imagine(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_imagine"))
+        .env(
+            "IMAGINE_CACHE_DIR",
+            concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache"),
+        )
         .args(args)
         .output()
         .expect("run imagine")
@@ -533,10 +538,44 @@ fn render_writes_png_and_stats() {
     let png = dir.join("f.png");
     let stats = dir.join("f.json");
     let (png_s, stats_s) = (png.to_str().unwrap(), stats.to_str().unwrap());
-    let out = imagine(&[
-        "render", "RATE-8", "--size", "32", "--png", png_s, "--stats", stats_s,
-    ]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    // A compile cache of its own, empty: the first render compiles every kernel and the
+    // second reads them all back.
+    let cache = dir.join("cache");
+    let _ = std::fs::remove_dir_all(&cache);
+    let render = || {
+        let out = Command::new(env!("CARGO_BIN_EXE_imagine"))
+            .env("IMAGINE_CACHE_DIR", &cache)
+            .args([
+                "render", "RATE-8", "--size", "32", "--png", png_s, "--stats", stats_s,
+            ])
+            .output()
+            .expect("run imagine");
+        assert!(out.status.success(), "{}", stderr(&out));
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+        (out, json, std::fs::read(&png).unwrap())
+    };
+    let (cold, cold_json, cold_png) = render();
+    let programs = cold_json["frame"]["kernel_programs"].as_u64().unwrap();
+    assert!(programs > 0);
+    assert_eq!(cold_json["frame"]["kernels_from_cache"], 0);
+    assert!(
+        stdout(&cold).contains(&format!("0 of {programs} kernels from the cache")),
+        "{}",
+        stdout(&cold)
+    );
+    let (warm, warm_json, warm_png) = render();
+    assert_eq!(warm_json["frame"]["kernels_from_cache"], programs);
+    assert!(
+        stdout(&warm).contains(&format!("{programs} of {programs} kernels from the cache")),
+        "{}",
+        stdout(&warm)
+    );
+    assert_eq!(
+        cold_png, warm_png,
+        "the cached microcode draws the same frame"
+    );
+    assert_eq!(cold_json["frame"]["cycles"], warm_json["frame"]["cycles"]);
     assert!(std::fs::metadata(&png).unwrap().len() > 0);
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();

@@ -14,7 +14,7 @@ use imagine_units::microcode::layout::InstructionLayout;
 use imagine_units::microcode::{Program, StreamDir};
 use imagine_units::runner::{RunOptions, run_kernel};
 
-use imagine_pipelines::compile::compile;
+use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::kernels::{LibraryKernel, find, library};
 use imagine_pipelines::run::check;
 
@@ -77,6 +77,9 @@ pub enum KernelCommand {
         /// Also print the microcode
         #[arg(long)]
         microcode: bool,
+        /// Compile afresh: neither read nor write the compile cache
+        #[arg(long)]
+        no_cache: bool,
     },
     /// Run a library kernel on random inputs on the machine and in the interpreter and
     /// compare every output word
@@ -92,6 +95,9 @@ pub enum KernelCommand {
         seed: u64,
         #[arg(long)]
         json: bool,
+        /// Compile afresh: neither read nor write the compile cache
+        #[arg(long)]
+        no_cache: bool,
     },
 }
 
@@ -202,10 +208,11 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             machine,
             json,
             microcode,
+            no_cache,
         } => {
             let desc = MachineDesc::resolve(&machine)?;
             let lk = find_kernel(&name)?;
-            let compiled = compile(&(lk.build)(&desc)?, &desc)?;
+            let compiled = cache(no_cache).compile(&(lk.build)(&desc)?, &desc)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&compiled.report)?);
             } else {
@@ -221,8 +228,10 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             rows,
             seed,
             json,
+            no_cache,
         } => {
             let desc = MachineDesc::resolve(&machine)?;
+            let cache = cache(no_cache);
             let kernels: Vec<&LibraryKernel> = if name == "all" {
                 library().iter().collect()
             } else {
@@ -237,7 +246,7 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             let mut results = Vec::new();
             let mut failed = false;
             for (lk, kernel) in kernels {
-                let compiled = compile(&kernel, &desc)?;
+                let compiled = cache.compile(&kernel, &desc)?;
                 let inputs = (lk.inputs)(&desc, rows.max(1), seed);
                 let check =
                     check(&kernel, &compiled, &desc, &inputs).map_err(|e| anyhow::anyhow!(e))?;
@@ -280,6 +289,15 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The compile cache, unless `--no-cache`.
+fn cache(no_cache: bool) -> CompileCache {
+    if no_cache {
+        CompileCache::disabled()
+    } else {
+        CompileCache::from_env()
+    }
 }
 
 fn find_kernel(name: &str) -> Result<&'static LibraryKernel> {

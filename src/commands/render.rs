@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
+use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
 use imagine_pipelines::scene::model::Scene;
 use imagine_pipelines::scene::{self, LoadOptions};
@@ -45,6 +46,10 @@ pub struct RenderArgs {
     /// Also write the reference renderer's frame as PNG
     #[arg(long)]
     reference_png: Option<PathBuf>,
+    /// Compile every kernel afresh: neither read nor write the compile cache
+    /// ($IMAGINE_CACHE_DIR, else the platform's cache directory)
+    #[arg(long)]
+    no_cache: bool,
     #[command(flatten)]
     waves: WaveArgs,
 }
@@ -83,6 +88,11 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     let mut drawn = None;
     let options = RenderOptions {
         specialise: !a.no_specialize,
+        cache: if a.no_cache {
+            CompileCache::disabled()
+        } else {
+            CompileCache::from_env()
+        },
         ..RenderOptions::default()
     };
     let frame = render_with(&scene, &desc, options, on_start, |done, total| {
@@ -218,9 +228,12 @@ fn print_stats(f: &Frame, m: &Metrics) {
         100.0 * m.coverage_mismatch_share
     );
     println!(
-        "host               {:.2} s: compiling {:.2} s, simulating {:.2} s ({:.2} M cycles/s)",
+        "host               {:.2} s: compiling {:.2} s ({} of {} kernels from the cache), \
+         simulating {:.2} s ({:.2} M cycles/s)",
         s.host_seconds,
         s.compile_seconds,
+        s.kernels_from_cache,
+        s.kernel_programs,
         s.simulate_seconds,
         s.simulated_cycles_per_second / 1e6
     );

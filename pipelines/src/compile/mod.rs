@@ -24,6 +24,7 @@
 
 pub mod alloc;
 pub mod bind;
+pub mod cache;
 pub mod emit;
 pub mod graph;
 pub mod repair;
@@ -38,6 +39,7 @@ use imagine_units::microcode::{MAX_STAGES, Permutation, Program};
 use imagine_units::ops::UnitClass;
 
 use crate::kernel::{Kernel, Region};
+pub use cache::CompileCache;
 use graph::{Edge, Graph, Kind, Loc, MOp};
 pub use report::Report;
 use schedule::{Failure, Schedule, Slots, schedule_region};

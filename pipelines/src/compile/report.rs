@@ -4,7 +4,7 @@
 
 use std::fmt::Write as _;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::Program;
@@ -17,7 +17,7 @@ use super::graph::{Graph, Kind};
 use super::schedule::{Schedule, Slots};
 use crate::kernel::{Kernel, Region};
 
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct OpCounts {
     pub adder: usize,
     pub multiplier: usize,
@@ -38,14 +38,14 @@ impl OpCounts {
     }
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct LrfUse {
     pub name: String,
     pub used: usize,
     pub entries: usize,
 }
 
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Report {
     pub kernel: String,
     pub machine: String,

@@ -54,6 +54,7 @@ use super::kernels::{
 use super::mergefrag::{self, GROUP};
 use super::stats::{BatchRow, Phases, Specialisation};
 use super::vertex_program::{SHADED_WORDS, VertexProgram};
+use crate::compile::CompileCache;
 use crate::kernel::MachineRequirementError;
 use crate::scene::MAX_WINDOW;
 use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene};
@@ -118,13 +119,16 @@ impl From<PlanError> for RenderError {
 }
 
 /// How the host runs the pipeline (choices that change the cycles, never the image).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RenderOptions {
     /// Sort and merge a round's conflicting fragments (`sort32`, `mergefrag`) when `hash`
     /// holds back at least this many; else, or when `None`, recycle them as they are.
     pub merge_min_conflicts: Option<usize>,
     /// Build the pipeline for the scene (`false`: the general pipeline, for comparison).
     pub specialise: bool,
+    /// Where compiled kernels are kept between renders (disabled by default: the CLI
+    /// passes [`CompileCache::from_env`] unless `--no-cache`).
+    pub cache: CompileCache,
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
@@ -140,6 +144,7 @@ impl Default for RenderOptions {
         RenderOptions {
             merge_min_conflicts: Some(MERGE_MIN_CONFLICTS),
             specialise: true,
+            cache: CompileCache::disabled(),
         }
     }
 }
@@ -383,7 +388,7 @@ fn register_kernels(
     desc: &MachineDesc,
     shape: FrameShape,
     programs: &[VertexProgram],
-    options: RenderOptions,
+    options: &RenderOptions,
 ) -> Result<Kernels, MachineRequirementError> {
     let mut per_program: Vec<(VertexProgram, (KernelId, KernelId))> = Vec::new();
     let per_object = programs
@@ -643,8 +648,8 @@ pub fn render_with(
         depth_test: scene.pipeline.depth_test,
         batch,
     };
-    let mut lib = KernelLibrary::new(desc);
-    let k = register_kernels(&mut lib, desc, shape, &programs, options)
+    let mut lib = KernelLibrary::new(desc, options.cache.clone());
+    let k = register_kernels(&mut lib, desc, shape, &programs, &options)
         .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
     // Compile what every frame reaches now, on the host's cores; the merge stage when a
     // round first needs it (or now, for the general pipeline).
@@ -790,6 +795,8 @@ pub fn render_with(
     stats.cycles = rendered - cleared;
     finish_stats(&mut stats, &host, desc, &k, &programs, general);
     stats.compile_seconds = host.kernels.compile_seconds();
+    stats.kernels_from_cache = host.kernels.from_cache();
+    stats.kernel_programs = host.kernels.built().len();
     // Kernels first reached during the run were compiled inside it.
     stats.simulate_seconds = simulate_seconds - (stats.compile_seconds - compiled_before);
     stats.host_seconds = host_start.elapsed().as_secs_f64();

@@ -128,6 +128,9 @@ pub struct FrameStats {
     pub host_seconds: f64,
     pub compile_seconds: f64,
     pub simulate_seconds: f64,
+    /// Kernels compiled for the frame, and how many of them came from the compile cache.
+    pub kernel_programs: usize,
+    pub kernels_from_cache: usize,
     /// Simulated core cycles (all phases) per second of simulation.
     pub simulated_cycles_per_second: f64,
     #[serde(skip)]

@@ -7,7 +7,8 @@ use std::time::Instant;
 
 use imagine_units::desc::MachineDesc;
 
-use crate::compile::{CompileError, Compiled, compile};
+use crate::compile::cache::Outcome;
+use crate::compile::{CompileCache, CompileError, Compiled};
 use crate::kernel::{Dir, Kernel};
 
 /// A registered kernel.
@@ -27,17 +28,27 @@ pub(crate) struct Entry {
 /// The kernels of a stream program.
 pub struct KernelLibrary {
     desc: MachineDesc,
+    cache: CompileCache,
     pub(crate) entries: Vec<Entry>,
     compile_seconds: f64,
+    from_cache: usize,
 }
 
 impl KernelLibrary {
-    pub fn new(desc: &MachineDesc) -> KernelLibrary {
+    /// Kernels for `desc`, compiled through `cache` (microcode kept on disk between runs).
+    pub fn new(desc: &MachineDesc, cache: CompileCache) -> KernelLibrary {
         KernelLibrary {
             desc: desc.clone(),
+            cache,
             entries: Vec::new(),
             compile_seconds: 0.0,
+            from_cache: 0,
         }
+    }
+
+    /// Of the kernels compiled, how many were read from the compile cache.
+    pub fn from_cache(&self) -> usize {
+        self.from_cache
     }
 
     /// Registers `kernel` under `name` (unique within the program).
@@ -106,10 +117,11 @@ impl KernelLibrary {
         }
         let start = Instant::now();
         let list: Vec<&Kernel> = todo.iter().map(|&i| &self.entries[i].kernel).collect();
-        let done = compile_in_parallel(&list, &self.desc);
+        let done = compile_in_parallel(&list, &self.desc, &self.cache);
         self.compile_seconds += start.elapsed().as_secs_f64();
-        for (i, c) in todo.into_iter().zip(done) {
+        for (i, (c, outcome)) in todo.into_iter().zip(done) {
             self.entries[i].compiled = Some(c?);
+            self.from_cache += usize::from(outcome == Outcome::Hit);
         }
         Ok(())
     }
@@ -137,36 +149,39 @@ impl KernelLibrary {
 /// The binding name of a kernel's parameter stream.
 pub const PARAMS: &str = "params";
 
-/// Compiles `kernels` on as many host threads as there are cores (each kernel on its own;
-/// the microcode does not depend on which thread compiled it), in their order.
+/// Compiles `kernels` through `cache` on as many host threads as there are cores (each
+/// kernel on its own; the microcode does not depend on which thread compiled it), in their
+/// order.
 fn compile_in_parallel(
     kernels: &[&Kernel],
     desc: &MachineDesc,
-) -> Vec<Result<Compiled, CompileError>> {
+    cache: &CompileCache,
+) -> Vec<(Result<Compiled, CompileError>, Outcome)> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let next = AtomicUsize::new(0);
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(kernels.len());
-    let mut done: Vec<(usize, Result<Compiled, CompileError>)> = std::thread::scope(|scope| {
-        let workers: Vec<_> = (0..threads)
-            .map(|_| {
-                scope.spawn(|| {
-                    let mut mine = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, Ordering::Relaxed);
-                        let Some(k) = kernels.get(i) else { break };
-                        mine.push((i, compile(k, desc)));
-                    }
-                    mine
+    let mut done: Vec<(usize, (Result<Compiled, CompileError>, Outcome))> =
+        std::thread::scope(|scope| {
+            let workers: Vec<_> = (0..threads)
+                .map(|_| {
+                    scope.spawn(|| {
+                        let mut mine = Vec::new();
+                        loop {
+                            let i = next.fetch_add(1, Ordering::Relaxed);
+                            let Some(k) = kernels.get(i) else { break };
+                            mine.push((i, cache.compile_with_outcome(k, desc)));
+                        }
+                        mine
+                    })
                 })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .flat_map(|w| w.join().expect("a compiler thread panicked"))
-            .collect()
-    });
+                .collect();
+            workers
+                .into_iter()
+                .flat_map(|w| w.join().expect("a compiler thread panicked"))
+                .collect()
+        });
     done.sort_by_key(|&(i, _)| i);
     done.into_iter().map(|(_, r)| r).collect()
 }
