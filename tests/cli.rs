@@ -522,7 +522,10 @@ fn render_rejects_bad_scenes_with_a_clear_error() {
     for (args, want) in [
         (vec!["render", bad.to_str().unwrap()], "line 2"),
         (vec!["render", "TEAPOT-9"], "unknown scene"),
-        (vec!["render", "RATE-3"], "power of two"),
+        (
+            vec!["render", "RATE-3"],
+            "unknown scene: the built-in scenes are SPHERE, RATE-1",
+        ),
         (vec!["render", "SPHERE", "--size", "0"], "--size"),
     ] {
         assert_clear_error(&args);

@@ -4,11 +4,13 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Subcommand;
+use imagine_pipelines::opengl::render::{PipelinePlan, RenderOptions, plan_pipeline};
 use imagine_pipelines::scene::file::{BUILTIN, builtin_description};
 use imagine_pipelines::scene::model::{
     Blend, Cull, DepthTest, Filter, PipelineKind, Scene, Shader, Space, TextureMode, Wrap,
 };
 use imagine_pipelines::scene::{LoadOptions, load};
+use imagine_units::desc::MachineDesc;
 use serde_json::{Value, json};
 
 #[derive(Subcommand)]
@@ -25,6 +27,12 @@ pub enum SceneCommand {
         /// Subdivide every icosphere N times instead (at most 7)
         #[arg(long, value_name = "N")]
         subdivisions: Option<u32>,
+        /// Machine the pipeline is planned for (name or file)
+        #[arg(long, default_value = "gold8")]
+        machine: String,
+        /// Plan the general pipeline instead of one specialised for the scene
+        #[arg(long)]
+        no_specialize: bool,
         /// Print the description as JSON
         #[arg(long)]
         json: bool,
@@ -44,10 +52,25 @@ pub fn run(c: SceneCommand) -> Result<ExitCode> {
             name,
             size,
             subdivisions,
+            machine,
+            no_specialize,
             json,
         } => {
             let scene = load(&name, &LoadOptions { size, subdivisions })?;
-            let d = describe(&scene);
+            let desc = MachineDesc::resolve(&machine)?;
+            let mut d = describe(&scene);
+            let options = RenderOptions {
+                specialise: !no_specialize,
+                ..RenderOptions::default()
+            };
+            match plan_pipeline(&scene, &desc, &options) {
+                Ok(p) => describe_pipeline(&mut d, &p, &desc),
+                Err(e) => d.push(
+                    "pipeline",
+                    vec![format!("cannot be built: {e}")],
+                    json!({ "error": e.to_string() }),
+                ),
+            }
             if json {
                 println!("{}", serde_json::to_string_pretty(&d.json())?);
             } else {
@@ -295,4 +318,52 @@ pub fn describe(s: &Scene) -> Description {
         json!({"objects": s.objects.len(), "vertices": s.vertices(), "triangles": s.triangles(), "textures": s.textures.len()}),
     );
     d
+}
+
+/// The pipeline `render` builds for the scene: kernels, what is left out, the batch and
+/// the SRF plan.
+fn describe_pipeline(d: &mut Description, p: &PipelinePlan, desc: &MachineDesc) {
+    let kernels = p.kernel_names();
+    let left_out = p.left_out();
+    let lines = vec![
+        format!(
+            "{} on {} ({} triangles per batch)",
+            if p.specialised() {
+                "specialised for the scene"
+            } else {
+                "general"
+            },
+            desc.name,
+            p.batch
+        ),
+        format!("kernels      {}", kernels.join(", ")),
+        format!("left out     {}", left_out.join(", ")),
+        format!(
+            "per vertex   {} words in; interpolants {}",
+            p.words_per_vertex(),
+            p.interpolants().join(" ")
+        ),
+        format!(
+            "SRF plan     {} of {} words at the busiest phase",
+            p.plan.peak_words(),
+            desc.srf.words
+        ),
+    ];
+    let mut lines = lines;
+    lines.extend(p.plan.table().lines().map(|l| format!("  {l}")));
+    d.push(
+        "pipeline",
+        lines,
+        json!({
+            "specialised": p.specialised(),
+            "machine": desc.name,
+            "batch_triangles": p.batch,
+            "kernels": kernels,
+            "left_out": left_out,
+            "words_per_vertex": p.words_per_vertex(),
+            "interpolants": p.interpolants(),
+            "srf_peak_words": p.plan.peak_words(),
+            "srf_plan": p.plan.rows(),
+        }),
+    );
 }

@@ -406,6 +406,25 @@ fn register_kernels(
             ids
         })
         .collect();
+    // Built in pipeline order, so that a machine shape none of them can serve is named by
+    // the first kernel a frame needs.
+    let assemble_clip = lib.register("assemble_clip", kernels::assemble_clip(desc)?);
+    let viewport_cull = lib.register("viewport_cull", kernels::viewport_cull(desc, shape)?);
+    let baryprep = lib.register("baryprep", kernels::baryprep(desc)?);
+    let xyprep = lib.register("xyprep", kernels::xyprep(desc, shape)?);
+    let xyrast = lib.register("xyrast", kernels::xyrast(desc, shape)?);
+    let irast = lib.register("irast", kernels::irast(desc)?);
+    let hash = lib.register("hash", kernels::hash(desc, shape)?);
+    let zcompare = lib.register("zcompare", kernels::zcompare(desc, shape)?);
+    let recycle_zc = lib.register(
+        "compact_recycle:z,colour",
+        kernels::compact_recycle(desc, [NULL_DEPTH, 0])?,
+    );
+    let recycle_ap = lib.register(
+        "compact_recycle:addr,prim",
+        kernels::compact_recycle(desc, [shape.trash(), 0])?,
+    );
+    let clear = lib.register("clear", kernels::clear(desc)?);
     let merge = if shape.depth_test == DepthTest::Less && options.merge_min_conflicts.is_some() {
         Some((
             lib.register("sort32", mergefrag::sort32(desc, shape)?),
@@ -416,23 +435,17 @@ fn register_kernels(
     };
     Ok(Kernels {
         per_object,
-        assemble_clip: lib.register("assemble_clip", kernels::assemble_clip(desc)?),
-        viewport_cull: lib.register("viewport_cull", kernels::viewport_cull(desc, shape)?),
-        baryprep: lib.register("baryprep", kernels::baryprep(desc)?),
-        xyprep: lib.register("xyprep", kernels::xyprep(desc, shape)?),
-        xyrast: lib.register("xyrast", kernels::xyrast(desc, shape)?),
-        irast: lib.register("irast", kernels::irast(desc)?),
-        hash: lib.register("hash", kernels::hash(desc, shape)?),
-        zcompare: lib.register("zcompare", kernels::zcompare(desc, shape)?),
-        recycle_zc: lib.register(
-            "compact_recycle:z,colour",
-            kernels::compact_recycle(desc, [NULL_DEPTH, 0])?,
-        ),
-        recycle_ap: lib.register(
-            "compact_recycle:addr,prim",
-            kernels::compact_recycle(desc, [shape.trash(), 0])?,
-        ),
-        clear: lib.register("clear", kernels::clear(desc)?),
+        assemble_clip,
+        viewport_cull,
+        baryprep,
+        xyprep,
+        xyrast,
+        irast,
+        hash,
+        zcompare,
+        recycle_zc,
+        recycle_ap,
+        clear,
         merge,
     })
 }
@@ -563,28 +576,121 @@ fn check_supported(scene: &Scene) -> Result<(), RenderError> {
     Ok(())
 }
 
-/// Renders `scene` on a processor built from `desc`; `progress(done, total)` is called
-/// after each batch; `on_start` sees the simulation before the first cycle (to attach a
-/// waveform tracer).
-pub fn render(
-    scene: &Scene,
-    desc: &MachineDesc,
-    on_start: Option<imagine_units::runner::OnStart>,
-    progress: impl FnMut(usize, usize),
-) -> Result<Frame, RenderError> {
-    render_with(scene, desc, RenderOptions::default(), on_start, progress)
+/// The pipeline built for a scene on a machine, before anything is compiled or run: its
+/// vertex programs, batch size and SRF plan, and what it leaves out.
+pub struct PipelinePlan {
+    /// Per object, its vertex program.
+    pub programs: Vec<VertexProgram>,
+    /// Triangles per batch.
+    pub batch: usize,
+    pub plan: SrfPlan,
+    streams: Streams,
+    shape: FrameShape,
+    general: bool,
+    /// Whether the merge stage may run (depth test LESS, merging on).
+    merge: bool,
 }
 
-/// [`render`] with the host's choices in `options`.
-pub fn render_with(
+impl PipelinePlan {
+    /// The kernels the pipeline may call, by the names they are built under; the merge
+    /// stage's are compiled only if a round needs them.
+    pub fn kernel_names(&self) -> Vec<String> {
+        let mut names: Vec<String> = Vec::new();
+        for p in &self.programs {
+            for n in [format!("perbegin:{}", p.name()), p.name()] {
+                if !names.contains(&n) {
+                    names.push(n);
+                }
+            }
+        }
+        names.extend(
+            [
+                "clear",
+                "assemble_clip",
+                "viewport_cull",
+                "baryprep",
+                "xyprep",
+                "xyrast",
+                "irast",
+                "hash",
+                "zcompare",
+                "compact_recycle:z,colour",
+                "compact_recycle:addr,prim",
+            ]
+            .map(String::from),
+        );
+        if self.merge {
+            names.extend(["sort32".into(), "mergefrag".into()]);
+        }
+        names
+    }
+
+    /// What the general pipeline has and this one leaves out.
+    pub fn left_out(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let p = &self.programs;
+        if !self.general {
+            if p.iter().all(|p| matches!(p, VertexProgram::Unlit { .. })) {
+                out.push("lighting".to_string());
+            } else if p.iter().all(|p| {
+                matches!(
+                    p,
+                    VertexProgram::Lit {
+                        specular: false,
+                        ..
+                    } | VertexProgram::Unlit { .. }
+                )
+            }) {
+                out.push("specular lighting".to_string());
+            }
+            if p.iter().any(|p| {
+                matches!(
+                    p,
+                    VertexProgram::Unlit {
+                        per_vertex_colour: false
+                    }
+                )
+            }) {
+                out.push("per-vertex colours (a constant colour instead)".to_string());
+            }
+        }
+        out.extend(["textures", "procedural noise", "blending"].map(String::from));
+        if !self.merge {
+            out.push("merge of conflicting fragments (sort32, mergefrag)".into());
+        }
+        out
+    }
+
+    /// The words of the largest vertex record.
+    pub fn words_per_vertex(&self) -> usize {
+        self.programs
+            .iter()
+            .map(VertexProgram::record_words)
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Interpolated words per fragment, by name.
+    pub fn interpolants(&self) -> Vec<String> {
+        self.programs
+            .first()
+            .map(|p| p.interpolants().into_iter().map(String::from).collect())
+            .unwrap_or_default()
+    }
+
+    pub fn specialised(&self) -> bool {
+        !self.general
+    }
+}
+
+/// Plans the pipeline for `scene` on `desc`: vertex programs, batch size (strip-mined to
+/// the SRF) and the SRF plan; errors name what the scene or machine lacks.
+pub fn plan_pipeline(
     scene: &Scene,
     desc: &MachineDesc,
-    options: RenderOptions,
-    on_start: Option<imagine_units::runner::OnStart>,
-    mut progress: impl FnMut(usize, usize),
-) -> Result<Frame, RenderError> {
+    options: &RenderOptions,
+) -> Result<PipelinePlan, RenderError> {
     check_supported(scene)?;
-    let host_start = Instant::now();
     let clusters = desc.cluster.count;
     let general = !options.specialise;
     let programs: Vec<VertexProgram> = scene
@@ -639,7 +745,6 @@ pub fn render_with(
         vertex_words,
     };
     let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
-    let (phase_plan, ps) = plan_phases(desc)?;
     let shape = FrameShape {
         width: scene.width,
         height: scene.height,
@@ -648,6 +753,44 @@ pub fn render_with(
         depth_test: scene.pipeline.depth_test,
         batch,
     };
+    Ok(PipelinePlan {
+        merge: shape.depth_test == DepthTest::Less && options.merge_min_conflicts.is_some(),
+        programs,
+        batch,
+        plan,
+        streams: s,
+        shape,
+        general,
+    })
+}
+
+/// Renders `scene` on a processor built from `desc`; `progress(done, total)` is called
+/// after each batch; `on_start` sees the simulation before the first cycle (to attach a
+/// waveform tracer).
+pub fn render(
+    scene: &Scene,
+    desc: &MachineDesc,
+    on_start: Option<imagine_units::runner::OnStart>,
+    progress: impl FnMut(usize, usize),
+) -> Result<Frame, RenderError> {
+    render_with(scene, desc, RenderOptions::default(), on_start, progress)
+}
+
+/// [`render`] with the host's choices in `options`.
+pub fn render_with(
+    scene: &Scene,
+    desc: &MachineDesc,
+    options: RenderOptions,
+    on_start: Option<imagine_units::runner::OnStart>,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Frame, RenderError> {
+    let host_start = Instant::now();
+    let pp = plan_pipeline(scene, desc, &options)?;
+    let clusters = desc.cluster.count;
+    let general = pp.general;
+    let (programs, batch, plan, s, shape) =
+        (&pp.programs, pp.batch, &pp.plan, &pp.streams, pp.shape);
+    let (phase_plan, ps) = plan_phases(desc)?;
     let mut lib = KernelLibrary::new(desc, options.cache.clone());
     let k = register_kernels(&mut lib, desc, shape, &programs, &options)
         .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
@@ -793,7 +936,7 @@ pub fn render_with(
         readback_cycles: read - rendered,
     };
     stats.cycles = rendered - cleared;
-    finish_stats(&mut stats, &host, desc, &k, &programs, general);
+    finish_stats(&mut stats, &host, desc, &pp);
     stats.compile_seconds = host.kernels.compile_seconds();
     stats.kernels_from_cache = host.kernels.from_cache();
     stats.kernel_programs = host.kernels.built().len();
@@ -1253,14 +1396,7 @@ impl FrameRun<'_> {
     }
 }
 
-fn finish_stats(
-    s: &mut FrameStats,
-    host: &StreamHost,
-    desc: &MachineDesc,
-    k: &Kernels,
-    programs: &[VertexProgram],
-    general: bool,
-) {
+fn finish_stats(s: &mut FrameStats, host: &StreamHost, desc: &MachineDesc, pp: &PipelinePlan) {
     let sim = host.sim();
     let p = processor::processor(sim);
     let cycles = s.cycles.max(1);
@@ -1340,52 +1476,12 @@ fn finish_stats(
     let (lrf_read, lrf_written) = p.machine().lrf_words_moved();
     s.lrf_reads_per_cycle = lrf_read as f64 / cycles as f64;
     s.lrf_writes_per_cycle = lrf_written as f64 / cycles as f64;
-    // Table 5.1's counting: a vertex's input words (and its corner index, for meshes);
-    // a fragment's framebuffer words read and written.
-    let words_per_vertex = programs
-        .iter()
-        .map(VertexProgram::record_words)
-        .max()
-        .unwrap_or(0);
-    s.bytes_per_vertex = 4.0 * words_per_vertex as f64;
+    // Table 5.1's counting: a vertex's input words; a fragment's framebuffer words read
+    // and written.
+    s.bytes_per_vertex = 4.0 * pp.words_per_vertex() as f64;
     s.bytes_per_fragment = (4 * 2 * PIXEL_WORDS) as f64;
-    let mut left_out = Vec::new();
-    if !general {
-        if programs
-            .iter()
-            .all(|p| matches!(p, VertexProgram::Unlit { .. }))
-        {
-            left_out.push("lighting".to_string());
-        } else if programs.iter().all(|p| {
-            matches!(
-                p,
-                VertexProgram::Lit {
-                    specular: false,
-                    ..
-                } | VertexProgram::Unlit { .. }
-            )
-        }) {
-            left_out.push("specular lighting".to_string());
-        }
-        if programs.iter().any(|p| {
-            matches!(
-                p,
-                VertexProgram::Unlit {
-                    per_vertex_colour: false
-                }
-            )
-        }) {
-            left_out.push("per-vertex colours (a constant colour instead)".to_string());
-        }
-    }
-    left_out.push("textures".into());
-    left_out.push("procedural noise".into());
-    left_out.push("blending".into());
-    if k.merge.is_none() {
-        left_out.push("merge of conflicting fragments (sort32, mergefrag)".into());
-    }
     s.specialisation = Specialisation {
-        specialised: !general,
+        specialised: pp.specialised(),
         kernels_built: host.kernels.built().into_iter().map(String::from).collect(),
         kernels_not_reached: host
             .kernels
@@ -1393,12 +1489,9 @@ fn finish_stats(
             .into_iter()
             .map(String::from)
             .collect(),
-        left_out,
-        interpolants: programs
-            .first()
-            .map(|p| p.interpolants().into_iter().map(String::from).collect())
-            .unwrap_or_default(),
-        words_per_vertex,
+        left_out: pp.left_out(),
+        interpolants: pp.interpolants(),
+        words_per_vertex: pp.words_per_vertex(),
         words_per_fragment: 4,
     };
 }
