@@ -30,6 +30,7 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
         };
         for k in [
             lit.perbegin(&desc),
+            lit.perlight(&desc).unwrap(),
             lit.build(&desc),
             VertexProgram::Unlit {
                 per_vertex_colour: true,
@@ -437,7 +438,7 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
             let out = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
             assert_eq!(
                 out[1].len(),
-                vp.param_count() * c,
+                vp.param_count(&desc) * c,
                 "{name}: one row per parameter"
             );
             let cam = sphere.camera;

@@ -336,7 +336,15 @@ fn describe_pipeline(d: &mut Description, p: &PipelinePlan, desc: &MachineDesc) 
             desc.name,
             p.batch
         ),
-        format!("kernels      {}", kernels.join(", ")),
+        format!(
+            "kernels      {}{}",
+            kernels.join(", "),
+            if kernels.iter().any(|k| k == "sort32") {
+                " (sort32 and mergefrag compiled only when a composite round first needs them)"
+            } else {
+                ""
+            }
+        ),
         format!("left out     {}", left_out.join(", ")),
         format!(
             "per vertex   {} words in; interpolants {}",

@@ -75,7 +75,9 @@ const CHUNK: usize = 96;
 
 /// Words of `xyrast`'s tickets stream: its iteration count is the busiest cluster's runs,
 /// so this bounds a pass at `TICKET_WORDS / C` runs per cluster (a tile splits beyond).
-const TICKET_WORDS: usize = 4096;
+/// A run tests 4 candidate pixels, so 2048 words (256 runs per cluster on gold8) bind only
+/// when a cluster's boxes hold about as many candidates as the fragment streams do.
+const TICKET_WORDS: usize = 2048;
 
 /// Words of the staging buffer the host interface fills for loads and read-backs.
 const STAGING_WORDS: usize = 8192;
@@ -150,7 +152,7 @@ impl Default for RenderOptions {
 }
 
 /// The pipeline's batch schedule: the phases stream lifetimes are given in.
-const PHASES: [&str; 8] = [
+const PHASES: [&str; 7] = [
     "vertex",
     "assemble",
     "cull",
@@ -158,13 +160,15 @@ const PHASES: [&str; 8] = [
     "xyprep",
     "xyrast",
     "composite",
-    "host",
 ];
 
 /// The streams of a batch.
 struct Streams {
     state: StreamId,
     vertex_params: StreamId,
+    /// `perlight`'s parameters and input (lit programs).
+    perlight_params: StreamId,
+    lights: StreamId,
     xyprep_params: StreamId,
     baryprep_params: StreamId,
     vertices: StreamId,
@@ -201,7 +205,12 @@ struct Sizes {
     state_words: usize,
     params: usize,
     vertex_words: usize,
+    /// `perlight`'s input: 12 words per light, in every cluster.
+    light_words: usize,
 }
+
+/// Words of `perlight`'s parameters (see [`VertexProgram::perlight_params`]).
+const PERLIGHT_PARAMS: usize = 24;
 
 fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), PlanError> {
     let c = desc.cluster.count;
@@ -224,6 +233,8 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
     let streams = Streams {
         state: p.stream("state", Layout::packed(1), s.state_words, always),
         vertex_params: p.stream("vertex_params", words, s.params * c, always),
+        perlight_params: p.stream("perlight_params", words, PERLIGHT_PARAMS * c, always),
+        lights: p.stream("lights", words, s.light_words.max(c), always),
         xyprep_params: p.stream("xyprep_params", words, 4 * c, always),
         baryprep_params: p.stream("baryprep_params", words, c, always),
         vertices: p.stream("vertices", Layout::records(s.vertex_words), 3 * b, always),
@@ -366,8 +377,8 @@ fn plan_phases(desc: &MachineDesc) -> Result<(SrfPlan, PhaseStreams), PlanError>
 
 /// The kernels a frame may call.
 struct Kernels {
-    /// Per object: its `perbegin` and vertex program.
-    per_object: Vec<(KernelId, KernelId)>,
+    /// Per object: its `perbegin`, `perlight` (lit programs) and vertex program.
+    per_object: Vec<ObjectKernels>,
     assemble_clip: KernelId,
     viewport_cull: KernelId,
     baryprep: KernelId,
@@ -390,7 +401,7 @@ fn register_kernels(
     programs: &[VertexProgram],
     options: &RenderOptions,
 ) -> Result<Kernels, MachineRequirementError> {
-    let mut per_program: Vec<(VertexProgram, (KernelId, KernelId))> = Vec::new();
+    let mut per_program: Vec<(VertexProgram, ObjectKernels)> = Vec::new();
     let per_object = programs
         .iter()
         .map(|vp| {
@@ -398,10 +409,13 @@ fn register_kernels(
                 return *ids;
             }
             let name = vp.name();
-            let ids = (
-                lib.register(&format!("perbegin:{name}"), vp.perbegin(desc)),
-                lib.register(&name, vp.build(desc)),
-            );
+            let ids = ObjectKernels {
+                perbegin: lib.register(&format!("perbegin:{name}"), vp.perbegin(desc)),
+                perlight: vp
+                    .perlight(desc)
+                    .map(|k| lib.register(&format!("perlight:{name}"), k)),
+                vertex: lib.register(&name, vp.build(desc)),
+            };
             per_program.push((vp.clone(), ids));
             ids
         })
@@ -450,6 +464,13 @@ fn register_kernels(
     })
 }
 
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct ObjectKernels {
+    perbegin: KernelId,
+    perlight: Option<KernelId>,
+    vertex: KernelId,
+}
+
 /// One batch's work: triangles of one object.
 #[derive(Clone, Debug)]
 struct Batch {
@@ -473,6 +494,8 @@ struct Inputs {
     index_words: Vec<u32>,
     /// Per object: its state words, and where they go.
     states: Vec<(Vec<u32>, u64)>,
+    /// The lights, for `perlight`.
+    light_words: Vec<u32>,
     shaded_vertices: u64,
 }
 
@@ -486,6 +509,7 @@ fn inputs(scene: &Scene, programs: &[VertexProgram], batch: usize, clusters: usi
         vertex_words: Vec::new(),
         index_words: Vec::new(),
         states: Vec::new(),
+        light_words: VertexProgram::light_words(scene, clusters),
         shaded_vertices: 0,
     };
     let mut prim = 0;
@@ -597,7 +621,12 @@ impl PipelinePlan {
     pub fn kernel_names(&self) -> Vec<String> {
         let mut names: Vec<String> = Vec::new();
         for p in &self.programs {
-            for n in [format!("perbegin:{}", p.name()), p.name()] {
+            let mut these = vec![format!("perbegin:{}", p.name())];
+            if matches!(p, VertexProgram::Lit { .. }) {
+                these.push(format!("perlight:{}", p.name()));
+            }
+            these.push(p.name());
+            for n in these {
                 if !names.contains(&n) {
                     names.push(n);
                 }
@@ -729,7 +758,7 @@ pub fn plan_pipeline(
         .unwrap_or(clusters);
     let params = programs
         .iter()
-        .map(|p| p.param_count())
+        .map(|p| p.param_count(desc))
         .max()
         .unwrap_or(0)
         .max(1);
@@ -738,11 +767,13 @@ pub fn plan_pipeline(
         .map(VertexProgram::record_words)
         .max()
         .unwrap_or(3);
+    let light_words = 12 * scene.lights.len() * clusters;
     let sizes_for = |batch| Sizes {
         batch,
         state_words,
         params,
         vertex_words,
+        light_words,
     };
     let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
     let shape = FrameShape {
@@ -796,7 +827,12 @@ pub fn render_with(
         .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
     // Compile what every frame reaches now, on the host's cores; the merge stage when a
     // round first needs it (or now, for the general pipeline).
-    let mut eager: Vec<KernelId> = k.per_object.iter().flat_map(|&(a, b)| [a, b]).collect();
+    let mut eager: Vec<KernelId> = k
+        .per_object
+        .iter()
+        .flat_map(|o| [Some(o.perbegin), o.perlight, Some(o.vertex)])
+        .flatten()
+        .collect();
     eager.extend([
         k.clear,
         k.assemble_clip,
@@ -827,6 +863,7 @@ pub fn render_with(
             "state",
             input.states.iter().map(|(w, _)| w.len() as u64).sum(),
         )?,
+        lights: dram.buffer("lights", input.light_words.len() as u64)?,
         shaded: [
             dram.buffer("shaded[0]", (3 * batch * SHADED_WORDS) as u64)?,
             dram.buffer("shaded[1]", (3 * batch * SHADED_WORDS) as u64)?,
@@ -859,6 +896,7 @@ pub fn render_with(
     for (words, at) in &input.states {
         host.upload(words, m.state, *at, staging);
     }
+    host.upload(&input.light_words, m.lights, 0, staging);
     host.drain()?;
     let loaded = host.cycles();
 
@@ -961,6 +999,8 @@ pub fn pack_rgb(c: [f32; 3]) -> u32 {
 /// DRAM buffers of the frame.
 struct Memory {
     vertices: Buffer,
+    /// The lights as `perlight` reads them.
+    lights: Buffer,
     indices: Buffer,
     state: Buffer,
     /// Shaded vertices of shared meshes, two sets, gathered back by corner.
@@ -1005,17 +1045,29 @@ impl FrameRun<'_> {
         let (p, s, m) = (self.plan, self.s, self.m);
         let bt = self.input.batches[b].clone();
         let vp = &self.programs[bt.object];
-        let (perbegin, vertex) = self.k.per_object[bt.object];
-        let params = p.words(
-            s.vertex_params,
-            h.kernels.kernel(vertex).params.len() * h.clusters(),
-        );
+        let ok = self.k.per_object[bt.object];
+        let c = h.clusters();
+        let params = p.words(s.vertex_params, vp.param_count(h.desc()) * c);
         let vertices = p.words(s.vertices, bt.vertices * vp.record_words());
         if bt.first_of_object {
             let (words, at) = &self.input.states[bt.object];
             let state = p.words(s.state, words.len());
             h.load(m.state, *at, Layout::words(), words.len(), state);
-            h.defer(perbegin, &[("state", state), ("params", params)]);
+            let own = p.words(s.vertex_params, vp.perbegin_rows(h.desc()) * c);
+            h.defer(ok.perbegin, &[("state", state), ("params", own)]);
+            if let Some(perlight) = ok.perlight {
+                let object = &self.scene.objects[bt.object];
+                let pl = p.whole(s.perlight_params);
+                h.write_params(pl, &VertexProgram::perlight_params(self.scene, object));
+                let lights = p.words(s.lights, self.input.light_words.len());
+                h.load(m.lights, 0, Layout::words(), self.input.light_words.len(), lights);
+                let first = vp.perbegin_rows(h.desc()) * c;
+                let rest = p.word_range(s.vertex_params, first, params.words - first);
+                h.defer(
+                    perlight,
+                    &[("lights", lights), ("light_params", rest), (PARAMS, pl)],
+                );
+            }
         }
         let layout = Layout::records(vp.record_words());
         h.load(m.vertices, bt.vertex_at, layout, bt.vertices, vertices);
@@ -1024,7 +1076,7 @@ impl FrameRun<'_> {
             h.load(m.indices, at, Layout::words(), 3 * self.batch, ci);
         }
         h.defer(
-            vertex,
+            ok.vertex,
             &[
                 ("vertices", vertices),
                 ("shaded", p.first(s.shaded[b % 2], bt.vertices)),

@@ -147,41 +147,53 @@ impl VertexProgram {
         }
     }
 
-    /// The OpenGL state `perbegin` reads for `object`: view, model, projection, then the
-    /// program's words, padded to whole rows of `clusters`.
+    /// The OpenGL state `perbegin` reads for `object`: view, model and projection, then,
+    /// for a constant colour, the object's colour; padded to whole rows of `clusters`.
     pub fn state_words(&self, scene: &Scene, object: &Object, clusters: usize) -> Vec<u32> {
         let camera = scene.camera_for(object);
         let mut w: Vec<f32> = Vec::new();
         w.extend(camera.view);
         w.extend(object.model);
         w.extend(camera.projection);
-        let m = &scene.materials[object.material];
-        match self {
-            VertexProgram::Unlit {
-                per_vertex_colour: true,
-            } => {}
-            VertexProgram::Unlit {
-                per_vertex_colour: false,
-            } => w.extend(object.colour),
-            VertexProgram::Lit { .. } => {
-                w.extend(scene.ambient);
-                w.extend(m.ambient);
-                w.extend(m.diffuse);
-                w.extend(m.specular);
-                for l in &scene.lights {
-                    w.extend(l.position);
-                    w.extend(l.ambient);
-                    w.extend(l.diffuse);
-                    w.extend(l.specular);
-                }
-            }
+        if let VertexProgram::Unlit {
+            per_vertex_colour: false,
+        } = self
+        {
+            w.extend(object.colour);
         }
         let mut words: Vec<u32> = w.into_iter().map(f32::to_bits).collect();
         words.resize(words.len().div_ceil(clusters) * clusters, 0);
         words
     }
 
-    /// `perbegin` for this program.
+    /// The lights as `perlight` reads them: per light its position, ambient, diffuse and
+    /// specular colours (12 words), each word repeated in every cluster, so that iteration
+    /// `l` of every cluster reads light `l`.
+    pub fn light_words(scene: &Scene, clusters: usize) -> Vec<u32> {
+        scene
+            .lights
+            .iter()
+            .flat_map(|l| [l.position, l.ambient, l.diffuse, l.specular].concat())
+            .flat_map(|x| std::iter::repeat_n(x.to_bits(), clusters))
+            .collect()
+    }
+
+    /// `perlight`'s parameters for `object`: the view's first three rows, the material's
+    /// ambient, diffuse and specular colours and the global ambient light.
+    pub fn perlight_params(scene: &Scene, object: &Object) -> Vec<u32> {
+        let m = &scene.materials[object.material];
+        let view = scene.camera_for(object).view;
+        view[..12]
+            .iter()
+            .chain(&m.ambient)
+            .chain(&m.diffuse)
+            .chain(&m.specular)
+            .chain(&scene.ambient)
+            .map(|x| x.to_bits())
+            .collect()
+    }
+
+    /// `perbegin` for this program: the matrices (and a constant colour, passed through).
     pub fn perbegin(&self, desc: &MachineDesc) -> Kernel {
         let c = desc.cluster.count;
         let mut b = KernelBuilder::new("perbegin");
@@ -200,7 +212,6 @@ impl VertexProgram {
         for &v in &mvp {
             b.write(params_out, v);
         }
-        let rest = &state[48..];
         match self {
             VertexProgram::Unlit {
                 per_vertex_colour: true,
@@ -208,60 +219,110 @@ impl VertexProgram {
             VertexProgram::Unlit {
                 per_vertex_colour: false,
             } => {
-                for &v in &rest[..3] {
+                for &v in &state[48..51] {
                     b.write(params_out, v);
                 }
             }
-            VertexProgram::Lit {
-                lights, specular, ..
-            } => {
+            VertexProgram::Lit { .. } => {
                 for &v in &modelview[..12] {
                     b.write(params_out, v);
                 }
                 for v in normal_matrix(&mut b, &modelview) {
                     b.write(params_out, v);
                 }
-                let rgb = |k: usize| -> Vec3 { [rest[k], rest[k + 1], rest[k + 2]] };
-                let (global, ambient, diffuse, spec) = (rgb(0), rgb(3), rgb(6), rgb(9));
-                let light = |l: usize, k: usize| rgb(12 + 12 * l + k);
-                let mut base: Vec3 = std::array::from_fn(|i| b.fmul(global[i], ambient[i]));
-                for l in 0..*lights {
-                    let a = light(l, 3);
-                    for i in 0..3 {
-                        let t = b.fmul(a[i], ambient[i]);
-                        base[i] = b.fadd(base[i], t);
-                    }
-                }
-                for v in base {
-                    b.write(params_out, v);
-                }
-                let view: [Value; 16] = view.try_into().expect("16 words");
-                for l in 0..*lights {
-                    let p = light(l, 0);
-                    let eye = transform_point(&mut b, &view, p, None);
-                    for &v in &eye[..3] {
-                        b.write(params_out, v);
-                    }
-                    let d = light(l, 6);
-                    for i in 0..3 {
-                        let v = b.fmul(d[i], diffuse[i]);
-                        b.write(params_out, v);
-                    }
-                    if *specular {
-                        let s = light(l, 9);
-                        for i in 0..3 {
-                            let v = b.fmul(s[i], spec[i]);
-                            b.write(params_out, v);
-                        }
-                    }
+                let zero = b.word(0);
+                for _ in self.perbegin_param_count()..self.perbegin_rows(desc) {
+                    b.write(params_out, zero);
                 }
             }
         }
         finish(b)
     }
 
-    /// Parameters of the vertex program (the words `perbegin` writes per cluster).
-    pub fn param_count(&self) -> usize {
+    /// `perlight` for a lit program: one iteration per light (stream `lights`, see
+    /// [`VertexProgram::light_words`]) writes the light's eye-space position `V·l` and the
+    /// products `d_l·d_m` and (with the specular term) `s_l·s_m`; after the loop, `base =
+    /// a_global·a_m + Σ_l a_l·a_m`. Its output follows `perbegin`'s in the vertex
+    /// program's parameters. `None` for unlit programs.
+    pub fn perlight(&self, _desc: &MachineDesc) -> Option<Kernel> {
+        let VertexProgram::Lit { specular, .. } = self else {
+            return None;
+        };
+        let mut b = KernelBuilder::new("perlight");
+        let lights = b.input("lights");
+        // Not `params`: that is the name of the kernel's own parameter stream.
+        let params_out = b.output("light_params");
+        let view: Vec<Value> = (0..12).map(|i| b.param_f32(&format!("view{i}"))).collect();
+        let rgb = |b: &mut KernelBuilder, p: &str| {
+            ["r", "g", "b"].map(|c| b.param_f32(&format!("{p}_{c}")))
+        };
+        let ambient = rgb(&mut b, "ambient");
+        let diffuse = rgb(&mut b, "diffuse");
+        let spec = rgb(&mut b, "specular");
+        let global = rgb(&mut b, "global_ambient");
+        let init: Vec3 = std::array::from_fn(|i| b.fmul(global[i], ambient[i]));
+        b.begin_loop(LoopSpec::OverStream(lights));
+        let base: Vec3 = init.map(|v| b.carried(v));
+        let word: Vec<Value> = (0..12).map(|_| b.read_f32(lights)).collect();
+        let mut m16 = [view[0]; 16];
+        m16[..12].copy_from_slice(&view);
+        let eye = transform_point(&mut b, &m16, [word[0], word[1], word[2]], None);
+        for &v in &eye[..3] {
+            b.write(params_out, v);
+        }
+        for i in 0..3 {
+            let v = b.fmul(word[6 + i], diffuse[i]);
+            b.write(params_out, v);
+        }
+        if *specular {
+            for i in 0..3 {
+                let v = b.fmul(word[9 + i], spec[i]);
+                b.write(params_out, v);
+            }
+        }
+        for i in 0..3 {
+            let t = b.fmul(word[3 + i], ambient[i]);
+            let next = b.fadd(base[i], t);
+            b.set_next(base[i], next);
+        }
+        b.end_loop();
+        for v in base {
+            b.write(params_out, v);
+        }
+        Some(finish(b))
+    }
+
+    /// Parameters of the vertex program (the words `perbegin` and `perlight` write per
+    /// cluster).
+    pub fn param_count(&self, desc: &MachineDesc) -> usize {
+        self.perbegin_rows(desc)
+            + match self {
+                VertexProgram::Lit {
+                    lights, specular, ..
+                } => 3 + lights * (6 + 3 * usize::from(*specular)),
+                _ => 0,
+            }
+    }
+
+    /// The parameter rows `perbegin` writes: its parameters, then, before `perlight`'s,
+    /// padding rows to the next SRF block boundary (a stream starts on one).
+    pub fn perbegin_rows(&self, desc: &MachineDesc) -> usize {
+        let own = self.perbegin_param_count();
+        if !matches!(self, VertexProgram::Lit { .. }) {
+            return own;
+        }
+        let (c, block) = (desc.cluster.count, desc.srf.block_words.max(1));
+        let gcd = |mut a: usize, mut b: usize| {
+            while b != 0 {
+                (a, b) = (b, a % b);
+            }
+            a
+        };
+        own.next_multiple_of(block / gcd(c, block))
+    }
+
+    /// The parameters `perbegin` computes (`perlight` writes the rest).
+    fn perbegin_param_count(&self) -> usize {
         16 + match self {
             VertexProgram::Unlit {
                 per_vertex_colour: true,
@@ -269,26 +330,21 @@ impl VertexProgram {
             VertexProgram::Unlit {
                 per_vertex_colour: false,
             } => 3,
-            VertexProgram::Lit {
-                lights, specular, ..
-            } => 12 + 9 + 3 + lights * (6 + 3 * usize::from(*specular)),
+            VertexProgram::Lit { .. } => 12 + 9,
         }
     }
 
     fn state_words_len(&self) -> usize {
         48 + match self {
             VertexProgram::Unlit {
-                per_vertex_colour: true,
-            } => 0,
-            VertexProgram::Unlit {
                 per_vertex_colour: false,
             } => 3,
-            VertexProgram::Lit { lights, .. } => 12 + 12 * lights,
+            _ => 0,
         }
     }
 
     /// The vertex program.
-    pub fn build(&self, _desc: &MachineDesc) -> Kernel {
+    pub fn build(&self, desc: &MachineDesc) -> Kernel {
         let mut b = KernelBuilder::new(&self.name());
         let vertices = b.input("vertices");
         let shaded = b.output("shaded");
@@ -316,10 +372,12 @@ impl VertexProgram {
             } => {
                 let mv: Vec<Value> = (0..12).map(|i| b.param_f32(&format!("mv{i}"))).collect();
                 let n: Vec<Value> = (0..9).map(|i| b.param_f32(&format!("normal{i}"))).collect();
+                for i in self.perbegin_param_count()..self.perbegin_rows(desc) {
+                    b.param_f32(&format!("pad{i}"));
+                }
                 let rgb = |b: &mut KernelBuilder, p: &str| {
                     ["r", "g", "b"].map(|c| b.param_f32(&format!("{p}_{c}")))
                 };
-                let base = rgb(&mut b, "base");
                 let light_params: Vec<(Vec3, Vec3, Option<Vec3>)> = (0..*lights)
                     .map(|l| {
                         let pos = ["x", "y", "z"].map(|c| b.param_f32(&format!("light{l}_{c}")));
@@ -328,6 +386,7 @@ impl VertexProgram {
                         (pos, d, s)
                     })
                     .collect();
+                let base = rgb(&mut b, "base");
                 let (zero, one) = (b.f32(0.0), b.f32(1.0));
                 b.begin_loop(LoopSpec::OverStream(vertices));
                 let position: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
@@ -485,7 +544,7 @@ mod tests {
             let k = p.build(&desc);
             let pb = p.perbegin(&desc);
             assert_eq!(k.name, p.name());
-            assert_eq!(k.params.len(), p.param_count());
+            assert_eq!(k.params.len(), p.param_count(&desc));
             assert!(!pb.streams.is_empty());
         }
     }

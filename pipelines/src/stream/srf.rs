@@ -371,15 +371,22 @@ impl SrfPlan {
     /// The first `words` words, whatever the record size (a stream planned for the largest
     /// of several record sizes, used with a smaller one).
     pub fn words(&self, s: StreamId, words: usize) -> StreamBinding {
+        self.word_range(s, 0, words)
+    }
+
+    /// Words `first..first + words` of the stream, whatever its record size (two kernels
+    /// writing one stream's two parts, say).
+    pub fn word_range(&self, s: StreamId, first: usize, words: usize) -> StreamBinding {
         let p = self.get(s);
         assert!(
-            words <= p.words,
-            "stream `{}`: {words} words past its {} (a pipeline bug)",
+            first + words <= p.words,
+            "stream `{}`: words {first}..{} past its {} (a pipeline bug)",
             p.name,
+            first + words,
             p.words
         );
         StreamBinding {
-            start: p.start,
+            start: p.start + first,
             words,
         }
     }
@@ -435,13 +442,16 @@ impl SrfPlan {
         );
         for r in self.rows() {
             out += &format!(
-                "{:<18} {:>7} {:>7} {:>6}  {}..{}{}\n",
+                "{:<18} {:>7} {:>7} {:>6}  {}{}\n",
                 r.stream,
                 r.start,
                 r.words,
                 r.record_words,
-                r.live_from,
-                r.live_to,
+                if r.live_from == self.phases[0] && r.live_to == *self.phases.last().unwrap_or(&"") {
+                    "always".to_string()
+                } else {
+                    format!("{}..{}", r.live_from, r.live_to)
+                },
                 if r.elastic { " (elastic)" } else { "" }
             );
         }
