@@ -66,7 +66,7 @@ pub fn run(c: SceneCommand) -> Result<ExitCode> {
             match plan_pipeline(&scene, &desc, &options) {
                 Ok(p) => describe_pipeline(&mut d, &p, &desc),
                 Err(e) => d.push(
-                    "pipeline",
+                    "plan",
                     vec![format!("cannot be built: {e}")],
                     json!({ "error": e.to_string() }),
                 ),
@@ -360,7 +360,7 @@ fn describe_pipeline(d: &mut Description, p: &PipelinePlan, desc: &MachineDesc) 
     let mut lines = lines;
     lines.extend(p.plan.table().lines().map(|l| format!("  {l}")));
     d.push(
-        "pipeline",
+        "plan",
         lines,
         json!({
             "specialised": p.specialised(),

@@ -730,10 +730,20 @@ pub fn plan_pipeline(
         .map_err(|e| RenderError(format!("scene `{}`: {e}", scene.name)))?;
     let rows = kernels::xyrast_rows(desc);
     if rows == 0 {
-        return Err(RenderError(format!(
-            "machine `{}`: the scratchpad cannot hold a raster record",
-            desc.name
-        )));
+        // `xyrast` names what its scratchpad lacks for a batch of one row.
+        let one_row = FrameShape {
+            width: scene.width,
+            height: scene.height,
+            clusters,
+            cull: scene.pipeline.cull,
+            depth_test: scene.pipeline.depth_test,
+            batch: clusters,
+        };
+        let e = match kernels::xyrast(desc, one_row) {
+            Err(e) => e.to_string(),
+            Ok(_) => format!("machine `{}`: the scratchpad cannot hold a raster record", desc.name),
+        };
+        return Err(RenderError(format!("cannot build the pipeline: {e}")));
     }
     // Strip-mining: the largest batch up to 64 triangles (whole rows of clusters, at most
     // `rows` per cluster for `xyrast`'s scratchpad, no more than the largest object needs)
