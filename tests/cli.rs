@@ -787,19 +787,60 @@ fn render_reports_its_pipeline_and_one_csv_row_per_batch() {
     let frame = &json["frame"];
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
-    assert!(lines.next().unwrap().starts_with("batch,object,triangles,vertices,cycles"));
+    assert!(
+        lines
+            .next()
+            .unwrap()
+            .starts_with("batch,object,triangles,vertices,cycles")
+    );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len() as u64, frame["batches"].as_u64().unwrap());
-    let sum = |col: usize| rows.iter().map(|r| r[col].parse::<u64>().unwrap()).sum::<u64>();
-    assert_eq!(sum(2), frame["triangles"].as_u64().unwrap(), "triangles per batch add up");
-    assert_eq!(sum(6), frame["fragments"].as_u64().unwrap(), "fragments per batch add up");
-    assert!(sum(5) > 0 && sum(9) > 0, "kernel cycles and DRAM words are counted");
+    let sum = |col: usize| {
+        rows.iter()
+            .map(|r| r[col].parse::<u64>().unwrap())
+            .sum::<u64>()
+    };
+    assert_eq!(
+        sum(2),
+        frame["triangles"].as_u64().unwrap(),
+        "triangles per batch add up"
+    );
+    assert_eq!(
+        sum(6),
+        frame["fragments"].as_u64().unwrap(),
+        "fragments per batch add up"
+    );
+    assert!(
+        sum(5) > 0 && sum(9) > 0,
+        "kernel cycles and DRAM words are counted"
+    );
     // An unlit scene: no lighting kernel built, the merge stage never reached.
     let sp = &frame["specialisation"];
-    let built: Vec<&str> = sp["kernels_built"].as_array().unwrap().iter().map(|k| k.as_str().unwrap()).collect();
-    assert!(built.iter().all(|k| !k.contains("lit") || k.contains("unlit")), "{built:?}");
-    assert!(built.iter().all(|k| !k.contains("noise") && !k.contains("tex")), "{built:?}");
-    assert!(sp["left_out"].as_array().unwrap().iter().any(|f| f == "lighting"));
+    let built: Vec<&str> = sp["kernels_built"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k.as_str().unwrap())
+        .collect();
+    assert!(
+        built
+            .iter()
+            .all(|k| !k.contains("lit") || k.contains("unlit")),
+        "{built:?}"
+    );
+    assert!(
+        built
+            .iter()
+            .all(|k| !k.contains("noise") && !k.contains("tex")),
+        "{built:?}"
+    );
+    assert!(
+        sp["left_out"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|f| f == "lighting")
+    );
     assert!(stdout(&o).contains("left out"), "{}", stdout(&o));
     let phases = &frame["phases"];
     assert_eq!(
@@ -813,14 +854,26 @@ fn scene_show_plans_the_pipeline_the_scene_gets() {
     let o = imagine(&["scene", "show", "SPHERE"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
-    for want in ["vertex_lit3_s16", "perlight", "SRF plan", "(elastic)", "64 triangles per batch"] {
+    for want in [
+        "vertex_lit3_s16",
+        "perlight",
+        "SRF plan",
+        "(elastic)",
+        "64 triangles per batch",
+    ] {
         assert!(out.contains(want), "`{want}` missing:\n{out}");
     }
     let o = imagine(&["scene", "show", "RATE-8", "--size", "64", "--json"]);
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     let kernels = v["plan"]["kernels"].as_array().unwrap();
     assert!(kernels.iter().any(|k| k == "vertex_unlit"));
-    assert!(v["plan"]["left_out"].as_array().unwrap().iter().any(|k| k == "lighting"));
+    assert!(
+        v["plan"]["left_out"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|k| k == "lighting")
+    );
     let o = imagine(&["scene", "show", "SPHERE", "--machine", "gold1"]);
     assert!(stdout(&o).contains("on gold1"), "{}", stdout(&o));
 }

@@ -2,7 +2,8 @@
 //! against the independent f64 reference renderer and stored framebuffer hashes, at
 //! reduced size (full 720×720 frames are `#[ignore]`d: `cargo test --release -- --ignored`).
 
-use imagine_pipelines::opengl::render::{Frame, render};
+use imagine_pipelines::compile::CompileCache;
+use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
 use imagine_pipelines::scene::model::Scene;
 use imagine_pipelines::scene::{self, LoadOptions, window_scene};
 use imagine_units::desc::MachineDesc;
@@ -17,13 +18,22 @@ fn builtin(name: &str, size: u32, subdivisions: Option<u32>) -> Scene {
     scene::load(name, &opts).unwrap()
 }
 
+/// Render options with a compile cache under the target directory, so that the tests share
+/// the kernels they compile (and a re-run compiles nothing).
+fn cached() -> RenderOptions {
+    RenderOptions {
+        cache: CompileCache::at(concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache")),
+        ..RenderOptions::default()
+    }
+}
+
 fn image_of(f: &Frame) -> Image {
     Image::from_rgba8_words(f.width, f.height, &f.pixels)
 }
 
 fn draw(scene: &Scene, machine: &str) -> (Frame, Metrics) {
     let desc = MachineDesc::resolve(machine).unwrap();
-    let frame = render(scene, &desc, None, |_, _| {})
+    let frame = render_with(scene, &desc, cached(), None, |_, _| {})
         .unwrap_or_else(|e| panic!("{} on {machine}: {e}", scene.name));
     let m = compare(&image_of(&frame), &reference::render(scene).unwrap()).unwrap();
     println!(
@@ -155,16 +165,15 @@ fn stacked_scene() -> Scene {
 
 #[test]
 fn merging_stacked_fragments_keeps_the_image_and_saves_rounds() {
-    use imagine_pipelines::opengl::render::{RenderOptions, render_with};
     let scene = stacked_scene();
     for name in ["gold8", "gold1", "gold32"] {
         let desc = MachineDesc::resolve(name).unwrap();
         let plain = RenderOptions {
             merge_min_conflicts: None,
-            ..RenderOptions::default()
+            ..cached()
         };
         let a = render_with(&scene, &desc, plain, None, |_, _| {}).unwrap();
-        let b = render_with(&scene, &desc, RenderOptions::default(), None, |_, _| {}).unwrap();
+        let b = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
         println!(
             "{name}: {} fragments; without merging {} rounds, {} cycles; with {} rounds ({} \
              merged, {} fragments dropped), {} cycles",

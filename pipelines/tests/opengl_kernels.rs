@@ -438,7 +438,7 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
             let out = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
             assert_eq!(
                 out[1].len(),
-                vp.param_count(&desc) * c,
+                vp.perbegin_rows(&desc) * c,
                 "{name}: one row per parameter"
             );
             let cam = sphere.camera;

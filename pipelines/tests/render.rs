@@ -1,10 +1,20 @@
 //! Frames through the OpenGL-like pipeline on the clocked machine: what the pipeline built
 //! for a scene computes and leaves out.
 
-use imagine_pipelines::opengl::render::{RenderOptions, render, render_with};
+use imagine_pipelines::compile::CompileCache;
+use imagine_pipelines::opengl::render::{RenderOptions, render_with};
 use imagine_pipelines::scene::model::{Cull, DepthTest, Scene};
 use imagine_pipelines::scene::{self, LoadOptions, parse_tri, window_scene};
 use imagine_units::desc::MachineDesc;
+
+/// Render options with a compile cache under the target directory, so that the tests share
+/// the kernels they compile (and a re-run compiles nothing).
+fn cached() -> RenderOptions {
+    RenderOptions {
+        cache: CompileCache::at(concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache")),
+        ..RenderOptions::default()
+    }
+}
 
 fn two_triangles() -> Scene {
     window_scene(
@@ -22,7 +32,7 @@ fn two_triangles() -> Scene {
 fn two_overlapping_triangles() {
     let scene = two_triangles();
     let desc = MachineDesc::gold8();
-    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    let f = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
     assert_eq!(f.pixels[3 * 32 + 3] & 0xFFFFFF, 0xFF, "red corner");
     assert_eq!(
         f.pixels[8 * 32 + 16] & 0xFFFFFF,
@@ -40,14 +50,14 @@ fn depth_tests_and_culling_follow_the_scene() {
     let mut scene = two_triangles();
     // ALWAYS: the later (green) triangle wins where they overlap, even behind.
     scene.pipeline.depth_test = DepthTest::Always;
-    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    let f = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
     assert_eq!(
         f.pixels[17 * 32 + 12] & 0xFFFFFF,
         0xFF00,
         "ALWAYS: the later triangle"
     );
     scene.pipeline.depth_test = DepthTest::Less;
-    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    let f = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
     assert_eq!(
         f.pixels[17 * 32 + 12] & 0xFFFFFF,
         0xFF,
@@ -56,14 +66,14 @@ fn depth_tests_and_culling_follow_the_scene() {
     // Both triangles are counter-clockwise (front-facing): culling front faces leaves the
     // clear colour.
     scene.pipeline.cull = Cull::Front;
-    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    let f = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
     assert!(
         f.pixels.iter().all(|&p| p == 0xFF00_0000),
         "front faces culled"
     );
     scene.pipeline.cull = Cull::Back;
     scene.background = [1.0, 0.0, 0.0];
-    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    let f = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
     assert_eq!(
         f.pixels[8 * 32 + 16] & 0xFFFFFF,
         0xFF00,
@@ -121,8 +131,8 @@ fn grid(separate: bool) -> Scene {
 #[test]
 fn a_mesh_shades_each_vertex_once_per_batch_and_draws_what_separate_triangles_draw() {
     let desc = MachineDesc::gold8();
-    let shared = render(&grid(false), &desc, None, |_, _| {}).unwrap();
-    let separate = render(&grid(true), &desc, None, |_, _| {}).unwrap();
+    let shared = render_with(&grid(false), &desc, cached(), None, |_, _| {}).unwrap();
+    let separate = render_with(&grid(true), &desc, cached(), None, |_, _| {}).unwrap();
     assert_eq!(shared.pixels, separate.pixels, "the same image");
     assert_eq!(separate.stats.vertices, 3 * 288);
     // 169 distinct vertices; a batch of 64 triangles (about 2.7 rows of the grid) uses
@@ -153,7 +163,7 @@ fn an_unlit_scene_builds_no_lighting_and_no_merge_it_never_reaches() {
         },
     )
     .unwrap();
-    let f = render(&scene, &desc, None, |_, _| {}).unwrap();
+    let f = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
     let sp = &f.stats.specialisation;
     assert!(sp.specialised);
     assert!(
@@ -175,7 +185,7 @@ fn an_unlit_scene_builds_no_lighting_and_no_merge_it_never_reaches() {
         &desc,
         RenderOptions {
             specialise: false,
-            ..RenderOptions::default()
+            ..cached()
         },
         None,
         |_, _| {},
@@ -200,7 +210,7 @@ fn unsupported_scenes_and_shapes_are_refused_by_name() {
     let desc = MachineDesc::gold8();
     let mut scene = two_triangles();
     scene.pipeline.blend = imagine_pipelines::scene::model::Blend::Add;
-    let e = render(&scene, &desc, None, |_, _| {})
+    let e = render_with(&scene, &desc, cached(), None, |_, _| {})
         .unwrap_err()
         .to_string();
     assert!(e.contains("blend"), "{e}");
@@ -213,7 +223,7 @@ fn unsupported_scenes_and_shapes_are_refused_by_name() {
     )
     .unwrap();
     lit.materials[0].shininess = 12.5;
-    let e = render(&lit, &desc, None, |_, _| {})
+    let e = render_with(&lit, &desc, cached(), None, |_, _| {})
         .unwrap_err()
         .to_string();
     assert!(e.contains("shininess"), "{e}");

@@ -741,7 +741,10 @@ pub fn plan_pipeline(
         };
         let e = match kernels::xyrast(desc, one_row) {
             Err(e) => e.to_string(),
-            Ok(_) => format!("machine `{}`: the scratchpad cannot hold a raster record", desc.name),
+            Ok(_) => format!(
+                "machine `{}`: the scratchpad cannot hold a raster record",
+                desc.name
+            ),
         };
         return Err(RenderError(format!("cannot build the pipeline: {e}")));
     }
@@ -1070,7 +1073,13 @@ impl FrameRun<'_> {
                 let pl = p.whole(s.perlight_params);
                 h.write_params(pl, &VertexProgram::perlight_params(self.scene, object));
                 let lights = p.words(s.lights, self.input.light_words.len());
-                h.load(m.lights, 0, Layout::words(), self.input.light_words.len(), lights);
+                h.load(
+                    m.lights,
+                    0,
+                    Layout::words(),
+                    self.input.light_words.len(),
+                    lights,
+                );
                 let first = vp.perbegin_rows(h.desc()) * c;
                 let rest = p.word_range(s.vertex_params, first, params.words - first);
                 h.defer(

@@ -447,7 +447,8 @@ impl SrfPlan {
                 r.start,
                 r.words,
                 r.record_words,
-                if r.live_from == self.phases[0] && r.live_to == *self.phases.last().unwrap_or(&"") {
+                if r.live_from == self.phases[0] && r.live_to == *self.phases.last().unwrap_or(&"")
+                {
                     "always".to_string()
                 } else {
                     format!("{}..{}", r.live_from, r.live_to)
