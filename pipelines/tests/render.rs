@@ -228,3 +228,39 @@ fn unsupported_scenes_and_shapes_are_refused_by_name() {
         .to_string();
     assert!(e.contains("shininess"), "{e}");
 }
+
+#[test]
+fn the_general_pipeline_lights_a_lit_scene_to_the_same_bits() {
+    let desc = MachineDesc::gold8();
+    let scene = scene::load(
+        "SPHERE",
+        &LoadOptions {
+            size: Some(24),
+            subdivisions: Some(1),
+        },
+    )
+    .unwrap();
+    let special = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
+    let general = render_with(
+        &scene,
+        &desc,
+        RenderOptions {
+            specialise: false,
+            ..cached()
+        },
+        None,
+        |_, _| {},
+    )
+    .unwrap();
+    assert_eq!(
+        general.pixels, special.pixels,
+        "the same image, bit for bit"
+    );
+    let built = &general.stats.specialisation.kernels_built;
+    assert!(
+        built.iter().any(|k| k == "vertex_general3_s16"),
+        "{built:?}"
+    );
+    assert_eq!(general.stats.specialisation.words_per_vertex, 9);
+    assert_eq!(special.stats.specialisation.words_per_vertex, 6);
+}

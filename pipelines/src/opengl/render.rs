@@ -509,7 +509,11 @@ fn inputs(scene: &Scene, programs: &[VertexProgram], batch: usize, clusters: usi
         vertex_words: Vec::new(),
         index_words: Vec::new(),
         states: Vec::new(),
-        light_words: VertexProgram::light_words(scene, clusters),
+        light_words: programs
+            .iter()
+            .max_by_key(|p| p.lighting().map_or(0, |(lights, _)| lights))
+            .map(|p| p.light_words(scene, clusters))
+            .unwrap_or_default(),
         shaded_vertices: 0,
     };
     let mut prim = 0;
@@ -622,7 +626,7 @@ impl PipelinePlan {
         let mut names: Vec<String> = Vec::new();
         for p in &self.programs {
             let mut these = vec![format!("perbegin:{}", p.name())];
-            if matches!(p, VertexProgram::Lit { .. }) {
+            if p.lit() {
                 these.push(format!("perlight:{}", p.name()));
             }
             these.push(p.name());
@@ -780,7 +784,13 @@ pub fn plan_pipeline(
         .map(VertexProgram::record_words)
         .max()
         .unwrap_or(3);
-    let light_words = 12 * scene.lights.len() * clusters;
+    let light_words = 12
+        * clusters
+        * programs
+            .iter()
+            .filter_map(|p| p.lighting().map(|(lights, _)| lights))
+            .max()
+            .unwrap_or(0);
     let sizes_for = |batch| Sizes {
         batch,
         state_words,
@@ -836,7 +846,7 @@ pub fn render_with(
         (&pp.programs, pp.batch, &pp.plan, &pp.streams, pp.shape);
     let (phase_plan, ps) = plan_phases(desc)?;
     let mut lib = KernelLibrary::new(desc, options.cache.clone());
-    let k = register_kernels(&mut lib, desc, shape, &programs, &options)
+    let k = register_kernels(&mut lib, desc, shape, programs, &options)
         .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
     // Compile what every frame reaches now, on the host's cores; the merge stage when a
     // round first needs it (or now, for the general pipeline).
@@ -865,7 +875,7 @@ pub fn render_with(
     lib.compile_now(&eager)
         .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))?;
 
-    let input = inputs(scene, &programs, batch, clusters);
+    let input = inputs(scene, programs, batch, clusters);
     let pixels = (scene.width * scene.height) as usize + 1;
     let mut dram = DramMap::new(desc);
     let fb_pixels = pixels.div_ceil(clusters) * clusters;
@@ -946,8 +956,8 @@ pub fn render_with(
     // The frame.
     let mut frame = FrameRun {
         k: &k,
-        plan: &plan,
-        s: &s,
+        plan,
+        s,
         m: &m,
         input: &input,
         scene,
@@ -956,7 +966,7 @@ pub fn render_with(
         batch,
         last_cycles: cleared,
         max_fragment_words: 0,
-        programs: &programs,
+        programs,
     };
     let batches = input.batches.len();
     let mut run = (&mut host, &mut frame);

@@ -27,7 +27,7 @@
 use imagine_units::desc::MachineDesc;
 
 use super::kernels::finish;
-use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, Value};
+use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, Ty, Value};
 use crate::kernels::transform::{matrix_params, transform_point};
 use crate::kernels::{Vec3, dot};
 use crate::scene::model::{Material, Mesh, Object, Scene, Shader};
@@ -47,7 +47,15 @@ pub enum VertexProgram {
         specular: bool,
         shininess: u32,
     },
+    /// The general fixed-function program (`--no-specialize`): every vertex carries its
+    /// position, normal and colour; lighting by `lights` lights with the specular term is
+    /// always computed, and a parameter chooses it or the vertex colour (only the exponent
+    /// is built in: the material's).
+    General { lights: usize, shininess: u32 },
 }
+
+/// The fewest lights the general program is built for.
+pub const GENERAL_LIGHTS: usize = 3;
 
 impl VertexProgram {
     /// The program an object of `scene` needs; an error for what it cannot draw yet.
@@ -57,9 +65,30 @@ impl VertexProgram {
         general: bool,
     ) -> Result<VertexProgram, String> {
         let m: &Material = &scene.materials[object.material];
+        if general {
+            if m.shader == Shader::Lit && object.mesh.normals.len() != object.mesh.positions.len() {
+                return Err(format!(
+                    "object `{}` is lit but its mesh has {} normals for {} vertices",
+                    object.name,
+                    object.mesh.normals.len(),
+                    object.mesh.positions.len()
+                ));
+            }
+            if m.shininess.fract() != 0.0 || !(0.0..=128.0).contains(&m.shininess) {
+                return Err(format!(
+                    "material `{}`: shininess {} — the vertex program raises to integer powers \
+                     0..=128",
+                    m.name, m.shininess
+                ));
+            }
+            return Ok(VertexProgram::General {
+                lights: scene.lights.len().max(GENERAL_LIGHTS),
+                shininess: m.shininess as u32,
+            });
+        }
         match m.shader {
             Shader::Unlit => Ok(VertexProgram::Unlit {
-                per_vertex_colour: general || !object.mesh.colours.is_empty(),
+                per_vertex_colour: !object.mesh.colours.is_empty(),
             }),
             Shader::Lit => {
                 if m.shininess.fract() != 0.0 || !(0.0..=128.0).contains(&m.shininess) {
@@ -84,7 +113,7 @@ impl VertexProgram {
                         .any(|l| l.specular.iter().any(|&c| c != 0.0));
                 Ok(VertexProgram::Lit {
                     lights: scene.lights.len(),
-                    specular: general || any_specular,
+                    specular: any_specular,
                     shininess: m.shininess as u32,
                 })
             }
@@ -111,6 +140,25 @@ impl VertexProgram {
                     format!("vertex_lit{lights}_diffuse")
                 }
             }
+            VertexProgram::General { lights, shininess } => {
+                format!("vertex_general{lights}_s{shininess}")
+            }
+        }
+    }
+
+    /// Whether it lights vertices (and so has `perlight` and the lit parameters).
+    pub fn lit(&self) -> bool {
+        !matches!(self, VertexProgram::Unlit { .. })
+    }
+
+    /// Lights it is built for, and whether with the specular term.
+    pub fn lighting(&self) -> Option<(usize, bool)> {
+        match self {
+            VertexProgram::Unlit { .. } => None,
+            VertexProgram::Lit {
+                lights, specular, ..
+            } => Some((*lights, *specular)),
+            VertexProgram::General { lights, .. } => Some((*lights, true)),
         }
     }
 
@@ -120,6 +168,7 @@ impl VertexProgram {
             VertexProgram::Unlit {
                 per_vertex_colour: false,
             } => 3,
+            VertexProgram::General { .. } => 9,
             _ => 6,
         }
     }
@@ -144,6 +193,11 @@ impl VertexProgram {
                 per_vertex_colour: false,
             } => {}
             VertexProgram::Lit { .. } => out.extend(mesh.normals[v].map(f32::to_bits)),
+            VertexProgram::General { .. } => {
+                let n = mesh.normals.get(v).copied().unwrap_or([0.0; 3]);
+                let c = mesh.colours.get(v).copied().unwrap_or(object.colour);
+                out.extend(n.into_iter().chain(c).map(f32::to_bits));
+            }
         }
     }
 
@@ -162,6 +216,10 @@ impl VertexProgram {
             w.extend(object.colour);
         }
         let mut words: Vec<u32> = w.into_iter().map(f32::to_bits).collect();
+        if let VertexProgram::General { .. } = self {
+            let m = &scene.materials[object.material];
+            words.push(u32::from(m.shader == Shader::Lit));
+        }
         words.resize(words.len().div_ceil(clusters) * clusters, 0);
         words
     }
@@ -169,11 +227,25 @@ impl VertexProgram {
     /// The lights as `perlight` reads them: per light its position, ambient, diffuse and
     /// specular colours (12 words), each word repeated in every cluster, so that iteration
     /// `l` of every cluster reads light `l`.
-    pub fn light_words(scene: &Scene, clusters: usize) -> Vec<u32> {
-        scene
+    /// The general program's lights beyond the scene's are dark (no colour), far away so
+    /// that their direction is well defined.
+    pub fn light_words(&self, scene: &Scene, clusters: usize) -> Vec<u32> {
+        let Some((lights, _)) = self.lighting() else {
+            return Vec::new();
+        };
+        let dark = [
+            1.0e6, 1.0e6, 1.0e6, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+        ];
+        let words: Vec<f32> = scene
             .lights
             .iter()
-            .flat_map(|l| [l.position, l.ambient, l.diffuse, l.specular].concat())
+            .map(|l| [l.position, l.ambient, l.diffuse, l.specular].concat())
+            .chain(std::iter::repeat(dark.to_vec()))
+            .take(lights)
+            .flatten()
+            .collect();
+        words
+            .into_iter()
             .flat_map(|x| std::iter::repeat_n(x.to_bits(), clusters))
             .collect()
     }
@@ -207,6 +279,7 @@ impl VertexProgram {
             .map(|j| b.comm(rows[j / c], Perm::Broadcast((j % c) as u16)))
             .collect();
         let (view, model, projection) = (&state[..16], &state[16..32], &state[32..48]);
+        let rows_general: Vec<Value> = state[48..].to_vec();
         let modelview = mat_mul(&mut b, view, model);
         let mvp = mat_mul(&mut b, projection, &modelview);
         for &v in &mvp {
@@ -223,12 +296,16 @@ impl VertexProgram {
                     b.write(params_out, v);
                 }
             }
-            VertexProgram::Lit { .. } => {
+            VertexProgram::Lit { .. } | VertexProgram::General { .. } => {
                 for &v in &modelview[..12] {
                     b.write(params_out, v);
                 }
                 for v in normal_matrix(&mut b, &modelview) {
                     b.write(params_out, v);
+                }
+                if let VertexProgram::General { .. } = self {
+                    // The lit flag, passed through.
+                    b.write(params_out, rows_general[0]);
                 }
                 let zero = b.word(0);
                 for _ in self.perbegin_param_count()..self.perbegin_rows(desc) {
@@ -245,9 +322,8 @@ impl VertexProgram {
     /// a_global·a_m + Σ_l a_l·a_m`. Its output follows `perbegin`'s in the vertex
     /// program's parameters. `None` for unlit programs.
     pub fn perlight(&self, _desc: &MachineDesc) -> Option<Kernel> {
-        let VertexProgram::Lit { specular, .. } = self else {
-            return None;
-        };
+        let (_, specular) = self.lighting()?;
+        let specular = &specular;
         let mut b = KernelBuilder::new("perlight");
         let lights = b.input("lights");
         // Not `params`: that is the name of the kernel's own parameter stream.
@@ -296,11 +372,9 @@ impl VertexProgram {
     /// cluster).
     pub fn param_count(&self, desc: &MachineDesc) -> usize {
         self.perbegin_rows(desc)
-            + match self {
-                VertexProgram::Lit {
-                    lights, specular, ..
-                } => 3 + lights * (6 + 3 * usize::from(*specular)),
-                _ => 0,
+            + match self.lighting() {
+                Some((lights, specular)) => 3 + lights * (6 + 3 * usize::from(specular)),
+                None => 0,
             }
     }
 
@@ -308,7 +382,7 @@ impl VertexProgram {
     /// padding rows to the next SRF block boundary (a stream starts on one).
     pub fn perbegin_rows(&self, desc: &MachineDesc) -> usize {
         let own = self.perbegin_param_count();
-        if !matches!(self, VertexProgram::Lit { .. }) {
+        if !self.lit() {
             return own;
         }
         let (c, block) = (desc.cluster.count, desc.srf.block_words.max(1));
@@ -331,6 +405,7 @@ impl VertexProgram {
                 per_vertex_colour: false,
             } => 3,
             VertexProgram::Lit { .. } => 12 + 9,
+            VertexProgram::General { .. } => 12 + 9 + 1,
         }
     }
 
@@ -339,6 +414,7 @@ impl VertexProgram {
             VertexProgram::Unlit {
                 per_vertex_colour: false,
             } => 3,
+            VertexProgram::General { .. } => 1,
             _ => 0,
         }
     }
@@ -365,13 +441,19 @@ impl VertexProgram {
                 }
                 b.end_loop();
             }
-            VertexProgram::Lit {
-                lights,
-                specular,
-                shininess,
-            } => {
+            VertexProgram::Lit { .. } | VertexProgram::General { .. } => {
+                let (lights, specular) = self.lighting().expect("lit");
+                let shininess = match self {
+                    VertexProgram::Lit { shininess, .. }
+                    | VertexProgram::General { shininess, .. } => *shininess,
+                    VertexProgram::Unlit { .. } => 0,
+                };
+                let (lights, specular) = (&lights, &specular);
+                let general = matches!(self, VertexProgram::General { .. });
                 let mv: Vec<Value> = (0..12).map(|i| b.param_f32(&format!("mv{i}"))).collect();
                 let n: Vec<Value> = (0..9).map(|i| b.param_f32(&format!("normal{i}"))).collect();
+                // The general program's switch between lit and vertex colours.
+                let switch = general.then(|| b.param("lit", Ty::I32));
                 for i in self.perbegin_param_count()..self.perbegin_rows(desc) {
                     b.param_f32(&format!("pad{i}"));
                 }
@@ -391,6 +473,8 @@ impl VertexProgram {
                 b.begin_loop(LoopSpec::OverStream(vertices));
                 let position: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
                 let normal: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
+                let vertex_colour: Option<Vec3> =
+                    general.then(|| std::array::from_fn(|_| b.read_f32(vertices)));
                 let clip = transform_point(&mut b, &mvp, position, None);
                 let eye_pos: Vec3 = {
                     let mut m16 = [zero; 16];
@@ -421,7 +505,7 @@ impl VertexProgram {
                             let h = normalize(&mut b, half);
                             let n_dot_h = dot(&mut b, unit_n, h);
                             let x = b.fmax(n_dot_h, zero);
-                            let p = power(&mut b, x, *shininess, one);
+                            let p = power(&mut b, x, shininess, one);
                             let lit = b.flt(zero, n_dot_l);
                             Some(b.select(lit, p, zero))
                         }
@@ -439,10 +523,18 @@ impl VertexProgram {
                 for v in clip {
                     b.write(shaded, v);
                 }
-                for c in colour {
+                let lit = switch.map(|flag| {
+                    let zero_i = b.i32(0);
+                    b.ine(flag, zero_i)
+                });
+                for (ch, c) in colour.into_iter().enumerate() {
                     let above_zero = b.fmax(c, zero);
                     let clamped = b.fmin(above_zero, one);
-                    b.write(shaded, clamped);
+                    let out = match (lit, vertex_colour) {
+                        (Some(lit), Some(v)) => b.select(lit, clamped, v[ch]),
+                        _ => clamped,
+                    };
+                    b.write(shaded, out);
                 }
                 b.end_loop();
             }

@@ -149,6 +149,9 @@ impl KernelLibrary {
 /// The binding name of a kernel's parameter stream.
 pub const PARAMS: &str = "params";
 
+/// A kernel's compile result and where its microcode came from.
+type Compile = (Result<Compiled, CompileError>, Outcome);
+
 /// Compiles `kernels` through `cache` on as many host threads as there are cores (each
 /// kernel on its own; the microcode does not depend on which thread compiled it), in their
 /// order.
@@ -156,32 +159,31 @@ fn compile_in_parallel(
     kernels: &[&Kernel],
     desc: &MachineDesc,
     cache: &CompileCache,
-) -> Vec<(Result<Compiled, CompileError>, Outcome)> {
+) -> Vec<Compile> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let next = AtomicUsize::new(0);
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(kernels.len());
-    let mut done: Vec<(usize, (Result<Compiled, CompileError>, Outcome))> =
-        std::thread::scope(|scope| {
-            let workers: Vec<_> = (0..threads)
-                .map(|_| {
-                    scope.spawn(|| {
-                        let mut mine = Vec::new();
-                        loop {
-                            let i = next.fetch_add(1, Ordering::Relaxed);
-                            let Some(k) = kernels.get(i) else { break };
-                            mine.push((i, cache.compile_with_outcome(k, desc)));
-                        }
-                        mine
-                    })
+    let mut done: Vec<(usize, Compile)> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(k) = kernels.get(i) else { break };
+                        mine.push((i, cache.compile_with_outcome(k, desc)));
+                    }
+                    mine
                 })
-                .collect();
-            workers
-                .into_iter()
-                .flat_map(|w| w.join().expect("a compiler thread panicked"))
-                .collect()
-        });
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().expect("a compiler thread panicked"))
+            .collect()
+    });
     done.sort_by_key(|&(i, _)| i);
     done.into_iter().map(|(_, r)| r).collect()
 }
