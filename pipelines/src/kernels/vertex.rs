@@ -41,7 +41,8 @@ pub const PARAMS: usize = 16 + 3 + 6 * LIGHTS + 9;
 
 use super::{Vec3, dot};
 
-fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {
+/// `v · (1 / sqrt(v·v))`: one `fsqrt`, one `fdiv`, three multiplies.
+pub(crate) fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {
     let length_squared = dot(b, v, v);
     let length = b.fsqrt(length_squared);
     let one = b.f32(1.0);

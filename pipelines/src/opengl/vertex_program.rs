@@ -29,6 +29,7 @@ use imagine_units::desc::MachineDesc;
 use super::kernels::finish;
 use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, Ty, Value};
 use crate::kernels::transform::{matrix_params, transform_point};
+use crate::kernels::vertex::normalize;
 use crate::kernels::{Vec3, dot};
 use crate::scene::model::{Material, Mesh, Object, Scene, Shader};
 
@@ -541,14 +542,6 @@ impl VertexProgram {
         }
         finish(b)
     }
-}
-
-fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {
-    let length_squared = dot(b, v, v);
-    let length = b.fsqrt(length_squared);
-    let one = b.f32(1.0);
-    let inverse = b.fdiv(one, length);
-    v.map(|c| b.fmul(c, inverse))
 }
 
 /// `x^n` by squaring (`x^0 = 1`, as OpenGL takes it).

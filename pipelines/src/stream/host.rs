@@ -468,22 +468,22 @@ impl StreamHost {
         Ok(())
     }
 
+    /// The two block-aligned halves of a staging stream.
+    fn halves(&self, staging: StreamBinding) -> [StreamBinding; 2] {
+        let block = self.desc.srf.block_words.max(1);
+        let half = (staging.words / 2) / block * block;
+        [0, 1].map(|i| StreamBinding {
+            start: staging.start + i * half,
+            words: half,
+        })
+    }
+
     /// Copies `words` into `to` from word `first` through the host interface: written into
     /// the SRF at `staging` (two halves, alternately, so that one is written while the
     /// other is stored) and stored to DRAM.
     pub fn upload(&mut self, words: &[u32], to: Buffer, first: u64, staging: StreamBinding) {
-        let block = self.desc.srf.block_words.max(1);
-        let half = (staging.words / 2) / block * block;
-        let halves = [
-            StreamBinding {
-                start: staging.start,
-                words: half,
-            },
-            StreamBinding {
-                start: staging.start + half,
-                words: half,
-            },
-        ];
+        let halves = self.halves(staging);
+        let half = halves[0].words;
         for (i, chunk) in words.chunks(half.max(1)).enumerate() {
             let buf = halves[i % 2];
             self.write(buf, chunk.to_vec());
@@ -507,18 +507,8 @@ impl StreamHost {
         words: usize,
         staging: StreamBinding,
     ) -> Result<Vec<u32>, HostError> {
-        let block = self.desc.srf.block_words.max(1);
-        let half = (staging.words / 2) / block * block;
-        let halves = [
-            StreamBinding {
-                start: staging.start,
-                words: half,
-            },
-            StreamBinding {
-                start: staging.start + half,
-                words: half,
-            },
-        ];
+        let halves = self.halves(staging);
+        let half = halves[0].words;
         let mut out = Vec::with_capacity(words);
         let mut pending: Option<(usize, StreamBinding)> = None;
         let mut done = 0;
