@@ -193,13 +193,14 @@ fn print_stats(f: &Frame, m: &Metrics) {
     );
     let sp = &s.specialisation;
     println!(
-        "pipeline           {} ({} words per vertex, interpolants {})",
+        "pipeline           {} ({} words per vertex, {} per fragment, interpolants {})",
         if sp.specialised {
             "specialised for the scene"
         } else {
             "general (--no-specialize)"
         },
         sp.words_per_vertex,
+        sp.words_per_fragment,
         sp.interpolants.join(" ")
     );
     println!("  kernels built    {}", sp.kernels_built.join(", "));
