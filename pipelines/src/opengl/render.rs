@@ -1123,6 +1123,13 @@ impl FrameRun<'_> {
         h.set_batch(Some(b));
         let (p, s, m) = (self.plan, self.s, self.m);
         let bt = self.input.batches[b].clone();
+        self.stats.batch_rows.push(BatchRow {
+            batch: b,
+            object: self.object(b).name.clone(),
+            triangles: bt.triangles,
+            vertices: bt.vertices,
+            ..BatchRow::default()
+        });
         let tris = self.batch;
         let set = b % 2;
         let corners = match bt.index_at {
@@ -1195,14 +1202,9 @@ impl FrameRun<'_> {
             RenderError,
         )?;
         self.stats.spills += splits;
-        self.stats.batch_rows.push(BatchRow {
-            batch: b,
-            object: self.object(b).name.clone(),
-            triangles: bt.triangles,
-            vertices: bt.vertices,
-            spills: splits,
-            ..BatchRow::default()
-        });
+        if let Some(row) = self.stats.batch_rows.last_mut() {
+            row.spills = splits;
+        }
         h.set_batch(None);
         Ok(())
     }
@@ -1272,6 +1274,9 @@ impl FrameRun<'_> {
         // of the nulls are not composited.
         let total = real.div_ceil(c) * c;
         self.stats.fragments += real as u64;
+        if let Some(row) = self.stats.batch_rows.last_mut() {
+            row.fragments += real as u64;
+        }
         let chunk = s.chunk;
         let chunks: Vec<(usize, usize)> = (0..total)
             .step_by(chunk)
@@ -1341,6 +1346,9 @@ impl FrameRun<'_> {
         let by_pixel = Layout::records(PIXEL_WORDS);
         loop {
             self.stats.composite_rounds += 1;
+            if let Some(row) = self.stats.batch_rows.last_mut() {
+                row.composite_rounds += 1;
+            }
             let view = |(id, first): (StreamId, usize), n: usize| p.slice(id, first, n);
             let [zs, cs, addr, ps] = current;
             let pixel = p.first(s.pixel, len);
