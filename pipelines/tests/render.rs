@@ -302,3 +302,17 @@ fn five_lights_are_shaded_in_two_passes_and_add_light() {
         }
     }
 }
+
+#[test]
+fn kernels_a_small_microcode_store_evicts_are_loaded_again() {
+    // 288 triangles in 5 batches: every batch calls `xyrast` (344 instructions on gold8)
+    // and the kernels after it, which do not fit beside it in 400 words.
+    let desc = MachineDesc::gold8();
+    let mut small = desc.clone();
+    small.microcontroller.store_words = 400;
+    let scene = grid(true);
+    let want = render(&scene, &desc, None, |_, _| {}).unwrap();
+    let got = render(&scene, &small, None, |_, _| {}).unwrap();
+    assert_eq!(got.pixels, want.pixels);
+    assert!(got.stats.cycles > want.stats.cycles, "reloads cost cycles");
+}
