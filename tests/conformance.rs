@@ -11,11 +11,7 @@
 //! `verif/tests/osmesa_scenes.rs` holds the reference to the same bounds against OSMesa).
 //!
 //! Measured: see the numbers each test prints (`cargo test --features osmesa --test
-//! conformance -- --nocapture`). The scenes with three and four lights are ignored for now:
-//! gold8 cannot compile `perbegin` for more than two lights (its LRF `mul0.a` overflows
-//! before the loop, where the compiler does not repair), nor the lit vertex program for four
-//! lights with the specular term (LRF `mul1.a` in the loop); with two of their lights both
-//! pass.
+//! conformance -- --nocapture`).
 #![cfg(feature = "osmesa")]
 
 use std::path::Path;
@@ -128,8 +124,6 @@ fn suzanne_two_lights() {
 /// The Utah teapot without normals, every triangle lit with its geometric normal by three
 /// coloured lights.
 #[test]
-#[ignore = "gold8 cannot compile `perbegin` for 3 or more lights (LRF mul0.a overflows \
-            before the loop); with two of the lights the scene passes"]
 fn teapot_geometric_normals() {
     check("teapot-geometric-normals.toml");
 }
@@ -137,9 +131,6 @@ fn teapot_geometric_normals() {
 /// Four objects, lit and unlit, with their own transforms (one non-uniformly scaled),
 /// interpenetrating under four lights; `LEQUAL`, back faces culled.
 #[test]
-#[ignore = "gold8 cannot compile `perbegin` for 3 or more lights, nor the lit vertex \
-            program for 4 lights with specular (LRF mul1.a overflows in the loop); with two \
-            of the lights the scene passes"]
 fn several_objects() {
     check("several-objects.toml");
 }
