@@ -865,7 +865,7 @@ pub fn render_with(
         (&pp.programs, pp.batch, &pp.plan, &pp.streams, pp.shape);
     let (phase_plan, ps) = plan_phases(desc)?;
     let mut lib = KernelLibrary::new(desc, options.cache.clone());
-    let k = register_kernels(&mut lib, desc, shape, &programs, &options)
+    let k = register_kernels(&mut lib, desc, shape, programs, &options)
         .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
     // Compile what every frame reaches now, on the host's cores; the merge stage when a
     // round first needs it (or now, for the general pipeline).
@@ -898,7 +898,7 @@ pub fn render_with(
     lib.compile_now(&eager)
         .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))?;
 
-    let input = inputs(scene, &programs, batch, clusters);
+    let input = inputs(scene, programs, batch, clusters);
     let pixels = (scene.width * scene.height) as usize + 1;
     let mut dram = DramMap::new(desc);
     let fb_pixels = pixels.div_ceil(clusters) * clusters;
@@ -979,8 +979,8 @@ pub fn render_with(
     // The frame.
     let mut frame = FrameRun {
         k: &k,
-        plan: &plan,
-        s: &s,
+        plan,
+        s,
         m: &m,
         input: &input,
         scene,
@@ -989,7 +989,7 @@ pub fn render_with(
         batch,
         last_cycles: cleared,
         max_fragment_words: 0,
-        programs: &programs,
+        programs,
     };
     let batches = input.batches.len();
     let mut run = (&mut host, &mut frame);

@@ -395,8 +395,9 @@ impl VertexProgram {
             VertexProgram::Lit { lights, .. } => *lights,
             VertexProgram::Unlit { .. } => 0,
         };
-        let mut ranges = vec![0..first.min(lights)];
-        let mut at = ranges[0].end;
+        let mut at = first.min(lights);
+        let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
+        ranges.push(0..at);
         while at < lights {
             ranges.push(at..(at + per_pass).min(lights));
             at += per_pass;

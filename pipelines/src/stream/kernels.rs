@@ -162,26 +162,26 @@ fn compile_in_parallel(
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(kernels.len());
-    let mut done: Vec<(usize, (Result<Compiled, CompileError>, Outcome))> =
-        std::thread::scope(|scope| {
-            let workers: Vec<_> = (0..threads)
-                .map(|_| {
-                    scope.spawn(|| {
-                        let mut mine = Vec::new();
-                        loop {
-                            let i = next.fetch_add(1, Ordering::Relaxed);
-                            let Some(k) = kernels.get(i) else { break };
-                            mine.push((i, cache.compile_with_outcome(k, desc)));
-                        }
-                        mine
-                    })
+    type Done = (usize, (Result<Compiled, CompileError>, Outcome));
+    let mut done: Vec<Done> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some(k) = kernels.get(i) else { break };
+                        mine.push((i, cache.compile_with_outcome(k, desc)));
+                    }
+                    mine
                 })
-                .collect();
-            workers
-                .into_iter()
-                .flat_map(|w| w.join().expect("a compiler thread panicked"))
-                .collect()
-        });
+            })
+            .collect();
+        workers
+            .into_iter()
+            .flat_map(|w| w.join().expect("a compiler thread panicked"))
+            .collect()
+    });
     done.sort_by_key(|&(i, _)| i);
     done.into_iter().map(|(_, r)| r).collect()
 }
