@@ -448,8 +448,8 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
             let out = imagine_pipelines::kernel::interpret(&k, &inputs, &desc).unwrap();
             assert_eq!(
                 out[1].len(),
-                vp.param_count(&desc) * c,
-                "{name}: one row per parameter"
+                vp.perbegin_rows(&desc) * c,
+                "{name}: one row per parameter it computes (perlight writes the rest)"
             );
             let cam = sphere.camera;
             let mvp = mat_mul(&cam.projection, &mat_mul(&cam.view, &random_matrix));
