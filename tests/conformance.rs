@@ -11,9 +11,7 @@
 //! `verif/tests/osmesa_scenes.rs` holds the reference to the same bounds against OSMesa).
 //!
 //! Measured: see the numbers each test prints (`cargo test --features osmesa --test
-//! conformance -- --nocapture`). The scene with four lights is ignored for now: gold8
-//! cannot compile the lit vertex program for four lights with the specular term in one
-//! kernel (LRF `mul1.a` overflows in the loop); with two of its lights it passes.
+//! conformance -- --nocapture`).
 #![cfg(feature = "osmesa")]
 
 use std::path::Path;
@@ -133,8 +131,6 @@ fn teapot_geometric_normals() {
 /// Four objects, lit and unlit, with their own transforms (one non-uniformly scaled),
 /// interpenetrating under four lights; `LEQUAL`, back faces culled.
 #[test]
-#[ignore = "gold8 cannot compile the lit vertex program for 4 lights with specular in one \
-            kernel (LRF mul1.a overflows in the loop); with two of the lights the scene passes"]
 fn several_objects() {
     check("several-objects.toml");
 }

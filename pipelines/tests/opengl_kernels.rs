@@ -28,10 +28,20 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             specular: true,
             shininess: 16,
         };
+        // The most lights a scene has: the first kernel's three, then a pass of five.
+        let lit8 = VertexProgram::Lit {
+            lights: 8,
+            specular: true,
+            shininess: 16,
+        };
+        let lit8_passes = lit8.passes(&desc);
+        assert_eq!(lit8_passes.len(), 1);
         for k in [
             lit.perbegin(&desc),
             lit.perlight(&desc).unwrap(),
             lit.build(&desc),
+            lit8.build(&desc),
+            lit8_passes[0].clone(),
             VertexProgram::Unlit {
                 per_vertex_colour: true,
             }
@@ -439,7 +449,7 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
             assert_eq!(
                 out[1].len(),
                 vp.perbegin_rows(&desc) * c,
-                "{name}: one row per parameter"
+                "{name}: one row per parameter it computes (perlight writes the rest)"
             );
             let cam = sphere.camera;
             let mvp = mat_mul(&cam.projection, &mat_mul(&cam.view, &random_matrix));

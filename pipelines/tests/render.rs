@@ -264,3 +264,101 @@ fn the_general_pipeline_lights_a_lit_scene_to_the_same_bits() {
     assert_eq!(general.stats.specialisation.words_per_vertex, 9);
     assert_eq!(special.stats.specialisation.words_per_vertex, 6);
 }
+
+#[test]
+fn five_lights_are_shaded_in_two_passes_and_add_light() {
+    use imagine_pipelines::scene::model::Light;
+    let desc = MachineDesc::gold8();
+    let mut three = scene::load(
+        "SPHERE",
+        &LoadOptions {
+            size: Some(24),
+            subdivisions: Some(1),
+        },
+    )
+    .unwrap();
+    assert_eq!(three.lights.len(), 3);
+    // A small matte sphere in front: its program has no specular term, so its records
+    // between passes are shorter than the big sphere's.
+    let mut matte = three.materials[0].clone();
+    matte.name = "matte".into();
+    matte.specular = [0.0; 3];
+    three.materials.push(matte);
+    let mut small = three.objects[0].clone();
+    small.name = "small".into();
+    small.material = 1;
+    #[rustfmt::skip]
+    let model = [
+        0.3, 0.0, 0.0, 0.6,
+        0.0, 0.3, 0.0, 0.6,
+        0.0, 0.0, 0.3, 1.0,
+        0.0, 0.0, 0.0, 1.0,
+    ];
+    small.model = model;
+    three.objects.push(small);
+    let mut five = three.clone();
+    five.lights.push(Light {
+        position: [6.0, -2.0, 2.0],
+        ambient: [0.0; 3],
+        diffuse: [0.3, 0.6, 0.3],
+        specular: [0.3, 0.6, 0.3],
+    });
+    five.lights.push(Light {
+        position: [-3.0, 5.0, 5.0],
+        ambient: [0.0; 3],
+        diffuse: [0.4, 0.2, 0.4],
+        specular: [0.4, 0.2, 0.4],
+    });
+    let before = render_with(&three, &desc, cached(), None, |_, _| {}).unwrap();
+    let after = render_with(&five, &desc, cached(), None, |_, _| {}).unwrap();
+    let built = &after.stats.specialisation.kernels_built;
+    for k in [
+        "vertex_lit5_s16",
+        "vertex_lit5_s16:pass1",
+        "vertex_lit5_diffuse",
+        "vertex_lit5_diffuse:pass1",
+    ] {
+        assert!(built.iter().any(|b| b == k), "{k} not in {built:?}");
+    }
+    assert!(
+        !before
+            .stats
+            .specialisation
+            .kernels_built
+            .iter()
+            .any(|k| k.contains(":pass")),
+        "three lights take one kernel"
+    );
+    assert_ne!(before.pixels, after.pixels);
+    let brightness = |f: &imagine_pipelines::opengl::render::Frame| -> u64 {
+        f.pixels
+            .iter()
+            .map(|&p| (0..3).map(|i| u64::from(p >> (8 * i) & 0xFF)).sum::<u64>())
+            .sum()
+    };
+    assert!(
+        brightness(&after) > brightness(&before),
+        "two more lights brighten the sphere"
+    );
+    // Every channel of every pixel: the same geometry, only more light.
+    for (i, (&a, &b)) in after.pixels.iter().zip(&before.pixels).enumerate() {
+        for ch in 0..3 {
+            let (a, b) = (a >> (8 * ch) & 0xFF, b >> (8 * ch) & 0xFF);
+            assert!(a >= b, "pixel {i} channel {ch}: {a} < {b}");
+        }
+    }
+}
+
+#[test]
+fn kernels_a_small_microcode_store_evicts_are_loaded_again() {
+    // 288 triangles in 5 batches: every batch calls `xyrast` (344 instructions on gold8)
+    // and the kernels after it, which do not fit beside it in 400 words.
+    let desc = MachineDesc::gold8();
+    let mut small = desc.clone();
+    small.microcontroller.store_words = 400;
+    let scene = grid(true);
+    let want = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
+    let got = render_with(&scene, &small, cached(), None, |_, _| {}).unwrap();
+    assert_eq!(got.pixels, want.pixels);
+    assert!(got.stats.cycles > want.stats.cycles, "reloads cost cycles");
+}

@@ -32,12 +32,13 @@
 //!
 //! **Specialisation.** Only what the scene needs is built: a vertex program per material
 //! (unlit with or without per-vertex colours; lit for the scene's light count, with the
-//! specular term only when there is one, and its exponent unrolled), `viewport_cull` for
-//! the scene's cull mode, `zcompare` for its depth test; `sort32` and `mergefrag` are
-//! compiled only if a round needs them (and never for depth tests other than LESS, whose
-//! minimum they implement). `--no-specialize` builds the general pipeline instead: every
-//! vertex carries position, normal or colour, specular lighting always, and every kernel
-//! compiled up front.
+//! specular term only when there is one, and its exponent unrolled; beyond the lights one
+//! kernel holds, light passes after it, deferred with it, that hand partial records on in
+//! the SRF), `viewport_cull` for the scene's cull mode, `zcompare` for its depth test;
+//! `sort32` and `mergefrag` are compiled only if a round needs them (and never for depth
+//! tests other than LESS, whose minimum they implement). `--no-specialize` builds the
+//! general pipeline instead: every vertex carries position, normal or colour, specular
+//! lighting always, and every kernel compiled up front.
 
 use std::time::Instant;
 
@@ -174,6 +175,9 @@ struct Streams {
     vertices: StreamId,
     corner_index: [StreamId; 2],
     shaded: [StreamId; 2],
+    /// The records a lit program's kernels hand on to its next light pass: none, or one
+    /// buffer, or two that alternate between passes.
+    partial: Vec<StreamId>,
     corners: StreamId,
     clipped: StreamId,
     attribs: StreamId,
@@ -207,6 +211,10 @@ struct Sizes {
     vertex_words: usize,
     /// `perlight`'s input: 12 words per light, in every cluster.
     light_words: usize,
+    /// Words of the largest record lit programs hand on between light passes, and the
+    /// most passes a program has after its first kernel.
+    partial_words: usize,
+    passes: usize,
 }
 
 /// Words of `perlight`'s parameters (see [`VertexProgram::perlight_params`]).
@@ -240,6 +248,13 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         vertices: p.stream("vertices", Layout::records(s.vertex_words), 3 * b, always),
         corner_index: p.buffers("corner_index", words, 3 * b, always),
         shaded: p.buffers("shaded", Layout::records(SHADED_WORDS), 3 * b, always),
+        // Written and read by the deferred vertex work of one batch, which runs in order.
+        partial: (0..s.passes.min(2))
+            .map(|i| {
+                let name = format!("partial[{i}]");
+                p.stream(&name, Layout::records(s.partial_words), 3 * b, always)
+            })
+            .collect(),
         corners: p.stream(
             "corners",
             Layout::records(SHADED_WORDS),
@@ -377,7 +392,7 @@ fn plan_phases(desc: &MachineDesc) -> Result<(SrfPlan, PhaseStreams), PlanError>
 
 /// The kernels a frame may call.
 struct Kernels {
-    /// Per object: its `perbegin`, `perlight` (lit programs) and vertex program.
+    /// Per object: its `perbegin`, `perlight` (lit programs), vertex program and light passes.
     per_object: Vec<ObjectKernels>,
     assemble_clip: KernelId,
     viewport_cull: KernelId,
@@ -406,7 +421,7 @@ fn register_kernels(
         .iter()
         .map(|vp| {
             if let Some((_, ids)) = per_program.iter().find(|(p, _)| p == vp) {
-                return *ids;
+                return ids.clone();
             }
             let name = vp.name();
             let ids = ObjectKernels {
@@ -415,8 +430,14 @@ fn register_kernels(
                     .perlight(desc)
                     .map(|k| lib.register(&format!("perlight:{name}"), k)),
                 vertex: lib.register(&name, vp.build(desc)),
+                passes: vp
+                    .pass_names()
+                    .iter()
+                    .zip(vp.passes(desc))
+                    .map(|(n, k)| lib.register(n, k))
+                    .collect(),
             };
-            per_program.push((vp.clone(), ids));
+            per_program.push((vp.clone(), ids.clone()));
             ids
         })
         .collect();
@@ -464,11 +485,13 @@ fn register_kernels(
     })
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 struct ObjectKernels {
     perbegin: KernelId,
     perlight: Option<KernelId>,
     vertex: KernelId,
+    /// The light passes after `vertex` (lit programs with more lights than it holds).
+    passes: Vec<KernelId>,
 }
 
 /// One batch's work: triangles of one object.
@@ -630,6 +653,7 @@ impl PipelinePlan {
                 these.push(format!("perlight:{}", p.name()));
             }
             these.push(p.name());
+            these.extend(p.pass_names());
             for n in these {
                 if !names.contains(&n) {
                     names.push(n);
@@ -791,12 +815,17 @@ pub fn plan_pipeline(
             .filter_map(|p| p.lighting().map(|(lights, _)| lights))
             .max()
             .unwrap_or(0);
+    let split = programs.iter().filter(|p| !p.pass_names().is_empty());
+    let partial_words = split.clone().map(VertexProgram::partial_words).max();
+    let passes = split.map(|p| p.pass_names().len()).max().unwrap_or(0);
     let sizes_for = |batch| Sizes {
         batch,
         state_words,
         params,
         vertex_words,
         light_words,
+        partial_words: partial_words.unwrap_or(1),
+        passes,
     };
     let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
     let shape = FrameShape {
@@ -853,8 +882,12 @@ pub fn render_with(
     let mut eager: Vec<KernelId> = k
         .per_object
         .iter()
-        .flat_map(|o| [Some(o.perbegin), o.perlight, Some(o.vertex)])
-        .flatten()
+        .flat_map(|o| {
+            [Some(o.perbegin), o.perlight, Some(o.vertex)]
+                .into_iter()
+                .flatten()
+                .chain(o.passes.iter().copied())
+        })
         .collect();
     eager.extend([
         k.clear,
@@ -1059,7 +1092,7 @@ impl FrameRun<'_> {
     }
 
     /// Queues batch `b`'s loads, and defers its `perbegin` (first batch of an object) and
-    /// vertex program to where the host next waits.
+    /// vertex program (with its light passes) to where the host next waits.
     fn prefetch(&mut self, h: &mut StreamHost, b: usize) -> Result<(), RenderError> {
         // Work deferred for the previous batch goes first: it reads the streams these
         // loads overwrite.
@@ -1068,7 +1101,8 @@ impl FrameRun<'_> {
         let (p, s, m) = (self.plan, self.s, self.m);
         let bt = self.input.batches[b].clone();
         let vp = &self.programs[bt.object];
-        let ok = self.k.per_object[bt.object];
+        let k = self.k;
+        let ok = &k.per_object[bt.object];
         let c = h.clusters();
         let params = p.words(s.vertex_params, vp.param_count(h.desc()) * c);
         let vertices = p.words(s.vertices, bt.vertices * vp.record_words());
@@ -1104,14 +1138,36 @@ impl FrameRun<'_> {
             let ci = p.first(s.corner_index[b % 2], 3 * self.batch);
             h.load(m.indices, at, Layout::words(), 3 * self.batch, ci);
         }
-        h.defer(
-            ok.vertex,
-            &[
-                ("vertices", vertices),
-                ("shaded", p.first(s.shaded[b % 2], bt.vertices)),
-                (PARAMS, params),
-            ],
-        );
+        let shaded = p.first(s.shaded[b % 2], bt.vertices);
+        if ok.passes.is_empty() {
+            h.defer(
+                ok.vertex,
+                &[("vertices", vertices), ("shaded", shaded), (PARAMS, params)],
+            );
+        } else {
+            // The first lights, then the rest in passes, each reading the record the one
+            // before wrote; the last writes the shaded vertices.
+            // This program's records, which may be shorter than the stream's (declared
+            // for the scene's longest).
+            let words = bt.vertices * vp.partial_words();
+            let partial = |i: usize| p.words(s.partial[i % s.partial.len()], words);
+            h.defer(
+                ok.vertex,
+                &[
+                    ("vertices", vertices),
+                    ("partial", partial(0)),
+                    (PARAMS, params),
+                ],
+            );
+            for (i, &pass) in ok.passes.iter().enumerate() {
+                let out = if i + 1 == ok.passes.len() {
+                    ("shaded", shaded)
+                } else {
+                    ("partial_out", partial(i + 1))
+                };
+                h.defer(pass, &[("partial", partial(i)), out, (PARAMS, params)]);
+            }
+        }
         h.set_batch(None);
         Ok(())
     }

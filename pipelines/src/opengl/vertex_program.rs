@@ -17,12 +17,21 @@
 //! attenuation or spotlights, colour clamped to [0, 1]): `p_e = MV·p`,
 //! `n = normalize(N·n_obj)`, `E = normalize(−p_e)`, and per light `L = normalize(l_e − p_e)`,
 //! `c += max(n·L, 0)·(d_l·d_m) + (n·L > 0 ? max(n·H, 0)^s : 0)·(s_l·s_m)` with
-//! `H = normalize(L + E)`. The program is built for its material: one pass per light, the
+//! `H = normalize(L + E)`. The program is built for its material: the lights unrolled, the
 //! specular term only when the material and a light have one, and the exponent `s` (an
 //! integer 0..=128) as squarings and multiplies. Every `normalize(v)` is
 //! `v · (1 / sqrt(v·v))` (one `fsqrt`, one `fdiv`), dot products sum left to right.
 //!
-//! Output records: clip x, y, z, w, then r, g, b — what `assemble_clip` reads.
+//! **Light passes.** One kernel holds the loop values of only a few lights (see [`SPLIT`]):
+//! the first kernel transforms the vertex and adds the first lights; with more lights it
+//! writes a partial record (clip x, y, z, w; the colour so far r, g, b; `p_e`; `n`; and `E`
+//! with the specular term) and `…:pass1`, … each add the next lights to it. Every kernel
+//! reads the whole parameter stream (parameters a kernel does not use are read and
+//! dropped). The colour sums in the one-kernel order — base, then light 0, 1, … — so the
+//! passes compute the very words one kernel would.
+//!
+//! Output records (of the last kernel): clip x, y, z, w, then r, g, b — what
+//! `assemble_clip` reads.
 
 use imagine_units::desc::MachineDesc;
 
@@ -163,6 +172,16 @@ impl VertexProgram {
         }
     }
 
+    /// The exponent of the specular term.
+    fn shininess(&self) -> u32 {
+        match self {
+            VertexProgram::Lit { shininess, .. } | VertexProgram::General { shininess, .. } => {
+                *shininess
+            }
+            VertexProgram::Unlit { .. } => 0,
+        }
+    }
+
     /// Words of a vertex record in memory.
     pub fn record_words(&self) -> usize {
         match self {
@@ -280,7 +299,7 @@ impl VertexProgram {
             .map(|j| b.comm(rows[j / c], Perm::Broadcast((j % c) as u16)))
             .collect();
         let (view, model, projection) = (&state[..16], &state[16..32], &state[32..48]);
-        let rows_general: Vec<Value> = state[48..].to_vec();
+        let passed_through: Vec<Value> = state[48..].to_vec();
         let modelview = mat_mul(&mut b, view, model);
         let mvp = mat_mul(&mut b, projection, &modelview);
         for &v in &mvp {
@@ -305,8 +324,8 @@ impl VertexProgram {
                     b.write(params_out, v);
                 }
                 if let VertexProgram::General { .. } = self {
-                    // The lit flag, passed through.
-                    b.write(params_out, rows_general[0]);
+                    // The lit switch, passed through.
+                    b.write(params_out, passed_through[0]);
                 }
                 let zero = b.word(0);
                 for _ in self.perbegin_param_count()..self.perbegin_rows(desc) {
@@ -420,128 +439,317 @@ impl VertexProgram {
         }
     }
 
-    /// The vertex program.
+    /// The vertex program (for a lit program with more lights than one kernel holds, its
+    /// first kernel: [`VertexProgram::passes`] follow it).
     pub fn build(&self, desc: &MachineDesc) -> Kernel {
+        self.kernels_with(desc, SPLIT).swap_remove(0)
+    }
+
+    /// The light passes that follow [`VertexProgram::build`]'s kernel, in order (none for
+    /// unlit programs and for lit ones the first kernel lights alone, see [`SPLIT`]).
+    pub fn passes(&self, desc: &MachineDesc) -> Vec<Kernel> {
+        let mut k = self.kernels_with(desc, SPLIT);
+        k.remove(0);
+        k
+    }
+
+    /// The names [`VertexProgram::passes`] are registered under.
+    pub fn pass_names(&self) -> Vec<String> {
+        (1..self.light_ranges(SPLIT).len())
+            .map(|i| self.pass_name(i))
+            .collect()
+    }
+
+    fn pass_name(&self, i: usize) -> String {
+        format!("{}:pass{i}", self.name())
+    }
+
+    /// Words of the record a lit program's kernel hands the next pass: clip x, y, z, w,
+    /// the colour so far r, g, b, the eye-space position, the unit normal and (with the
+    /// specular term) the unit vector to the eye. 0 for unlit programs.
+    pub fn partial_words(&self) -> usize {
+        match self {
+            VertexProgram::Lit { specular, .. } => 13 + 3 * usize::from(*specular),
+            // The vertex colour travels too, for the last kernel's choice.
+            VertexProgram::General { .. } => 13 + 3 + 3,
+            VertexProgram::Unlit { .. } => 0,
+        }
+    }
+
+    /// The lights each kernel of the program adds, `split.0` in the first kernel and
+    /// `split.1` in each pass: one range (maybe empty) per kernel.
+    fn light_ranges(&self, split: (usize, usize)) -> Vec<std::ops::Range<usize>> {
+        let (first, per_pass) = (split.0.max(1), split.1.max(1));
+        let lights = self.lighting().map_or(0, |(lights, _)| lights);
+        let mut at = first.min(lights);
+        let mut ranges: Vec<std::ops::Range<usize>> = Vec::new();
+        ranges.push(0..at);
+        while at < lights {
+            ranges.push(at..(at + per_pass).min(lights));
+            at += per_pass;
+        }
+        ranges
+    }
+
+    /// The program's kernels, the lights split as `split` (see
+    /// [`VertexProgram::light_ranges`]): the first transforms the
+    /// vertex and adds the first lights; each pass adds the next ones to the colour so far
+    /// (the order of the sums is the one-kernel order: base, then light 0, 1, …); the last
+    /// kernel clamps the colour and writes the shaded record. Every kernel declares the
+    /// same parameters (the whole parameter stream) and reads them all.
+    fn kernels_with(&self, desc: &MachineDesc, split: (usize, usize)) -> Vec<Kernel> {
+        let Some((_, specular)) = self.lighting() else {
+            return vec![self.build_unlit()];
+        };
+        let shininess = self.shininess();
+        let general = matches!(self, VertexProgram::General { .. });
+        let ranges = self.light_ranges(split);
+        let count = ranges.len();
+        ranges
+            .into_iter()
+            .enumerate()
+            .map(|(i, lights)| {
+                // Kernel names are identifiers: the pass is registered as `…:pass{i}`.
+                let name = if i == 0 {
+                    self.name()
+                } else {
+                    self.pass_name(i).replace(':', "_")
+                };
+                let mut b = KernelBuilder::new(&name);
+                let input = b.input(if i == 0 { "vertices" } else { "partial" });
+                let last = i + 1 == count;
+                let output = b.output(match (last, i) {
+                    (true, _) => "shaded",
+                    (false, 0) => "partial",
+                    (false, _) => "partial_out",
+                });
+                let p = self.lit_params(&mut b, desc);
+                let (zero, one) = (b.f32(0.0), b.f32(1.0));
+                b.begin_loop(LoopSpec::OverStream(input));
+                let mut v = if i == 0 {
+                    let position: Vec3 = std::array::from_fn(|_| b.read_f32(input));
+                    let normal: Vec3 = std::array::from_fn(|_| b.read_f32(input));
+                    let vertex_colour: Option<Vec3> =
+                        general.then(|| std::array::from_fn(|_| b.read_f32(input)));
+                    let mut v = transform_vertex(&mut b, &p, position, normal, specular, zero);
+                    v.vertex_colour = vertex_colour;
+                    v
+                } else {
+                    let mut w = || b.read_f32(input);
+                    let clip = std::array::from_fn(|_| w());
+                    let colour = std::array::from_fn(|_| w());
+                    let eye_pos = std::array::from_fn(|_| w());
+                    let unit_n = std::array::from_fn(|_| w());
+                    let e = specular.then(|| std::array::from_fn(|_| w()));
+                    let vertex_colour = general.then(|| std::array::from_fn(|_| w()));
+                    LitVertex {
+                        clip,
+                        colour,
+                        eye_pos,
+                        unit_n,
+                        e,
+                        vertex_colour,
+                    }
+                };
+                for l in lights {
+                    v.colour = add_light(&mut b, &v, p.lights[l], shininess, zero, one);
+                }
+                for c in v.clip {
+                    b.write(output, c);
+                }
+                if last {
+                    // The general program chooses the lit colour or the vertex colour.
+                    let lit = p.switch.map(|flag| {
+                        let zero_i = b.i32(0);
+                        b.ine(flag, zero_i)
+                    });
+                    for (ch, c) in v.colour.into_iter().enumerate() {
+                        let above_zero = b.fmax(c, zero);
+                        let clamped = b.fmin(above_zero, one);
+                        let out = match (lit, v.vertex_colour) {
+                            (Some(lit), Some(vc)) => b.select(lit, clamped, vc[ch]),
+                            _ => clamped,
+                        };
+                        b.write(output, out);
+                    }
+                } else {
+                    let rest = v.colour.into_iter().chain(v.eye_pos).chain(v.unit_n);
+                    let rest = rest.chain(v.e.into_iter().flatten());
+                    for c in rest.chain(v.vertex_colour.into_iter().flatten()) {
+                        b.write(output, c);
+                    }
+                }
+                b.end_loop();
+                finish(b)
+            })
+            .collect()
+    }
+
+    /// A lit program's parameters, declared in stream order.
+    fn lit_params(&self, b: &mut KernelBuilder, desc: &MachineDesc) -> LitParams {
+        let (lights, specular) = self.lighting().expect("lit programs only");
+        let mvp = matrix_params(b, "mvp");
+        let mv: Vec<Value> = (0..12).map(|i| b.param_f32(&format!("mv{i}"))).collect();
+        let normal: Vec<Value> = (0..9).map(|i| b.param_f32(&format!("normal{i}"))).collect();
+        // The general program's switch between the lit and the vertex colour.
+        let switch = matches!(self, VertexProgram::General { .. }).then(|| b.param("lit", Ty::I32));
+        for i in self.perbegin_param_count()..self.perbegin_rows(desc) {
+            b.param_f32(&format!("pad{i}"));
+        }
+        let rgb = |b: &mut KernelBuilder, p: &str| {
+            ["r", "g", "b"].map(|c| b.param_f32(&format!("{p}_{c}")))
+        };
+        let lights = (0..lights)
+            .map(|l| {
+                let pos = ["x", "y", "z"].map(|c| b.param_f32(&format!("light{l}_{c}")));
+                let d = rgb(b, &format!("light{l}_diffuse"));
+                let s = specular.then(|| rgb(b, &format!("light{l}_specular")));
+                (pos, d, s)
+            })
+            .collect();
+        let base = rgb(b, "base");
+        LitParams {
+            mvp,
+            mv,
+            normal,
+            switch,
+            lights,
+            base,
+        }
+    }
+
+    fn build_unlit(&self) -> Kernel {
+        let VertexProgram::Unlit { per_vertex_colour } = *self else {
+            unreachable!("unlit programs only");
+        };
         let mut b = KernelBuilder::new(&self.name());
         let vertices = b.input("vertices");
         let shaded = b.output("shaded");
         let mvp = matrix_params(&mut b, "mvp");
-        match self {
-            VertexProgram::Unlit { per_vertex_colour } => {
-                let flat: Option<Vec3> = (!per_vertex_colour)
-                    .then(|| ["r", "g", "b"].map(|c| b.param_f32(&format!("colour_{c}"))));
-                b.begin_loop(LoopSpec::OverStream(vertices));
-                let position: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
-                let colour: Vec3 = match flat {
-                    Some(c) => c,
-                    None => std::array::from_fn(|_| b.read_f32(vertices)),
-                };
-                let clip = transform_point(&mut b, &mvp, position, None);
-                for v in clip.into_iter().chain(colour) {
-                    b.write(shaded, v);
-                }
-                b.end_loop();
-            }
-            VertexProgram::Lit { .. } | VertexProgram::General { .. } => {
-                let (lights, specular) = self.lighting().expect("lit");
-                let shininess = match self {
-                    VertexProgram::Lit { shininess, .. }
-                    | VertexProgram::General { shininess, .. } => *shininess,
-                    VertexProgram::Unlit { .. } => 0,
-                };
-                let (lights, specular) = (&lights, &specular);
-                let general = matches!(self, VertexProgram::General { .. });
-                let mv: Vec<Value> = (0..12).map(|i| b.param_f32(&format!("mv{i}"))).collect();
-                let n: Vec<Value> = (0..9).map(|i| b.param_f32(&format!("normal{i}"))).collect();
-                // The general program's switch between lit and vertex colours.
-                let switch = general.then(|| b.param("lit", Ty::I32));
-                for i in self.perbegin_param_count()..self.perbegin_rows(desc) {
-                    b.param_f32(&format!("pad{i}"));
-                }
-                let rgb = |b: &mut KernelBuilder, p: &str| {
-                    ["r", "g", "b"].map(|c| b.param_f32(&format!("{p}_{c}")))
-                };
-                let light_params: Vec<(Vec3, Vec3, Option<Vec3>)> = (0..*lights)
-                    .map(|l| {
-                        let pos = ["x", "y", "z"].map(|c| b.param_f32(&format!("light{l}_{c}")));
-                        let d = rgb(&mut b, &format!("light{l}_diffuse"));
-                        let s = specular.then(|| rgb(&mut b, &format!("light{l}_specular")));
-                        (pos, d, s)
-                    })
-                    .collect();
-                let base = rgb(&mut b, "base");
-                let (zero, one) = (b.f32(0.0), b.f32(1.0));
-                b.begin_loop(LoopSpec::OverStream(vertices));
-                let position: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
-                let normal: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
-                let vertex_colour: Option<Vec3> =
-                    general.then(|| std::array::from_fn(|_| b.read_f32(vertices)));
-                let clip = transform_point(&mut b, &mvp, position, None);
-                let eye_pos: Vec3 = {
-                    let mut m16 = [zero; 16];
-                    m16[..12].copy_from_slice(&mv);
-                    let p = transform_point(&mut b, &m16, position, None);
-                    [p[0], p[1], p[2]]
-                };
-                let n_eye: Vec3 = std::array::from_fn(|row| {
-                    let r = &n[3 * row..3 * row + 3];
-                    let x = b.fmul(r[0], normal[0]);
-                    let y = b.fmul(r[1], normal[1]);
-                    let s = b.fadd(x, y);
-                    let z = b.fmul(r[2], normal[2]);
-                    b.fadd(s, z)
-                });
-                let unit_n = normalize(&mut b, n_eye);
-                let to_eye = eye_pos.map(|c| b.fneg(c));
-                let e = specular.then(|| normalize(&mut b, to_eye));
-                let mut colour = base;
-                for &(light_pos, dd, ss) in &light_params {
-                    let to_light: Vec3 = std::array::from_fn(|i| b.fsub(light_pos[i], eye_pos[i]));
-                    let l = normalize(&mut b, to_light);
-                    let n_dot_l = dot(&mut b, unit_n, l);
-                    let diffuse = b.fmax(n_dot_l, zero);
-                    let spec = match (e, ss) {
-                        (Some(e), Some(_)) => {
-                            let half: Vec3 = std::array::from_fn(|i| b.fadd(l[i], e[i]));
-                            let h = normalize(&mut b, half);
-                            let n_dot_h = dot(&mut b, unit_n, h);
-                            let x = b.fmax(n_dot_h, zero);
-                            let p = power(&mut b, x, shininess, one);
-                            let lit = b.flt(zero, n_dot_l);
-                            Some(b.select(lit, p, zero))
-                        }
-                        _ => None,
-                    };
-                    for ch in 0..3 {
-                        let d = b.fmul(diffuse, dd[ch]);
-                        colour[ch] = b.fadd(colour[ch], d);
-                        if let (Some(spec), Some(ss)) = (spec, ss) {
-                            let s = b.fmul(spec, ss[ch]);
-                            colour[ch] = b.fadd(colour[ch], s);
-                        }
-                    }
-                }
-                for v in clip {
-                    b.write(shaded, v);
-                }
-                let lit = switch.map(|flag| {
-                    let zero_i = b.i32(0);
-                    b.ine(flag, zero_i)
-                });
-                for (ch, c) in colour.into_iter().enumerate() {
-                    let above_zero = b.fmax(c, zero);
-                    let clamped = b.fmin(above_zero, one);
-                    let out = match (lit, vertex_colour) {
-                        (Some(lit), Some(v)) => b.select(lit, clamped, v[ch]),
-                        _ => clamped,
-                    };
-                    b.write(shaded, out);
-                }
-                b.end_loop();
-            }
+        let flat: Option<Vec3> = (!per_vertex_colour)
+            .then(|| ["r", "g", "b"].map(|c| b.param_f32(&format!("colour_{c}"))));
+        b.begin_loop(LoopSpec::OverStream(vertices));
+        let position: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
+        let colour: Vec3 = match flat {
+            Some(c) => c,
+            None => std::array::from_fn(|_| b.read_f32(vertices)),
+        };
+        let clip = transform_point(&mut b, &mvp, position, None);
+        for v in clip.into_iter().chain(colour) {
+            b.write(shaded, v);
         }
+        b.end_loop();
         finish(b)
     }
+}
+
+/// Lights the first kernel of a lit program adds, and each pass after it. The first kernel
+/// holds the matrices too: with 4 lights and the specular term its loop's values overflow
+/// gold8's LRFs. A pass holds 5 (the divide/sqrt unit's bound, 32 cycles a specular light,
+/// 16 a diffuse one, on gold1, gold8 and gold32), so that 8 lights take two kernels.
+pub const SPLIT: (usize, usize) = (3, 5);
+
+/// A light's parameters: eye-space position, `d_l·d_m` and (with the specular term)
+/// `s_l·s_m`.
+type LightParams = (Vec3, Vec3, Option<Vec3>);
+
+/// A lit program's parameters.
+struct LitParams {
+    mvp: [Value; 16],
+    mv: Vec<Value>,
+    normal: Vec<Value>,
+    /// The general program's lit switch.
+    switch: Option<Value>,
+    lights: Vec<LightParams>,
+    base: Vec3,
+}
+
+/// A vertex being lit: what every light reads, and the colour so far.
+struct LitVertex {
+    clip: [Value; 4],
+    colour: Vec3,
+    eye_pos: Vec3,
+    unit_n: Vec3,
+    /// The unit vector to the eye (with the specular term).
+    e: Option<Vec3>,
+    /// The general program's vertex colour.
+    vertex_colour: Option<Vec3>,
+}
+
+/// The clip position, eye-space position, unit normal and (`specular`) unit vector to the
+/// eye of a vertex, its colour the base colour.
+fn transform_vertex(
+    b: &mut KernelBuilder,
+    p: &LitParams,
+    position: Vec3,
+    normal: Vec3,
+    specular: bool,
+    zero: Value,
+) -> LitVertex {
+    let clip = transform_point(b, &p.mvp, position, None);
+    let eye_pos: Vec3 = {
+        let mut m16 = [zero; 16];
+        m16[..12].copy_from_slice(&p.mv);
+        let e = transform_point(b, &m16, position, None);
+        [e[0], e[1], e[2]]
+    };
+    let n_eye: Vec3 = std::array::from_fn(|row| {
+        let r = &p.normal[3 * row..3 * row + 3];
+        let x = b.fmul(r[0], normal[0]);
+        let y = b.fmul(r[1], normal[1]);
+        let s = b.fadd(x, y);
+        let z = b.fmul(r[2], normal[2]);
+        b.fadd(s, z)
+    });
+    let unit_n = normalize(b, n_eye);
+    let to_eye = eye_pos.map(|c| b.fneg(c));
+    let e = specular.then(|| normalize(b, to_eye));
+    LitVertex {
+        clip,
+        colour: p.base,
+        eye_pos,
+        unit_n,
+        e,
+        vertex_colour: None,
+    }
+}
+
+/// `v`'s colour plus light `(light_pos, dd, ss)`'s diffuse and specular terms, channel by
+/// channel (diffuse first).
+fn add_light(
+    b: &mut KernelBuilder,
+    v: &LitVertex,
+    (light_pos, dd, ss): LightParams,
+    shininess: u32,
+    zero: Value,
+    one: Value,
+) -> Vec3 {
+    let to_light: Vec3 = std::array::from_fn(|i| b.fsub(light_pos[i], v.eye_pos[i]));
+    let l = normalize(b, to_light);
+    let n_dot_l = dot(b, v.unit_n, l);
+    let diffuse = b.fmax(n_dot_l, zero);
+    let spec = match (v.e, ss) {
+        (Some(e), Some(_)) => {
+            let half: Vec3 = std::array::from_fn(|i| b.fadd(l[i], e[i]));
+            let h = normalize(b, half);
+            let n_dot_h = dot(b, v.unit_n, h);
+            let x = b.fmax(n_dot_h, zero);
+            let p = power(b, x, shininess, one);
+            let lit = b.flt(zero, n_dot_l);
+            Some(b.select(lit, p, zero))
+        }
+        _ => None,
+    };
+    let mut colour = v.colour;
+    for ch in 0..3 {
+        let d = b.fmul(diffuse, dd[ch]);
+        colour[ch] = b.fadd(colour[ch], d);
+        if let (Some(spec), Some(ss)) = (spec, ss) {
+            let s = b.fmul(spec, ss[ch]);
+            colour[ch] = b.fadd(colour[ch], s);
+        }
+    }
+    colour
 }
 
 /// `x^n` by squaring (`x^0 = 1`, as OpenGL takes it).
@@ -631,6 +839,124 @@ mod tests {
             assert_eq!(k.name, p.name());
             assert_eq!(k.params.len(), p.param_count(&desc));
             assert!(!pb.streams.is_empty());
+        }
+    }
+
+    /// Light counts a scene may have, with and without the specular term, compile on gold8,
+    /// their kernels split into passes.
+    #[test]
+    fn every_light_count_compiles_on_gold8() {
+        let desc = MachineDesc::resolve("gold8").unwrap();
+        let mut kernels: Vec<Kernel> = Vec::new();
+        // The one-kernel programs' largest, the split ones' smallest and largest: 0..=8 all
+        // compile (a minute and a half of compiling).
+        for lights in [0, 1, 3, 4, 8] {
+            for specular in [false, true] {
+                let p = VertexProgram::Lit {
+                    lights,
+                    specular,
+                    shininess: 16,
+                };
+                let passes = p.passes(&desc);
+                assert_eq!(passes.len(), p.pass_names().len());
+                let want = lights.saturating_sub(SPLIT.0).div_ceil(SPLIT.1);
+                assert_eq!(passes.len(), want, "{}", p.name());
+                kernels.push(p.build(&desc));
+                kernels.extend(passes);
+                for k in &kernels[kernels.len() - 1 - want..] {
+                    assert_eq!(k.params.len(), p.param_count(&desc), "{}", k.name);
+                }
+            }
+        }
+        // Two at a time: each compile is a search of seconds.
+        let next = std::sync::atomic::AtomicUsize::new(0);
+        let mut done: Vec<(usize, Option<u32>)> = std::thread::scope(|scope| {
+            let workers: Vec<_> = (0..2)
+                .map(|_| {
+                    scope.spawn(|| {
+                        let mut mine = Vec::new();
+                        loop {
+                            let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                            let Some(k) = kernels.get(i) else { break };
+                            let c =
+                                crate::compile::compile(k, &desc).unwrap_or_else(|e| panic!("{e}"));
+                            mine.push((i, c.report.ii));
+                        }
+                        mine
+                    })
+                })
+                .collect();
+            workers
+                .into_iter()
+                .flat_map(|w| w.join().expect("a compile panicked"))
+                .collect()
+        });
+        done.sort_unstable();
+        for (i, ii) in done {
+            println!("{}: II {ii:?}", kernels[i].name);
+        }
+    }
+
+    /// The lighting split into passes sums what one kernel sums, in the same order: the
+    /// colours are bit-identical.
+    #[test]
+    fn passes_shade_as_one_kernel_does() {
+        use crate::kernel::{KernelInputs, interpret};
+        use imagine_units::arith::fp32::testgen::SplitMix64;
+        let desc = MachineDesc::resolve("gold8").unwrap();
+        let c = desc.cluster.count;
+        let mut rng = SplitMix64::new(0x11_6475);
+        let mut random = move || f32::from_bits(rng.next_u32() & 0xBFFF_FFFF) - 1.5;
+        for specular in [false, true] {
+            let p = VertexProgram::Lit {
+                lights: 3,
+                specular,
+                shininess: 13,
+            };
+            // Matrices and light positions anywhere in (-3.5, 0.5); the colour products
+            // in [0, 0.25), so that sums of a few stay below 1.
+            let lights_from = p.perbegin_rows(&desc);
+            let per_light = 6 + 3 * usize::from(specular);
+            let params: Vec<u32> = (0..p.param_count(&desc))
+                .map(|i| {
+                    let x = random();
+                    let light_word = i.checked_sub(lights_from).map(|j| j % per_light);
+                    let base = i + 3 >= p.param_count(&desc);
+                    let colour = base || light_word.is_some_and(|w| w >= 3);
+                    if colour { x.abs() / 14.0 } else { x }.to_bits()
+                })
+                .collect();
+            let vertices: Vec<u32> = (0..4 * c * 6).map(|_| random().to_bits()).collect();
+            let run = |k: &Kernel, input: Vec<u32>| {
+                let inputs = KernelInputs {
+                    streams: vec![input, vec![]],
+                    params: params.clone(),
+                };
+                interpret(k, &inputs, &desc).unwrap().swap_remove(1)
+            };
+            let whole = p.kernels_with(&desc, (3, 3));
+            assert_eq!(whole.len(), 1);
+            let want = run(&whole[0], vertices.clone());
+            assert_eq!(want.len(), 4 * c * SHADED_WORDS);
+            for (split, kernels) in [((2, 1), 2), ((1, 2), 2), ((1, 1), 3)] {
+                let split_kernels = p.kernels_with(&desc, split);
+                assert_eq!(split_kernels.len(), kernels);
+                let mut words = vertices.clone();
+                for k in &split_kernels {
+                    words = run(k, words);
+                }
+                assert_eq!(words, want, "specular {specular}, split {split:?}");
+            }
+            // Some of the colours are neither clamped nor 0: the test sees the sums.
+            let lit = want
+                .chunks(SHADED_WORDS)
+                .filter(|r| {
+                    r[4..]
+                        .iter()
+                        .any(|&w| f32::from_bits(w) > 0.0 && f32::from_bits(w) < 1.0)
+                })
+                .count();
+            assert!(lit > 0, "specular {specular}: every colour clamped");
         }
     }
 }

@@ -64,6 +64,11 @@ pub struct StreamHost {
     /// The batch each instruction was queued in (by instruction index).
     tags: Vec<Option<usize>>,
     max_cycles: u64,
+    /// The programs in the microcode store once every queued load has run, oldest load
+    /// first: the controller evicts in that order when a load does not fit.
+    resident: Vec<usize>,
+    /// Queued kernel calls (instruction, program) not yet seen complete.
+    pending: Vec<(usize, usize)>,
 }
 
 impl StreamHost {
@@ -96,6 +101,8 @@ impl StreamHost {
             batch: None,
             tags: Vec::new(),
             max_cycles,
+            resident: Vec::new(),
+            pending: Vec::new(),
         })
     }
 
@@ -142,11 +149,53 @@ impl StreamHost {
     }
 
     /// The controller's program index of `k`: compiled (if it was not) and its microcode
-    /// load queued the first time it is called.
+    /// load queued the first time it is called, and again when later loads have evicted
+    /// it (the store holds `microcontroller.store_words`; a frame's kernels may not fit).
     fn program(&mut self, k: KernelId) -> Result<usize, HostError> {
-        if let Some(p) = self.kernels.entry(k).program {
+        let p = match self.kernels.entry(k).program {
+            Some(p) => p,
+            None => self.add_program(k)?,
+        };
+        if self.resident.contains(&p) {
             return Ok(p);
         }
+        let size = |s: &Sim, q: usize| {
+            processor::processor(s).controller().programs()[q]
+                .code
+                .len()
+        };
+        let store = self.desc.microcontroller.store_words;
+        let mut used: usize = self.resident.iter().map(|&q| size(&self.sim, q)).sum();
+        let mut evicted = Vec::new();
+        while used + size(&self.sim, p) > store && !self.resident.is_empty() {
+            let q = self.resident.remove(0);
+            used -= size(&self.sim, q);
+            evicted.push(q);
+        }
+        if !evicted.is_empty() {
+            // The load may run ahead of queued calls: those of the programs it evicts
+            // complete first.
+            let records = |s: &Sim, id: usize| {
+                processor::processor(s).controller().records()[id]
+                    .completed
+                    .is_some()
+            };
+            self.pending.retain(|&(id, _)| !records(&self.sim, id));
+            let ids: Vec<usize> = self
+                .pending
+                .iter()
+                .filter(|(_, q)| evicted.contains(q))
+                .map(|&(id, _)| id)
+                .collect();
+            self.run_until(|s| ids.iter().all(|&id| records(s, id)))?;
+        }
+        self.resident.push(p);
+        self.push(StreamInstr::LoadMicrocode { program: p });
+        Ok(p)
+    }
+
+    /// Compiles `k` (if it was not) and adds its microcode to the controller's programs.
+    fn add_program(&mut self, k: KernelId) -> Result<usize, HostError> {
         self.kernels.compile_now(&[k]).map_err(|e| {
             HostError(format!(
                 "cannot compile kernel `{}`: {e}",
@@ -165,7 +214,6 @@ impl StreamHost {
             .add_program(&self.desc, code)
             .map_err(HostError)?;
         self.kernels.entry_mut(k).program = Some(p);
-        self.push(StreamInstr::LoadMicrocode { program: p });
         Ok(p)
     }
 
@@ -210,6 +258,15 @@ impl StreamHost {
             program,
             bindings: ordered,
         });
+        if self.pending.len() >= 1024 {
+            let sim = &self.sim;
+            self.pending.retain(|&(id, _)| {
+                processor::processor(sim).controller().records()[id]
+                    .completed
+                    .is_none()
+            });
+        }
+        self.pending.push((id, program));
         Ok(Call { id, kernel: k })
     }
 
