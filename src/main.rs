@@ -43,7 +43,19 @@ enum Command {
     Demo(commands::demo::DemoArgs),
 }
 
+/// Output into a closed pipe (`imagine kernel show vertex --microcode | head -1`) ends the
+/// process quietly, as it ends `cat` or `grep`, instead of a panic on the failed write:
+/// Rust ignores SIGPIPE by default, so the default action is restored.
+fn end_quietly_on_closed_pipes() {
+    #[cfg(unix)]
+    // SAFETY: setting a signal's disposition to its default, once, before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
+    end_quietly_on_closed_pipes();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(a) => commands::render::run(a),

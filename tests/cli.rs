@@ -879,3 +879,34 @@ fn scene_show_plans_the_pipeline_the_scene_gets() {
     let o = imagine(&["scene", "show", "SPHERE", "--machine", "gold1"]);
     assert!(stdout(&o).contains("on gold1"), "{}", stdout(&o));
 }
+
+/// A reader that stops early (`| head -1`) ends the output quietly: no panic, nothing on
+/// stderr.
+#[cfg(unix)]
+#[test]
+fn output_into_a_closed_pipe_ends_quietly() {
+    use std::io::Read;
+    use std::process::Stdio;
+    for args in [
+        &["scene", "show", "SPHERE", "--json"][..],
+        &["kernel", "show", "vertex", "--microcode"][..],
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_imagine"))
+            .env(
+                "IMAGINE_CACHE_DIR",
+                concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache"),
+            )
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("run imagine");
+        let mut first = [0u8; 1];
+        child.stdout.take().unwrap().read_exact(&mut first).unwrap();
+        // The read end is closed here (dropped); the rest of the output hits a closed pipe.
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(err.is_empty(), "{args:?}: {err}");
+    }
+}
