@@ -8,7 +8,9 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use imagine_hdl::ClockDomain;
 use imagine_hdl::demo::{self, DemoConfig, DemoReport};
+use imagine_units::limits::{MAX_CROSSING_CAPACITY, MAX_DEMO_CYCLES, MAX_MHZ};
 
+use super::outputs::Outputs;
 use super::waves::WaveArgs;
 
 #[derive(Args)]
@@ -29,15 +31,26 @@ pub struct DemoArgs {
     waves: WaveArgs,
 }
 
-/// Clock frequencies above this are refused as typos rather than simulated.
-const MAX_MHZ: u64 = 100_000;
-
 pub fn run(a: DemoArgs) -> Result<ExitCode> {
     for (flag, mhz) in [("--core-mhz", a.core_mhz), ("--dram-mhz", a.dram_mhz)] {
         if !(1..=MAX_MHZ).contains(&mhz) {
-            bail!("{flag} {mhz}: a clock frequency must be 1..={MAX_MHZ} MHz");
+            bail!("{flag} {mhz}: a clock frequency must be 1..={MAX_MHZ} MHz (MAX_MHZ)");
         }
     }
+    if !(1..=MAX_CROSSING_CAPACITY).contains(&a.crossing_capacity) {
+        bail!(
+            "--crossing-capacity {}: must be 1..={MAX_CROSSING_CAPACITY} entries \
+             (MAX_CROSSING_CAPACITY)",
+            a.crossing_capacity
+        );
+    }
+    if a.cycles > MAX_DEMO_CYCLES {
+        bail!(
+            "--cycles {}: at most {MAX_DEMO_CYCLES} (MAX_DEMO_CYCLES)",
+            a.cycles
+        );
+    }
+    a.waves.check_outputs(&mut Outputs::default())?;
     let domains = vec![
         ClockDomain::mhz("core", a.core_mhz),
         ClockDomain::mhz("dram", a.dram_mhz),

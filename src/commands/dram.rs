@@ -12,6 +12,7 @@ use imagine_units::desc::MachineDesc;
 use imagine_units::dram::trace::{BENCHES, bench, parse_trace, write_trace};
 use imagine_units::dram::{DramParams, Policy, ReplayOptions, ReplayReport, TraceRequest, replay};
 
+use super::outputs::Outputs;
 use super::waves::WaveArgs;
 
 #[derive(Args)]
@@ -63,6 +64,9 @@ pub struct DramArgs {
 
 pub fn run(a: DramArgs) -> Result<ExitCode> {
     let desc = MachineDesc::resolve(&a.machine)?;
+    let mut outputs = Outputs::default();
+    outputs.add_opt("--dram-trace", a.dram_trace.as_ref())?;
+    a.waves.check_outputs(&mut outputs)?;
     let p = DramParams::of(&desc);
     let (source, reqs) = load_requests(&a, &p)?;
     let policies: Vec<Policy> = match a.policy.as_deref() {
@@ -142,7 +146,7 @@ fn load_requests(a: &DramArgs, p: &DramParams) -> Result<(String, Vec<TraceReque
         return Ok((format!("bench {name}"), reqs));
     }
     let path = a.trace.as_ref().expect("clap requires --trace or --bench");
-    let text = std::fs::read_to_string(path)
+    let text = imagine_units::limits::read_text_file(path)
         .with_context(|| format!("cannot read trace `{}`", path.display()))?;
     let reqs =
         parse_trace(&text, p).map_err(|e| anyhow::anyhow!("trace `{}`: {e}", path.display()))?;

@@ -8,7 +8,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Subcommand, ValueEnum};
 use imagine_units::desc::MachineDesc;
-use imagine_units::microcode::asm::{assemble, disassemble};
+use imagine_units::limits::{MAX_CHECK_ROWS, MAX_INPUT_WORDS, read_file, read_text_file};
+use imagine_units::microcode::asm::{assemble, disassemble, parse_word};
 use imagine_units::microcode::image::{read_image, write_image};
 use imagine_units::microcode::layout::InstructionLayout;
 use imagine_units::microcode::{Program, StreamDir};
@@ -18,6 +19,7 @@ use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::kernels::{LibraryKernel, find, library};
 use imagine_pipelines::run::check;
 
+use super::outputs::Outputs;
 use super::waves::WaveArgs;
 
 #[derive(Subcommand)]
@@ -48,7 +50,8 @@ pub enum KernelCommand {
         #[arg(long, default_value = "gold8")]
         machine: String,
         /// An input stream: NAME=V,V,... or NAME=@FILE (values separated by commas or
-        /// whitespace; decimal, 0x hex, or floats with '.' or an exponent as fp32)
+        /// whitespace; decimal, 0x hex, or floats with '.' or an exponent as fp32, as the
+        /// assembler reads immediates: infinities and NaNs in hex)
         #[arg(long = "input", value_name = "NAME=VALUES")]
         inputs: Vec<String>,
         /// How to print output words
@@ -110,7 +113,7 @@ pub enum Format {
 }
 
 fn load_program(file: &Path, desc: &MachineDesc) -> Result<Program> {
-    let bytes = std::fs::read(file).with_context(|| format!("cannot read `{}`", file.display()))?;
+    let bytes = read_file(file).with_context(|| format!("cannot read `{}`", file.display()))?;
     if bytes.starts_with(b"IMUC") {
         return read_image(&bytes, desc).with_context(|| format!("`{}`", file.display()));
     }
@@ -127,9 +130,16 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             machine,
             layout,
         } => {
+            let out = output.unwrap_or_else(|| file.with_extension("imuc"));
+            if out == file {
+                bail!(
+                    "--output `{}` is the source file itself: the image would overwrite it",
+                    out.display()
+                );
+            }
+            Outputs::default().add("--output", &out)?;
             let desc = MachineDesc::resolve(&machine)?;
             let program = load_program(&file, &desc)?;
-            let out = output.unwrap_or_else(|| file.with_extension("imuc"));
             let image = write_image(&program, &desc);
             std::fs::write(&out, &image)
                 .with_context(|| format!("cannot write `{}`", out.display()))?;
@@ -159,6 +169,7 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             max_cycles,
             waves,
         } => {
+            waves.check_outputs(&mut Outputs::default())?;
             let desc = MachineDesc::resolve(&machine)?;
             let program = load_program(&file, &desc)?;
             let streams = parse_inputs(&program, &inputs)?;
@@ -230,6 +241,9 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             json,
             no_cache,
         } => {
+            if !(1..=MAX_CHECK_ROWS).contains(&rows) {
+                bail!("--rows {rows}: must be 1..={MAX_CHECK_ROWS} (MAX_CHECK_ROWS)");
+            }
             let desc = MachineDesc::resolve(&machine)?;
             let cache = cache(no_cache);
             let kernels: Vec<&LibraryKernel> = if name == "all" {
@@ -247,7 +261,7 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             let mut failed = false;
             for (lk, kernel) in kernels {
                 let compiled = cache.compile(&kernel, &desc)?;
-                let inputs = (lk.inputs)(&desc, rows.max(1), seed);
+                let inputs = (lk.inputs)(&desc, rows, seed);
                 let check =
                     check(&kernel, &compiled, &desc, &inputs).map_err(|e| anyhow::anyhow!(e))?;
                 failed |= check.mismatch.is_some();
@@ -322,22 +336,6 @@ fn format_word(w: u32, format: Format) -> String {
     }
 }
 
-/// Parses one value: decimal (negative in two's complement), 0x hex, or an fp32 literal.
-fn parse_value(s: &str) -> Result<u32, String> {
-    let bad = || format!("`{s}` is not a number (decimal, 0x hex, or a float with '.')");
-    if let Some(hex) = s.strip_prefix("0x").or_else(|| s.strip_prefix("0X")) {
-        return u32::from_str_radix(hex, 16).map_err(|_| bad());
-    }
-    if s.contains(['.', 'e', 'E']) || s.contains("inf") || s.contains("nan") {
-        // Parsing text is not the datapath: Rust's parser is correctly rounded.
-        return s.parse::<f32>().map(f32::to_bits).map_err(|_| bad());
-    }
-    match s.parse::<i64>() {
-        Ok(v) if (i32::MIN as i64..=u32::MAX as i64).contains(&v) => Ok(v as u32),
-        _ => Err(bad()),
-    }
-}
-
 fn parse_inputs(program: &Program, args: &[String]) -> Result<Vec<Vec<u32>>> {
     let mut given: Vec<(String, Vec<u32>)> = Vec::new();
     for arg in args {
@@ -345,16 +343,21 @@ fn parse_inputs(program: &Program, args: &[String]) -> Result<Vec<Vec<u32>>> {
             bail!("--input `{arg}`: expected NAME=VALUES or NAME=@FILE");
         };
         let text = match values.strip_prefix('@') {
-            Some(path) => std::fs::read_to_string(path)
+            Some(path) => read_text_file(Path::new(path))
                 .with_context(|| format!("--input {name}: cannot read `{path}`"))?,
             None => values.to_string(),
         };
+        // The assembler's reading of an immediate: one notation, one set of errors.
         let words = text
             .split(|c: char| c == ',' || c.is_whitespace())
             .filter(|t| !t.is_empty())
-            .map(parse_value)
+            .take(MAX_INPUT_WORDS + 1)
+            .map(parse_word)
             .collect::<Result<Vec<u32>, String>>()
             .map_err(|e| anyhow::anyhow!("--input {name}: {e}"))?;
+        if words.len() > MAX_INPUT_WORDS {
+            bail!("--input {name}: more than {MAX_INPUT_WORDS} words (MAX_INPUT_WORDS)");
+        }
         given.push((name.to_string(), words));
     }
     let mut streams = Vec::new();

@@ -5,6 +5,7 @@ pub mod demo;
 pub mod dram;
 pub mod kernel;
 pub mod machine;
+pub mod outputs;
 pub mod render;
 pub mod scene;
 pub mod verify;

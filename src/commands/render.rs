@@ -12,9 +12,11 @@ use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
 use imagine_pipelines::scene::model::Scene;
 use imagine_pipelines::scene::{self, LoadOptions};
 use imagine_units::desc::MachineDesc;
+use imagine_units::limits::MAX_RUN_CYCLES;
 use imagine_verif::image::{Image, Metrics, compare};
 use imagine_verif::reference_model as reference;
 
+use super::outputs::Outputs;
 use super::waves::WaveArgs;
 
 #[derive(Args)]
@@ -50,6 +52,9 @@ pub struct RenderArgs {
     /// ($IMAGINE_CACHE_DIR, else the platform's cache directory)
     #[arg(long)]
     no_cache: bool,
+    /// Give up on a frame that takes longer, in core cycles
+    #[arg(long, default_value_t = MAX_RUN_CYCLES)]
+    max_cycles: u64,
     #[command(flatten)]
     waves: WaveArgs,
 }
@@ -74,6 +79,12 @@ fn image_of(f: &Frame) -> Image {
 }
 
 pub fn run(a: RenderArgs) -> Result<ExitCode> {
+    let mut outputs = Outputs::default();
+    outputs.add_opt("--png", a.png.as_ref())?;
+    outputs.add_opt("--reference-png", a.reference_png.as_ref())?;
+    outputs.add_opt("--stats", a.stats.as_ref())?;
+    outputs.add_opt("--stats-csv", a.stats_csv.as_ref())?;
+    a.waves.check_outputs(&mut outputs)?;
     let desc = MachineDesc::resolve(&a.machine)?;
     let scene = load_scene(&a)?;
     let on_start: Option<imagine_units::runner::OnStart> = a.waves.wants_vcd().then(|| {
@@ -93,6 +104,7 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
         } else {
             CompileCache::from_env()
         },
+        max_cycles: a.max_cycles,
         ..RenderOptions::default()
     };
     let frame = render_with(&scene, &desc, options, on_start, |done, total| {

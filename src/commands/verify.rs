@@ -39,6 +39,9 @@ pub fn run(c: VerifyCommand) -> Result<ExitCode> {
             let summary = check_stream_with_mode(op, mode, io::stdin().lock(), &mut out, show)
                 .with_context(|| format!("reading {op} vectors from stdin"))?;
             writeln!(out, "{summary}")?;
+            if summary.total() == 0 {
+                anyhow::bail!("no {op} vectors on stdin: nothing was checked");
+            }
             Ok(if summary.failed == 0 {
                 ExitCode::SUCCESS
             } else {

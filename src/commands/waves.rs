@@ -3,6 +3,7 @@
 use std::collections::BTreeSet;
 use std::path::PathBuf;
 
+use super::outputs::Outputs;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use imagine_hdl::Sim;
@@ -32,6 +33,23 @@ impl WaveArgs {
     /// Whether `--vcd` was given.
     pub fn wants_vcd(&self) -> bool {
         self.vcd.is_some()
+    }
+
+    /// Adds the waveform and its GTKWave save file to a command's outputs.
+    pub fn check_outputs(&self, outputs: &mut Outputs) -> Result<()> {
+        let Some(path) = &self.vcd else {
+            return Ok(());
+        };
+        let gtkw = gtkw_path(path);
+        if gtkw == *path {
+            bail!(
+                "--vcd `{}`: its GTKWave save file would be the same file; name the waveform \
+                 `.vcd`",
+                path.display()
+            );
+        }
+        outputs.add("--vcd", path)?;
+        outputs.add("the GTKWave save file of --vcd", &gtkw)
     }
 
     /// Attaches a VCD writer to `sim` if `--vcd` was given.

@@ -251,16 +251,8 @@ impl fmt::Display for DescError {
 
 impl std::error::Error for DescError {}
 
-// Upper bounds that keep the model's state and the probe hierarchy sane.
-/// The most clusters a machine may have (the model keeps per-cluster state in arrays of
-/// this size).
-pub const MAX_CLUSTERS: usize = 256;
-/// The most streams one kernel may address (`srf.kernel_streams`; the model keeps
-/// per-stream state of a kernel in arrays of this size).
-pub const MAX_KERNEL_STREAMS: usize = 64;
-const MAX_UNITS: usize = 32;
-const MAX_LATENCY: u32 = 256;
-const MAX_MHZ: u64 = 100_000;
+use crate::limits::{MAX_BASE_DEPTH, MAX_LATENCY, MAX_MHZ, MAX_MIN_KERNEL_CYCLES, MAX_UNITS};
+pub use crate::limits::{MAX_CLUSTERS, MAX_KERNEL_STREAMS};
 
 /// The machine descriptions in `machines/`, built into the binary.
 pub const BUILTIN: &[(&str, &str)] = &[
@@ -280,9 +272,6 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../machines/gold32combo.toml"),
     ),
 ];
-
-/// How many `base` links a description may follow (a longer chain is taken for a cycle).
-const MAX_BASE_DEPTH: usize = 8;
 
 impl MachineDesc {
     /// Parses a description; `source` names it in errors (a path or a built-in name). A
@@ -314,7 +303,7 @@ impl MachineDesc {
     }
 
     pub fn load(path: &Path) -> Result<Self, DescError> {
-        let text = std::fs::read_to_string(path).map_err(|e| DescError::Io {
+        let text = crate::limits::read_text_file(path).map_err(|e| DescError::Io {
             path: path.display().to_string(),
             message: e.to_string(),
         })?;
@@ -653,18 +642,18 @@ impl MachineDesc {
             return bad(
                 "memory.address_generators",
                 format!(
-                    "is {}: each needs 2 stream buffers besides the {} kernel streams, and                      the SRF has {} (need {needed})",
+                    "is {}: each needs 2 stream buffers besides the {} kernel streams, and \
+                     the SRF has {} (need {needed})",
                     m.address_generators, self.srf.kernel_streams, self.srf.stream_buffers
                 ),
             );
         }
-        if self.stream_controller.min_kernel_cycles > 1 << 24 {
+        if self.stream_controller.min_kernel_cycles > MAX_MIN_KERNEL_CYCLES {
             return bad(
                 "stream_controller.min_kernel_cycles",
                 format!(
-                    "is {}, must be at most {}",
+                    "is {}, must be at most {MAX_MIN_KERNEL_CYCLES}",
                     self.stream_controller.min_kernel_cycles,
-                    1 << 24
                 ),
             );
         }

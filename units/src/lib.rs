@@ -4,6 +4,7 @@
 //! * [`arith`] — the combinational datapaths: pure functions on raw bits shared by the
 //!   interpreter and the clocked functional units.
 //! * [`desc`] — machine descriptions (`machines/*.toml`): every count and latency.
+//! * [`limits`] — every bound on an input that keeps a run finite and its memory bounded.
 //! * [`ops`] — the arithmetic op set: semantics, unit class, latency, mnemonic and opcode of
 //!   every op, shared by the interpreter and the clocked units.
 //! * [`fu`] — the clocked, lane-batched functional units: pipelined adders and multipliers,
@@ -31,6 +32,7 @@ pub mod desc;
 pub mod dram;
 pub mod fu;
 pub mod lanes;
+pub mod limits;
 pub mod lrf;
 pub mod machine;
 pub mod memory;

@@ -172,6 +172,8 @@ fn immediates_parse_exactly() {
     assert_eq!(imm("3.4028235e38"), 0x7F7F_FFFF);
     assert_eq!(imm("1.5E-3"), 1.5e-3f32.to_bits());
     assert_eq!(imm("1."), 0x3F80_0000);
+    assert_eq!(imm("0.0e-60"), 0, "an exact zero is not an underflow");
+    assert_eq!(imm("-0e5"), 0x8000_0000);
     let err = |v: &str, what: &str| {
         let text = body(&format!("imm {v} -> add0.a[0]\ndone"));
         fails(&text, 5, 5, what);
@@ -182,6 +184,8 @@ fn immediates_parse_exactly() {
     err("0xg", "not a 32-bit hex number");
     err("-0x1", "without a sign");
     err("1e39", "beyond the range of fp32");
+    err("1e-50", "rounds to zero");
+    err("-1e-46", "rounds to zero");
     err("1.5f", "not a number");
     err("1.2.3", "not a number");
     err("12abc", "not a number");

@@ -163,10 +163,24 @@ fn search(
             });
     }
     // Copies that move long-lived values out of a full LRF, then the same mode again.
+    // The effort is bounded by a count of schedules tried, not by time, so that whether a
+    // kernel compiles never depends on the host.
+    let attempts = std::cell::Cell::new(0usize);
+    let spent = || attempts.get() >= MAX_SCHEDULE_ATTEMPTS;
+    let gave_up = |(resource, why): (String, String)| {
+        (
+            resource,
+            format!("{why} (the compiler gave up after {MAX_SCHEDULE_ATTEMPTS} schedules tried)"),
+        )
+    };
     let with_repairs = |base: &Graph, mode: LoopMode, repairs: usize| -> Result<Attempted, Retry> {
         let mut work = base.clone();
         let mut last = None;
         for _repair in 0..=repairs {
+            if spent() {
+                break;
+            }
+            attempts.set(attempts.get() + 1);
             match try_ii(kernel, &work, desc, slots, mode) {
                 Err(Retry::Repair(g, e)) => {
                     work = *g;
@@ -175,7 +189,9 @@ fn search(
                 other => return other,
             }
         }
-        Err(Retry::Larger(last.expect("repairs were tried")))
+        Err(Retry::Larger(last.unwrap_or_else(|| {
+            ("schedule".into(), "no schedule found".into())
+        })))
     };
     // The body list-scheduled, one iteration at a time: the interval to beat. Its order is
     // also the order the scheduler places big loops in far from their bound.
@@ -262,6 +278,13 @@ fn search(
                 Err(Retry::Fatal(e)) => return Err(e),
                 Err(Retry::Larger(e) | Retry::Repair(_, e)) => last_error = Some(e),
             }
+            if spent() && line.is_none() {
+                let last = last_error.unwrap_or(("schedule".into(), "no schedule found".into()));
+                return Err(gave_up(last));
+            }
+        }
+        if spent() {
+            break;
         }
     }
     line.ok_or_else(|| last_error.unwrap_or(("schedule".into(), "no schedule found".into())))
@@ -315,6 +338,12 @@ const RELIEF_SLACK: usize = 4;
 
 /// Repairs of a full LRF tried at one initiation interval before a larger one.
 const MAX_REPAIRS: usize = 96;
+
+/// Schedules a kernel may be tried with (each interval, variant and LRF repair counts one)
+/// before the compiler gives up on it. The library's kernels need at most 118 (`merge` on
+/// gold1); a kernel the machine cannot serve (e.g. `turbulence` with two condition codes)
+/// would otherwise try every interval up to three times its bound, for minutes.
+const MAX_SCHEDULE_ATTEMPTS: usize = 1000;
 
 /// Intervals above the lower bound at which the local search is tried (see [`search`]).
 const SEARCH_ABOVE_BOUND: u32 = 1;

@@ -66,8 +66,7 @@ use crate::stream::{
 
 pub use super::stats::{FrameStats, KernelShare};
 
-/// The longest a run may take, in core cycles, before the host gives up.
-const MAX_RUN_CYCLES: u64 = 20_000_000_000;
+use imagine_units::limits::MAX_RUN_CYCLES;
 
 /// Fragments per composite chunk (before rounding to whole blocks and rows). Its buffers
 /// bound how many fragments go round together; 96 was the fastest on SPHERE (gold8) of the
@@ -132,6 +131,8 @@ pub struct RenderOptions {
     /// Where compiled kernels are kept between renders (disabled by default: the CLI
     /// passes [`CompileCache::from_env`] unless `--no-cache`).
     pub cache: CompileCache,
+    /// The host gives up on a frame that takes longer, in core cycles.
+    pub max_cycles: u64,
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
@@ -148,6 +149,7 @@ impl Default for RenderOptions {
             merge_min_conflicts: Some(MERGE_MIN_CONFLICTS),
             specialise: true,
             cache: CompileCache::disabled(),
+            max_cycles: MAX_RUN_CYCLES,
         }
     }
 }
@@ -929,7 +931,7 @@ pub fn render_with(
         pixels: pixels as u64,
         interp_records: batch as u64,
     };
-    let mut host = StreamHost::new(desc, lib, dram, on_start, MAX_RUN_CYCLES)?;
+    let mut host = StreamHost::new(desc, lib, dram, on_start, options.max_cycles)?;
     let mut stats = FrameStats {
         scene: scene.name.clone(),
         machine: desc.name.clone(),

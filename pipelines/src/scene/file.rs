@@ -18,6 +18,8 @@
 
 use std::path::{Path, PathBuf};
 
+use imagine_units::limits::{read_file, read_text_file};
+
 use glam::dcamera::rh::proj::opengl;
 use glam::{DMat4, DVec3};
 use serde::Deserialize;
@@ -101,7 +103,7 @@ pub fn load(name_or_path: &str, opts: &LoadOptions) -> Result<model::Scene, Scen
 
 /// Reads a scene file.
 pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<model::Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|e| {
+    let text = read_text_file(path).map_err(|e| {
         SceneError::new(
             &path.display().to_string(),
             None,
@@ -116,7 +118,7 @@ pub fn load_file(path: &Path, opts: &LoadOptions) -> Result<model::Scene, SceneE
 /// background.
 pub fn load_tri(path: &Path) -> Result<model::Scene, SceneError> {
     let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path)
+    let text = read_text_file(path)
         .map_err(|e| SceneError::new(&shown, None, format!("cannot read the file: {e}")))?;
     let old = super::parse_tri(&shown, &text)?;
     let mut scene = window_scene(old);
@@ -405,11 +407,7 @@ enum TrianglesFile {
 
 // ---- resolving ----
 
-/// Most quads a patch may be diced into per side.
-pub const MAX_TESSELLATE: u32 = 256;
-
-/// Most rings or segments of a `uv_sphere`.
-pub const MAX_SPHERE_DIVISIONS: u32 = 4096;
+pub use imagine_units::limits::{MAX_SPHERE_DIVISIONS, MAX_TESSELLATE};
 
 /// Reads a scene file's text; `path` names it in errors and locates its assets.
 pub fn parse(text: &str, path: &Path, opts: &LoadOptions) -> Result<model::Scene, SceneError> {
@@ -461,7 +459,7 @@ impl Cx {
 
     fn read(&self, key: &str, file: &str) -> R<(PathBuf, Vec<u8>)> {
         let path = self.dir.join(file);
-        let bytes = std::fs::read(&path)
+        let bytes = read_file(&path)
             .map_err(|e| self.err(key, format!("cannot read `{}`: {e}", path.display())))?;
         Ok((path, bytes))
     }

@@ -31,13 +31,7 @@ pub use file::{LoadOptions, load, load_tri, window_scene};
 
 use std::fmt;
 
-/// Largest window side the pipeline accepts (pixel addresses stay well inside 32 bits and
-/// window coordinates stay exact in fp32).
-pub const MAX_WINDOW: u32 = 4096;
-
-/// Largest `|x|` or `|y|` of a `.tri` vertex, in pixels: beyond it fp32 edge functions
-/// lose every bit of sub-pixel precision.
-pub const MAX_TRI_COORDINATE: f32 = 1.0e6;
+pub use imagine_units::limits::{MAX_TRI_COORDINATE, MAX_WINDOW};
 
 /// The three positional lights and the material of a lit scene. Positions are in object
 /// space (the space of the vertices), like the eye.

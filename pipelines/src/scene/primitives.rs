@@ -5,8 +5,7 @@ use std::collections::HashMap;
 
 use super::model::Mesh;
 
-/// Most subdivisions an icosphere may have (20·4⁷ = 327,680 triangles).
-pub const MAX_SUBDIVISIONS: u32 = 7;
+pub use imagine_units::limits::MAX_SUBDIVISIONS;
 
 /// The unit icosphere of [`super::icosphere`] as an indexed mesh: the same vertex
 /// positions and triangle order, each distinct position stored once (in order of first

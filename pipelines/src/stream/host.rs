@@ -518,7 +518,7 @@ impl StreamHost {
             .map_err(|e| HostError(format!("the machine stopped: {e}")))?;
         if !finished {
             return Err(HostError(format!(
-                "the program did not finish within {} core cycles",
+                "the program did not finish within {} core cycles (--max-cycles)",
                 self.max_cycles
             )));
         }

@@ -119,7 +119,8 @@ impl KernelLibrary {
         let list: Vec<&Kernel> = todo.iter().map(|&i| &self.entries[i].kernel).collect();
         let done = compile_in_parallel(&list, &self.desc, &self.cache);
         self.compile_seconds += start.elapsed().as_secs_f64();
-        for (i, (c, outcome)) in todo.into_iter().zip(done) {
+        for (at, (c, outcome)) in done {
+            let i = todo[at];
             self.entries[i].compiled = Some(c?);
             self.from_cache += usize::from(outcome == Outcome::Hit);
         }
@@ -159,9 +160,14 @@ fn compile_in_parallel(
     kernels: &[&Kernel],
     desc: &MachineDesc,
     cache: &CompileCache,
-) -> Vec<Compile> {
-    use std::sync::atomic::{AtomicUsize, Ordering};
+) -> Vec<(usize, Compile)> {
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
     let next = AtomicUsize::new(0);
+    // After a failure no further kernel is started: a machine the pipeline cannot serve is
+    // refused in the time of one compile, not of all. Kernels are taken in order and those
+    // started are finished, so the first kernel in the list that fails is always compiled
+    // and reported, whatever the timing.
+    let failed = AtomicBool::new(false);
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(kernels.len());
@@ -170,10 +176,14 @@ fn compile_in_parallel(
             .map(|_| {
                 scope.spawn(|| {
                     let mut mine = Vec::new();
-                    loop {
+                    while !failed.load(Ordering::Relaxed) {
                         let i = next.fetch_add(1, Ordering::Relaxed);
                         let Some(k) = kernels.get(i) else { break };
-                        mine.push((i, cache.compile_with_outcome(k, desc)));
+                        let result = cache.compile_with_outcome(k, desc);
+                        if result.0.is_err() {
+                            failed.store(true, Ordering::Relaxed);
+                        }
+                        mine.push((i, result));
                     }
                     mine
                 })
@@ -185,5 +195,5 @@ fn compile_in_parallel(
             .collect()
     });
     done.sort_by_key(|&(i, _)| i);
-    done.into_iter().map(|(_, r)| r).collect()
+    done
 }

@@ -428,8 +428,11 @@ fn parse_uint(s: &str) -> Option<u64> {
     s.parse().ok()
 }
 
-/// An immediate's bits: decimal (two's complement if negative), hex, or an fp32 float.
-fn parse_imm(s: &str) -> Result<u32, String> {
+/// A 32-bit word written as text, as an immediate or an input stream's value: decimal
+/// (two's complement if negative), hex, or an fp32 float (with '.' or an exponent). A float
+/// beyond fp32's range, or a nonzero one that rounds to zero, is an error rather than an
+/// infinity or a zero nobody wrote; infinities and NaNs are written in hex.
+pub fn parse_word(s: &str) -> Result<u32, String> {
     let (neg, body) = match s.strip_prefix('-') {
         Some(b) => (true, b),
         None => (false, s),
@@ -445,11 +448,21 @@ fn parse_imm(s: &str) -> Result<u32, String> {
         }
         return Ok(u32::from_str_radix(h, 16).expect("checked hex digits"));
     }
+    if ["inf", "infinity", "nan"].contains(&body.to_ascii_lowercase().as_str()) {
+        return Err(format!(
+            "`{s}`: write infinities and NaNs in hex (0x7f800000 is +inf, 0x7fc00000 a NaN)"
+        ));
+    }
     if body.contains(['.', 'e', 'E']) {
         let ok = body
             .bytes()
             .all(|b| b.is_ascii_digit() || matches!(b, b'.' | b'e' | b'E' | b'+' | b'-'));
+        let mantissa = body.split(['e', 'E']).next().unwrap_or("");
+        let nonzero = mantissa.bytes().any(|b| (b'1'..=b'9').contains(&b));
         return match s.parse::<f32>() {
+            Ok(f) if ok && f == 0.0 && nonzero => Err(format!(
+                "`{s}` is below the range of fp32 (it rounds to zero)"
+            )),
             Ok(f) if ok && f.is_finite() => Ok(f.to_bits()),
             Ok(_) if ok => Err(format!("`{s}` is beyond the range of fp32")),
             _ => Err(format!("`{s}` is not a number")),
@@ -1058,7 +1071,7 @@ impl Assembler<'_> {
                 }) if v == "cid" => ImmValue::ClusterId,
                 Some(Token {
                     tok: Tok::Num(v), ..
-                }) => ImmValue::Const(parse_imm(v).map_err(|m| error(p, m))?),
+                }) => ImmValue::Const(parse_word(v).map_err(|m| error(p, m))?),
                 _ => {
                     return Err(c.unexpected("an immediate (decimal, 0x hex, a float, or `cid`)"));
                 }

@@ -5,8 +5,9 @@
 //! | bytes | content |
 //! |---|---|
 //! | 4 | magic `IMUC` |
-//! | 1 | format version (2) |
+//! | 1 | format version (3) |
 //! | 2 + n | machine name (length, UTF-8) |
+//! | 8 | the machine's encoding fingerprint ([`encoding_fingerprint`]) |
 //! | 2 + n | kernel name |
 //! | 1 | stream count, then per stream: 1 direction (0 in, 1 out), 2 + n name |
 //! | 4 | instruction width in bits |
@@ -14,7 +15,10 @@
 //!
 //! Version 2 added the `ctl.pass` bit (a loop body of several passes), so every
 //! instruction of a version-1 image is one bit narrower; such images are refused by
-//! version rather than by width.
+//! version rather than by width. Version 3 added the fingerprint: two machines with the
+//! same word width but another unit mix, other LRF sizes or other latencies read the same
+//! bits as another program (a statically scheduled one, timed for other latencies), so an
+//! image is refused on any machine whose fingerprint differs from the one it was built for.
 
 use std::fmt;
 
@@ -25,7 +29,23 @@ use super::{Program, StreamDecl, StreamDir};
 use crate::desc::MachineDesc;
 
 const MAGIC: &[u8; 4] = b"IMUC";
-const VERSION: u8 = 2;
+const VERSION: u8 = 3;
+
+/// A hash of everything an image's meaning depends on: the instruction word's fields
+/// (names, offsets, widths: the unit mix, LRF sizes, condition codes, stream and scratchpad
+/// addressing), the latencies the schedule was built for, and the cluster count (which the
+/// intercluster permutations assume). FNV-1a over a canonical text, so it is the same on
+/// every host and build.
+pub fn encoding_fingerprint(desc: &MachineDesc) -> u64 {
+    let layout = InstructionLayout::new(desc);
+    let mut text = format!("clusters {}\n{:?}\n", desc.cluster.count, desc.latency);
+    for f in layout.fields() {
+        text += &format!("{} {} {}\n", f.name, f.offset, f.width);
+    }
+    text.bytes().fold(0xcbf2_9ce4_8422_2325, |h: u64, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    })
+}
 
 /// An image that cannot be read for this machine.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -52,6 +72,7 @@ pub fn write_image(program: &Program, desc: &MachineDesc) -> Vec<u8> {
     out.extend_from_slice(MAGIC);
     out.push(VERSION);
     put_str(&mut out, &desc.name);
+    out.extend_from_slice(&encoding_fingerprint(desc).to_le_bytes());
     put_str(&mut out, &program.name);
     out.push(program.streams.len() as u8);
     for s in &program.streams {
@@ -132,7 +153,17 @@ pub fn read_image(bytes: &[u8], desc: &MachineDesc) -> Result<Program, ImageErro
         )));
     }
     let machine = r.string("machine name")?;
+    let fingerprint = r.u64("machine fingerprint")?;
     let name = r.string("kernel name")?;
+    let ours = encoding_fingerprint(desc);
+    if fingerprint != ours {
+        return Err(ImageError(format!(
+            "kernel `{name}` was built for machine `{machine}` (encoding {fingerprint:016x}); \
+             machine `{}` encodes or times its microcode differently ({ours:016x}): \
+             assemble the kernel again for it",
+            desc.name
+        )));
+    }
     let streams = (0..r.u8("stream count")?)
         .map(|i| {
             let dir = match r.u8("stream direction")? {
@@ -209,6 +240,27 @@ mod tests {
             e.to_string().contains("gold8+F") && e.to_string().contains("`gold8`"),
             "{e}"
         );
+        // A machine of the same word width that reads the bits otherwise, or runs them with
+        // other latencies, is refused with both names.
+        let mut mixed = gold8.clone();
+        mixed.name = "mixed".into();
+        (mixed.cluster.multipliers, mixed.cluster.divsqrt) = (1, 2);
+        let mut slower = gold8.clone();
+        slower.name = "slower".into();
+        slower.latency.mul += 1;
+        for same_width in [&mixed, &slower] {
+            assert_eq!(
+                InstructionLayout::new(same_width).width(),
+                InstructionLayout::new(&gold8).width()
+            );
+        }
+        for other in [&mixed, &slower] {
+            let e = read_image(&image, other).unwrap_err().to_string();
+            assert!(
+                e.contains("`gold8`") && e.contains(&format!("`{}`", other.name)),
+                "{e}"
+            );
+        }
         // Truncation, trailing bytes and a wrong magic are errors, never panics.
         for cut in [0, 3, 10, image.len() / 2, image.len() - 1] {
             assert!(read_image(&image[..cut], &gold8).is_err(), "cut at {cut}");
@@ -226,7 +278,7 @@ mod tests {
         old[4] = 1;
         let e = read_image(&old, &gold8).unwrap_err().to_string();
         assert!(
-            e.contains("format version 1; this build reads 2") && e.contains("again"),
+            e.contains("format version 1; this build reads 3") && e.contains("again"),
             "{e}"
         );
         let mut bad = image.clone();
