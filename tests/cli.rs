@@ -423,6 +423,56 @@ fn dram_bad_input_names_the_line() {
 }
 
 #[test]
+fn dram_serves_and_counts_every_request() {
+    let one = temp_file("readme.trace", "0x1f40 READ 12\n");
+    let spread = temp_file("spread.trace", "0x0 READ 5\n0x40 WRITE 50\n0x80 READ 100\n");
+    for (args, want) in [
+        // Presented at 12, ACTIVATE at 15, READ at 18, its word at 21.
+        (
+            &["dram", "--trace", one.to_str().unwrap()][..],
+            &["(1 requests)", "finish cycle   21", "READ 1  WRITE 0"][..],
+        ),
+        (
+            &["dram", "--trace", spread.to_str().unwrap()],
+            &["(3 requests)", "READ 2  WRITE 1"],
+        ),
+        (
+            &["dram", "--bench", "unit-load", "--requests", "7"],
+            &["(7 requests)", "READ 7  WRITE 0"],
+        ),
+    ] {
+        let o = imagine(args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        for w in want {
+            assert!(
+                stdout(&o).contains(w),
+                "{args:?}: `{w}` missing:\n{}",
+                stdout(&o)
+            );
+        }
+    }
+}
+
+#[test]
+fn dram_jumps_over_a_trillion_idle_cycles() {
+    let t = temp_file("gap.trace", "0x0 READ 5\n0x40 READ 1000000000000\n");
+    let o = imagine(&["dram", "--trace", t.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    // The second read as after any idle time (9 cycles from presentation to its word);
+    // 4 channels × ⌊(10^12 + 9) / 2604⌋ refreshes, all on time.
+    for w in [
+        "(2 requests)",
+        "finish cycle   1000000000009",
+        "READ 2",
+        "REF 1536098308",
+        "no violations",
+    ] {
+        assert!(out.contains(w), "`{w}` missing:\n{out}");
+    }
+}
+
+#[test]
 fn dram_hostile_traces_are_clear_errors_naming_file_and_line() {
     let past = imagine_units::dram::trace::MAX_TRACE_CYCLE + 1;
     let cases: [(&str, Vec<u8>, &[&str]); 14] = [

@@ -18,7 +18,9 @@ use super::waves::WaveArgs;
 #[command(after_help = "\
 Trace format (DRAMsim3): one request per line, `<hex byte address> READ|WRITE <DRAM cycle>`,
 cycles never decreasing; blank lines and lines starting with `#` are skipped. Limits: 1 to
-16777216 requests, cycles up to 17592186044416 (2^44), lines up to 4096 bytes.
+16777216 requests, cycles up to 17592186044416 (2^44), lines up to 4096 bytes. Idle time
+between requests costs nothing (the replay jumps over it, refreshes included) except with
+--vcd, where every cycle is stepped and drawn.
 
 Microbenchmarks (--bench NAME, after Rixner et al. ISCA 2000):
   unit-load           unit-stride reads of consecutive words, all presented at cycle 0
