@@ -296,11 +296,11 @@ fn kernel_errors_name_the_problem() {
     );
 }
 
-fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
+fn temp_file(name: &str, contents: impl AsRef<[u8]>) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("imagine-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
+    std::fs::write(&p, contents).unwrap();
     p
 }
 
@@ -420,6 +420,165 @@ fn dram_bad_input_names_the_line() {
     ] {
         assert_clear_error(args);
     }
+}
+
+#[test]
+fn dram_serves_and_counts_every_request() {
+    let one = temp_file("readme.trace", "0x1f40 READ 12\n");
+    let spread = temp_file("spread.trace", "0x0 READ 5\n0x40 WRITE 50\n0x80 READ 100\n");
+    for (args, want) in [
+        // Presented at 12, ACTIVATE at 15, READ at 18, its word at 21.
+        (
+            &["dram", "--trace", one.to_str().unwrap()][..],
+            &["(1 requests)", "finish cycle   21", "READ 1  WRITE 0"][..],
+        ),
+        (
+            &["dram", "--trace", spread.to_str().unwrap()],
+            &["(3 requests)", "READ 2  WRITE 1"],
+        ),
+        (
+            &["dram", "--bench", "unit-load", "--requests", "7"],
+            &["(7 requests)", "READ 7  WRITE 0"],
+        ),
+    ] {
+        let o = imagine(args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        for w in want {
+            assert!(
+                stdout(&o).contains(w),
+                "{args:?}: `{w}` missing:\n{}",
+                stdout(&o)
+            );
+        }
+    }
+}
+
+#[test]
+fn dram_jumps_over_a_trillion_idle_cycles() {
+    let t = temp_file("gap.trace", "0x0 READ 5\n0x40 READ 1000000000000\n");
+    let o = imagine(&["dram", "--trace", t.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    // The second read as after any idle time (9 cycles from presentation to its word);
+    // 4 channels × ⌊(10^12 + 9) / 2604⌋ refreshes, all on time.
+    for w in [
+        "(2 requests)",
+        "finish cycle   1000000000009",
+        "READ 2",
+        "REF 1536098308",
+        "no violations",
+    ] {
+        assert!(out.contains(w), "`{w}` missing:\n{out}");
+    }
+}
+
+#[test]
+fn dram_hostile_traces_are_clear_errors_naming_file_and_line() {
+    let past = imagine_units::dram::trace::MAX_TRACE_CYCLE + 1;
+    let cases: [(&str, Vec<u8>, &[&str]); 14] = [
+        (
+            "cap",
+            b"0x0 READ 1\n0x4000000 READ 2\n".to_vec(),
+            &["line 2", "out of range", "67108864 bytes"],
+        ),
+        (
+            "addr",
+            b"0xfffffffffffffffffff READ 1\n".to_vec(),
+            &["line 1", "out of range"],
+        ),
+        (
+            "word",
+            b"0x0 READ soon\n".to_vec(),
+            &["line 1", "`soon` is not a cycle number"],
+        ),
+        (
+            "neg",
+            b"0x0 READ -4\n".to_vec(),
+            &["line 1", "not negative"],
+        ),
+        (
+            "late",
+            format!("0x0 READ {past}\n").into_bytes(),
+            &["line 1", "past the latest"],
+        ),
+        (
+            "huge",
+            b"0x0 READ 123456789012345678901234567890\n".to_vec(),
+            &["line 1", "past the latest"],
+        ),
+        (
+            "dec",
+            b"0x0 READ 9\n0x4 READ 8\n".to_vec(),
+            &["line 2", "must not decrease"],
+        ),
+        (
+            "op",
+            b"0x0 PREFETCH 1\n".to_vec(),
+            &["line 1", "`PREFETCH` is not a request type"],
+        ),
+        (
+            "fields",
+            b"0x0 READ 1 0x4\n".to_vec(),
+            &["line 1", "3 fields", "found 4"],
+        ),
+        ("empty", Vec::new(), &["no requests"]),
+        ("comments", b"# nothing yet\n\n".to_vec(), &["no requests"]),
+        (
+            "binary",
+            vec![0x7f, 0x45, 0x4c, 0x46, 0x02, 0x01, 0xff, 0xfe, 0x00, b'\n'],
+            &["line 1", "not UTF-8"],
+        ),
+        (
+            "nul",
+            b"0x0 READ 1\n\0\0\0\0\n".to_vec(),
+            &["line 2", "3 fields"],
+        ),
+        (
+            "long",
+            vec![b'7'; 100_000],
+            &["line 1", "longer than 4096 bytes"],
+        ),
+    ];
+    for (name, contents, want) in cases {
+        let t = temp_file(&format!("hostile-{name}.trace"), contents);
+        let o = imagine(&["dram", "--trace", t.to_str().unwrap()]);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{name}: succeeded");
+        assert!(err.starts_with("error:"), "{name}: {err}");
+        assert!(
+            err.contains(&format!("hostile-{name}.trace")),
+            "{name}: {err}"
+        );
+        for w in want {
+            assert!(err.contains(w), "{name}: `{w}` missing: {err}");
+        }
+        assert!(!err.contains("panicked"), "{name}: {err}");
+    }
+    let limit = imagine_units::dram::trace::MAX_TRACE_REQUESTS.to_string();
+    let over = (imagine_units::dram::trace::MAX_TRACE_REQUESTS + 1).to_string();
+    for (n, want) in [
+        ("0", &["--requests 0", limit.as_str()][..]),
+        (over.as_str(), &["--requests", limit.as_str()]),
+        ("18446744073709551615", &["--requests", limit.as_str()]),
+        ("many", &["--requests", "invalid value"]),
+        ("99999999999999999999999", &["--requests", "too large"]),
+    ] {
+        let o = imagine(&["dram", "--bench", "unit", "--requests", n]);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "--requests {n}: succeeded");
+        assert!(err.starts_with("error:"), "--requests {n}: {err}");
+        for w in want {
+            assert!(err.contains(w), "--requests {n}: `{w}` missing: {err}");
+        }
+        assert!(!err.contains("panicked"), "{err}");
+    }
+    // The help states the limits the parser applies.
+    let help = stdout(&imagine(&["dram", "--help"]));
+    assert!(help.contains(&limit), "{help}");
+    assert!(
+        help.contains(&imagine_units::dram::trace::MAX_TRACE_CYCLE.to_string()),
+        "{help}"
+    );
 }
 
 #[test]
@@ -663,7 +822,7 @@ fn scene_show_errors_name_the_file() {
 fn machine_file(name: &str, table: &str) -> std::path::PathBuf {
     temp_file(
         &format!("{name}.toml"),
-        &format!("name = \"{name}\"\nbase = \"gold8\"\n{table}"),
+        format!("name = \"{name}\"\nbase = \"gold8\"\n{table}"),
     )
 }
 

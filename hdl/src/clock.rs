@@ -209,6 +209,35 @@ impl Clocks {
         }
     }
 
+    /// Advances a single-domain clock by `n` rising edges at once, leaving it exactly as
+    /// `n` calls of [`skip_falling_edges`](Self::skip_falling_edges) then
+    /// [`next_edge`](Self::next_edge) would (same edge count, half-period index and time).
+    /// With several domains the relative phases would have to be replayed, so this returns
+    /// `false` and changes nothing; so it does if the edge count would overflow.
+    pub fn skip_rising_edges(&mut self, n: u64) -> bool {
+        if self.domains.len() != 1 {
+            return false;
+        }
+        if n == 0 {
+            return true;
+        }
+        // The last skipped rising edge is half-period `next_half + 2(n - 1)` (after
+        // rounding up to a rising edge); stepping leaves the index on the falling edge
+        // after it.
+        let first = self.next_half[0] + (self.next_half[0] & 1);
+        let Some(last) = (n - 1)
+            .checked_mul(2)
+            .and_then(|h| h.checked_add(first))
+            .filter(|l| l.checked_add(1).is_some())
+        else {
+            return false;
+        };
+        self.time_ps = self.half_edge_ps(0, last);
+        self.next_half[0] = last + 1;
+        self.cycles[0] += n;
+        true
+    }
+
     fn cross(&self, i: usize, j: usize) -> (u128, u128) {
         (
             self.next_half[i] as u128 * self.domains[j].freq_hz as u128,
@@ -305,6 +334,45 @@ mod tests {
             assert_eq!((e.time_ps, e.rising), (t, rising));
             assert!(e.falling.is_empty());
         }
+    }
+
+    #[test]
+    fn skipping_rising_edges_equals_stepping() {
+        for n in [0u64, 1, 2, 7, 2604, 100_003] {
+            let mut stepped = Clocks::new(vec![ClockDomain::mhz("dram", 167)]).unwrap();
+            // Start mid-run, after a rising edge (the index on a falling edge).
+            for _ in 0..3 {
+                stepped.skip_falling_edges();
+                stepped.next_edge();
+            }
+            let mut skipped = stepped.clone();
+            for _ in 0..n {
+                stepped.skip_falling_edges();
+                stepped.next_edge();
+            }
+            assert!(skipped.skip_rising_edges(n));
+            assert_eq!(
+                (
+                    skipped.next_half.clone(),
+                    skipped.cycles.clone(),
+                    skipped.time_ps
+                ),
+                (
+                    stepped.next_half.clone(),
+                    stepped.cycles.clone(),
+                    stepped.time_ps
+                ),
+                "n = {n}"
+            );
+            // And the next edge after the skip is the same one.
+            assert_eq!(skipped.next_edge(), stepped.next_edge());
+        }
+        let mut two = Clocks::new(default_domains()).unwrap();
+        assert!(!two.skip_rising_edges(5));
+        assert_eq!(two.cycles(DomainId(0)), 0);
+        let mut one = Clocks::new(vec![ClockDomain::mhz("dram", 1)]).unwrap();
+        assert!(!one.skip_rising_edges(u64::MAX));
+        assert_eq!(one.cycles(DomainId(0)), 0);
     }
 
     #[test]

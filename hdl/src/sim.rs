@@ -331,6 +331,25 @@ impl Sim {
         false
     }
 
+    /// Whether [`skip_cycles`](Self::skip_cycles) may be used: the design has one clock
+    /// domain and no tracer is attached (a waveform would have to show the skipped edges).
+    pub fn can_skip_cycles(&self) -> bool {
+        #[cfg(feature = "probes")]
+        if self.trace.is_some() {
+            return false;
+        }
+        self.design.clocks.domains().len() == 1
+    }
+
+    /// Advances time by `n` cycles without evaluating or committing anything: for a caller
+    /// that has itself brought every module to the state those `n` cycles would leave
+    /// (idle time in a trace replay) and whose channels are empty, so committing them
+    /// would change nothing. Returns `false`, changing nothing, unless
+    /// [`can_skip_cycles`](Self::can_skip_cycles).
+    pub fn skip_cycles(&mut self, n: u64) -> bool {
+        self.can_skip_cycles() && self.design.clocks.skip_rising_edges(n)
+    }
+
     /// Advances to the next clock edge of any domain (without a tracer, the next rising
     /// edge: falling edges change nothing then).
     pub fn step(&mut self) -> Result<Edge, ContractError> {

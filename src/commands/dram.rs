@@ -2,14 +2,14 @@
 //! microbenchmark through the memory access scheduler and the SDRAM channels.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufReader, BufWriter, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use imagine_units::desc::MachineDesc;
-use imagine_units::dram::trace::{BENCHES, bench, parse_trace, write_trace};
+use imagine_units::dram::trace::{BENCHES, MAX_TRACE_REQUESTS, bench, read_trace, write_trace};
 use imagine_units::dram::{DramParams, Policy, ReplayOptions, ReplayReport, TraceRequest, replay};
 
 use super::outputs::Outputs;
@@ -18,7 +18,10 @@ use super::waves::WaveArgs;
 #[derive(Args)]
 #[command(after_help = "\
 Trace format (DRAMsim3): one request per line, `<hex byte address> READ|WRITE <DRAM cycle>`,
-cycles never decreasing; blank lines and lines starting with `#` are skipped.
+cycles never decreasing; blank lines and lines starting with `#` are skipped. Limits: 1 to
+16777216 requests, cycles up to 17592186044416 (2^44), lines up to 4096 bytes. Idle time
+between requests costs nothing (the replay jumps over it, refreshes included) except with
+--vcd, where every cycle is stepped and drawn.
 
 Microbenchmarks (--bench NAME, after Rixner et al. ISCA 2000):
   unit-load           unit-stride reads of consecutive words, all presented at cycle 0
@@ -134,8 +137,11 @@ pub fn run(a: DramArgs) -> Result<ExitCode> {
 
 fn load_requests(a: &DramArgs, p: &DramParams) -> Result<(String, Vec<TraceRequest>)> {
     if let Some(name) = &a.bench {
-        if a.requests == 0 || a.requests > 1 << 24 {
-            bail!("--requests {}: must be 1..={}", a.requests, 1 << 24);
+        if !(1..=MAX_TRACE_REQUESTS).contains(&a.requests) {
+            bail!(
+                "--requests {}: must be 1..={MAX_TRACE_REQUESTS} (the most requests a trace may hold)",
+                a.requests
+            );
         }
         let Some(reqs) = bench(name, a.requests, p) else {
             bail!(
@@ -146,10 +152,10 @@ fn load_requests(a: &DramArgs, p: &DramParams) -> Result<(String, Vec<TraceReque
         return Ok((format!("bench {name}"), reqs));
     }
     let path = a.trace.as_ref().expect("clap requires --trace or --bench");
-    let text = imagine_units::limits::read_text_file(path)
-        .with_context(|| format!("cannot read trace `{}`", path.display()))?;
-    let reqs =
-        parse_trace(&text, p).map_err(|e| anyhow::anyhow!("trace `{}`: {e}", path.display()))?;
+    let file =
+        File::open(path).with_context(|| format!("cannot read trace `{}`", path.display()))?;
+    let reqs = read_trace(BufReader::new(file), p)
+        .map_err(|e| anyhow::anyhow!("trace `{}`: {e}", path.display()))?;
     Ok((path.display().to_string(), reqs))
 }
 

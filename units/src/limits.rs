@@ -31,6 +31,22 @@ pub const MAX_BASE_DEPTH: usize = 8;
 /// The longest host dispatch overhead of a kernel, `stream_controller.min_kernel_cycles`.
 pub const MAX_MIN_KERNEL_CYCLES: u64 = 1 << 24;
 
+// ---- DRAM traces (`imagine dram --trace`) ----
+
+/// The most requests a trace may hold (16 Mi, about 40 times the longest microbenchmark
+/// of the paper); also the bound on `--requests` for the generated ones.
+pub const MAX_TRACE_REQUESTS: usize = 1 << 24;
+
+/// The latest cycle a request may name, 2^44 (about 1.8 · 10^13 cycles, 29 hours at
+/// 167 MHz): even at the slowest DRAM clock a machine may have (1 MHz), the simulator's
+/// picosecond clock (a `u64`) reaches it without wrapping, and cycle arithmetic stays far
+/// from overflow.
+pub const MAX_TRACE_CYCLE: u64 = 1 << 44;
+
+/// The longest line a trace may have, in bytes (comments included), so that a file with
+/// no line breaks is not read whole.
+pub const MAX_TRACE_LINE: usize = 4096;
+
 // ---- scenes ----
 
 /// Largest window side the pipeline accepts (pixel addresses stay well inside 32 bits and

@@ -193,11 +193,100 @@ impl DramChannel {
 
     /// Whether nothing is pending, in flight or waiting to be returned.
     pub fn is_idle(&self) -> bool {
-        self.scheduler.depth() == 0
+        // A request in the local input FIFO has been handed to the channel: it is pending
+        // even though the scheduler has not taken it yet.
+        let input_empty = match &self.input {
+            ChannelInput::Local(rx) => rx.available() == 0,
+            ChannelInput::Crossing(_) => true,
+        };
+        input_empty
+            && self.scheduler.depth() == 0
             && self.reads.is_empty()
             && self.returns.is_empty()
             && self.bus_q.is_none_or(|b| matches!(b.cmd, Command::Refresh))
             && self.bus_d.is_none()
+    }
+
+    /// Whether the cycles from now until the next request arrives can be skipped with
+    /// [`skip_idle`](Self::skip_idle): nothing pending, in flight or on the buses, every
+    /// bank closed, no timing constraint running, and the scheduler timed like the part (so
+    /// the checker has nothing to flag). Idle cycles then only count and refresh.
+    pub fn can_skip_idle(&self) -> bool {
+        let input_empty = match &self.input {
+            ChannelInput::Local(rx) => rx.available() == 0,
+            // A crossing's synchronisers move every cycle: step them.
+            ChannelInput::Crossing(_) => false,
+        };
+        input_empty
+            && self.reads.is_empty()
+            && self.returns.is_empty()
+            && self.bus_q.is_none()
+            && self.bus_d.is_none()
+            && self.arriving.is_none()
+            && self.scheduler.params() == &self.p
+            && self.sdram.is_quiet()
+            && self.scheduler.idle_skippable(self.cycle)
+            && self
+                .checker
+                .idle_skippable(self.cycle, self.scheduler.refreshes())
+    }
+
+    /// Advances the channel over `n` idle cycles (only when
+    /// [`can_skip_idle`](Self::can_skip_idle) and no request arrives in them), leaving it
+    /// exactly as stepping them would: the refreshes due in them issued on time, counted
+    /// and checked, the one decided in the last cycle on the command bus.
+    pub fn skip_idle(&mut self, n: u64) {
+        debug_assert!(self.can_skip_idle());
+        if n == 0 {
+            return;
+        }
+        let c = self.cycle;
+        let (issued, last_bus) = self.scheduler.skip_idle(c, n);
+        // The scheduler's cycle t drives bus cycle t + 1: a refresh on the bus in cycle
+        // c + n has been decided but not executed yet.
+        let pending = last_bus == Some(c + n);
+        let executed = issued - pending as u64;
+        let last_executed = match (pending, last_bus) {
+            (true, Some(b)) if executed > 0 => Some(b - self.p.t_refi),
+            (true, _) => None,
+            (false, b) => b,
+        };
+        self.checker.skip_idle(executed, last_executed);
+        self.stats.refreshes += executed;
+        self.bus_q = pending.then_some(Bus {
+            cmd: Command::Refresh,
+            entry: None,
+        });
+        self.sdram.skip_idle();
+        self.popped_return = false;
+        self.cycle += n;
+        self.stats.cycles = self.cycle;
+    }
+
+    /// Everything that evolves (tests compare a run that skipped idle cycles with one
+    /// that stepped them).
+    #[cfg(test)]
+    pub(crate) fn debug_state(&self) -> String {
+        let input = match &self.input {
+            ChannelInput::Local(rx) => rx.available(),
+            ChannelInput::Crossing(rx) => rx.can_pop() as usize,
+        };
+        format!(
+            "input {input}\nscheduler {:?}\nsdram {}\nchecker {:?}\nbus {:?} {:?}\n\
+             reads {:?}\nreturns {:?} {}\ncycle {} {:?}\nrecord {:?} {:?}",
+            self.scheduler,
+            self.sdram.debug_state(),
+            self.checker,
+            self.bus_q,
+            self.bus_d,
+            self.reads,
+            self.returns,
+            self.popped_return,
+            self.cycle,
+            self.stats,
+            self.record,
+            self.arriving
+        )
     }
 
     /// The requests that entered this channel (when recording), in order.

@@ -202,6 +202,61 @@ impl Scheduler {
         self.incoming = Some((r, loc, cycle));
     }
 
+    /// The timing this scheduler believes in.
+    pub fn params(&self) -> &DramParams {
+        &self.p
+    }
+
+    /// Refreshes issued so far.
+    pub fn refreshes(&self) -> u64 {
+        self.refreshes
+    }
+
+    /// Whether, from cycle `cycle` on and as long as no reference arrives, the only
+    /// commands this scheduler can issue are its refreshes, each exactly when due (bus
+    /// cycle `k · refresh_interval`): no reference pending, every bank closed, no refresh
+    /// overdue and no timing constraint still running.
+    pub fn idle_skippable(&self, cycle: u64) -> bool {
+        let bus = cycle + 1;
+        self.entries.is_empty()
+            && self.incoming.is_none()
+            && matches!(self.decision, Decision::None)
+            && self.open.iter().all(Option::is_none)
+            && self.busy_until <= bus
+            && self.ready_act.iter().all(|&r| r <= bus)
+            && !self.refresh_due(bus)
+            // One refresh's tRFC ends before the next is due (the machine description
+            // guarantees it; a hand-made DramParams might not).
+            && self.p.t_rfc < self.p.t_refi
+    }
+
+    /// Brings the scheduler to the state `n` idle cycles from `cycle` leave (only when
+    /// [`idle_skippable`](Self::idle_skippable)): the refreshes due in bus cycles
+    /// `cycle + 1 ..= cycle + n` issued on time. Returns how many, and the bus cycle of
+    /// the last one.
+    pub fn skip_idle(&mut self, cycle: u64, n: u64) -> (u64, Option<u64>) {
+        debug_assert!(self.idle_skippable(cycle));
+        let end_bus = cycle + n;
+        let issued = (end_bus / self.p.t_refi).saturating_sub(self.refreshes);
+        self.last = Decision::None;
+        self.last_rank = 0;
+        if issued == 0 {
+            return (0, None);
+        }
+        // The same effects as the commit of each of those refreshes; the later ones
+        // supersede the earlier ones' deadlines.
+        self.refreshes += issued;
+        let last_bus = self.refreshes * self.p.t_refi;
+        self.busy_until = last_bus + self.p.t_rfc;
+        for r in self.ready_act.iter_mut() {
+            *r = (*r).max(last_bus + self.p.t_rfc);
+        }
+        if last_bus == end_bus {
+            self.last = Decision::Refresh;
+        }
+        (issued, Some(last_bus))
+    }
+
     fn refresh_due(&self, bus: u64) -> bool {
         bus >= (self.refreshes + 1) * self.p.t_refi
     }

@@ -131,6 +131,35 @@ impl Sdram {
         self.due.len()
     }
 
+    /// Whether idle cycles change nothing here: no read data due, every bank closed.
+    pub fn is_quiet(&self) -> bool {
+        self.due.is_empty()
+            && self
+                .banks
+                .iter()
+                .all(|b| b.state() == super::bank::BankState::Idle)
+    }
+
+    /// The state idle cycles leave (only when [`is_quiet`](Self::is_quiet)): an empty data
+    /// bus.
+    pub fn skip_idle(&mut self) {
+        debug_assert!(self.is_quiet());
+        self.dq = None;
+        self.dq_q = None;
+    }
+
+    /// Everything that evolves, with the sparse store in a fixed order (tests compare two
+    /// runs' states).
+    #[cfg(test)]
+    pub(crate) fn debug_state(&self) -> String {
+        let mut rows: Vec<_> = self.store.iter().collect();
+        rows.sort_by_key(|&(k, _)| *k);
+        format!(
+            "{:?} {:?} {:?} {:?} {rows:?}",
+            self.banks, self.due, self.dq, self.dq_q
+        )
+    }
+
     pub fn commit(&mut self) {
         self.banks.iter_mut().for_each(Bank::commit);
         self.dq_q = self.dq;

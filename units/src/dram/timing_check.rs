@@ -105,6 +105,33 @@ impl TimingChecker {
         self.commands
     }
 
+    /// Whether a REFRESH at every due cycle (`k · refresh_interval`) from `cycle` on, and
+    /// no other command, breaks no rule, given that `refreshes` have been issued: every
+    /// bank closed long enough, the last refresh's tRFC over, none overdue.
+    pub fn idle_skippable(&self, cycle: u64, refreshes: u64) -> bool {
+        let p = &self.p;
+        self.refreshes == refreshes
+            && p.t_rfc < p.t_refi
+            && cycle < (refreshes + 1) * p.t_refi
+            && self.last_ref.is_none_or(|t| t + p.t_rfc <= cycle)
+            && self
+                .banks
+                .iter()
+                .all(|h| h.open.is_none() && h.pre.is_none_or(|t| t + p.t_rp <= cycle))
+    }
+
+    /// The state of having observed `count` idle cycles' refreshes, the last at
+    /// `last_cycle`, and no other command (only when
+    /// [`idle_skippable`](Self::idle_skippable)): each was on time and legal, so only the
+    /// counts and the last refresh's cycle change.
+    pub fn skip_idle(&mut self, count: u64, last_cycle: Option<u64>) {
+        self.refreshes += count;
+        self.commands += count;
+        if let Some(t) = last_cycle {
+            self.last_ref = Some(t);
+        }
+    }
+
     fn flag(&mut self, cycle: u64, bank: Option<usize>, rule: &'static str, detail: String) {
         self.violations.push(TimingViolation {
             cycle,

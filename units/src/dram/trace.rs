@@ -4,11 +4,14 @@
 //! One request per line: `<hex byte address> READ|WRITE <DRAM cycle>`, e.g.
 //! `0x1f40 READ 12`, with cycles that never decrease. Blank lines and lines starting with
 //! `#` are skipped. The address may be written with or without `0x`; the command is case
-//! insensitive. [`write_trace`] writes the same format, so a trace recorded by a run of
+//! insensitive. Limits (checked as the trace is read, naming the line): at most
+//! [`MAX_TRACE_REQUESTS`] requests, cycles up to [`MAX_TRACE_CYCLE`], lines up to
+//! [`MAX_TRACE_LINE`] bytes of UTF-8 text, addresses inside the memory, and at least one
+//! request. [`write_trace`] writes the same format, so a trace recorded by a run of
 //! this model replays in DRAMsim3 and back.
 
 use std::fmt;
-use std::io::{self, Write};
+use std::io::{self, BufRead, Read, Write};
 
 use super::DramParams;
 
@@ -47,63 +50,159 @@ impl fmt::Display for TraceError {
 
 impl std::error::Error for TraceError {}
 
+pub use crate::limits::{MAX_TRACE_CYCLE, MAX_TRACE_LINE, MAX_TRACE_REQUESTS};
+
 /// Parses a trace; every address must lie inside the memory `p` describes.
 pub fn parse_trace(text: &str, p: &DramParams) -> Result<Vec<TraceRequest>, TraceError> {
+    read_trace(text.as_bytes(), p)
+}
+
+/// Reads and parses a trace line by line (see [`parse_trace`]), within the limits above:
+/// a line that is not UTF-8 text, too long, or malformed is an error naming it, and so is
+/// a trace with no requests at all (an empty file is a mistake, not a measurement).
+pub fn read_trace(r: impl BufRead, p: &DramParams) -> Result<Vec<TraceRequest>, TraceError> {
+    read_at_most(r, p, MAX_TRACE_REQUESTS)
+}
+
+/// [`read_trace`] with another request limit (tests use a small one).
+fn read_at_most(
+    mut r: impl BufRead,
+    p: &DramParams,
+    max: usize,
+) -> Result<Vec<TraceRequest>, TraceError> {
     let mut out = Vec::new();
     let mut last = 0u64;
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
+    let mut buf = Vec::new();
+    for line in 1.. {
         let err = |message: String| TraceError { line, message };
-        let l = raw.trim();
-        if l.is_empty() || l.starts_with('#') {
-            continue;
+        buf.clear();
+        (&mut r)
+            .take(MAX_TRACE_LINE as u64 + 1)
+            .read_until(b'\n', &mut buf)
+            .map_err(|e| err(format!("cannot read: {e}")))?;
+        if buf.is_empty() {
+            break;
         }
-        let fields: Vec<&str> = l.split_whitespace().collect();
-        if fields.len() != 3 {
+        if buf.last() == Some(&b'\n') {
+            buf.pop();
+        } else if buf.len() > MAX_TRACE_LINE {
             return Err(err(format!(
-                "`{l}`: expected `<hex address> READ|WRITE <cycle>` (3 fields), found {}",
-                fields.len()
+                "longer than {MAX_TRACE_LINE} bytes (is this a trace?)"
             )));
         }
-        let hex = fields[0]
-            .strip_prefix("0x")
-            .or_else(|| fields[0].strip_prefix("0X"))
-            .unwrap_or(fields[0]);
-        let byte_addr = u64::from_str_radix(hex, 16)
-            .map_err(|_| err(format!("`{}` is not a hexadecimal address", fields[0])))?;
-        let kind = match fields[1].to_ascii_uppercase().as_str() {
-            "READ" => TraceKind::Read,
-            "WRITE" => TraceKind::Write,
-            other => {
-                return Err(err(format!(
-                    "`{other}` is not a request type (READ or WRITE)"
-                )));
-            }
+        let Ok(text) = std::str::from_utf8(&buf) else {
+            return Err(err(
+                "not UTF-8 text (a binary file?): expected `<hex address> READ|WRITE <cycle>`"
+                    .into(),
+            ));
         };
-        let cycle: u64 = fields[2]
-            .parse()
-            .map_err(|_| err(format!("`{}` is not a cycle number", fields[2])))?;
-        if cycle < last {
+        let Some(req) = parse_line(text, p, last).map_err(err)? else {
+            continue;
+        };
+        if out.len() == max {
             return Err(err(format!(
-                "cycle {cycle} is before the previous request's cycle {last} (cycles must not decrease)"
+                "more than {max} requests, the most a trace may hold"
             )));
         }
-        if byte_addr >= p.capacity_bytes() {
-            return Err(err(format!(
-                "address {:#x} is out of range: the memory has {} bytes (up to {:#x})",
-                byte_addr,
-                p.capacity_bytes(),
-                p.capacity_bytes() - 1
-            )));
-        }
-        last = cycle;
-        out.push(TraceRequest {
-            byte_addr,
-            kind,
-            cycle,
+        last = req.cycle;
+        out.push(req);
+    }
+    if out.is_empty() {
+        return Err(TraceError {
+            line: 0,
+            message: "no requests: the trace is empty or holds only blank lines and comments"
+                .into(),
         });
     }
     Ok(out)
+}
+
+/// A field or line as a message shows it: control characters escaped, long ones cut.
+fn shown(s: &str) -> String {
+    const MAX: usize = 40;
+    let mut out: String = s.chars().take(MAX).flat_map(char::escape_debug).collect();
+    if s.chars().nth(MAX).is_some() {
+        out.push('…');
+    }
+    out
+}
+
+/// One line: `None` for a blank line or a comment. `last` is the previous request's cycle.
+fn parse_line(raw: &str, p: &DramParams, last: u64) -> Result<Option<TraceRequest>, String> {
+    let l = raw.trim();
+    if l.is_empty() || l.starts_with('#') {
+        return Ok(None);
+    }
+    let fields: Vec<&str> = l.split_whitespace().collect();
+    if fields.len() != 3 {
+        return Err(format!(
+            "`{}`: expected `<hex address> READ|WRITE <cycle>` (3 fields), found {}",
+            shown(l),
+            fields.len()
+        ));
+    }
+    let hex = fields[0]
+        .strip_prefix("0x")
+        .or_else(|| fields[0].strip_prefix("0X"))
+        .unwrap_or(fields[0]);
+    let out_of_range = || {
+        format!(
+            "address {} is out of range: the memory has {} bytes (up to {:#x})",
+            shown(fields[0]),
+            p.capacity_bytes(),
+            p.capacity_bytes() - 1
+        )
+    };
+    // Digits only: `from_str_radix` would also take a sign.
+    if hex.is_empty() || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return Err(format!(
+            "`{}` is not a hexadecimal address",
+            shown(fields[0])
+        ));
+    }
+    let byte_addr = u64::from_str_radix(hex, 16).map_err(|_| out_of_range())?;
+    if byte_addr >= p.capacity_bytes() {
+        return Err(out_of_range());
+    }
+    let kind = match fields[1].to_ascii_uppercase().as_str() {
+        "READ" => TraceKind::Read,
+        "WRITE" => TraceKind::Write,
+        _ => {
+            return Err(format!(
+                "`{}` is not a request type (READ or WRITE)",
+                shown(fields[1])
+            ));
+        }
+    };
+    let c = fields[2];
+    if c.is_empty() || !c.bytes().all(|b| b.is_ascii_digit()) {
+        let why = if c.starts_with('-') {
+            ": cycles are not negative"
+        } else {
+            ""
+        };
+        return Err(format!("`{}` is not a cycle number{why}", shown(c)));
+    }
+    let cycle = c
+        .parse::<u64>()
+        .ok()
+        .filter(|&v| v <= MAX_TRACE_CYCLE)
+        .ok_or_else(|| {
+            format!(
+                "cycle {} is past the latest a trace may name, {MAX_TRACE_CYCLE} (2^44)",
+                shown(c)
+            )
+        })?;
+    if cycle < last {
+        return Err(format!(
+            "cycle {cycle} is before the previous request's cycle {last} (cycles must not decrease)"
+        ));
+    }
+    Ok(Some(TraceRequest {
+        byte_addr,
+        kind,
+        cycle,
+    }))
 }
 
 /// Writes requests in the DRAMsim3 text format.
@@ -221,4 +320,66 @@ pub fn bench(name: &str, n: usize, p: &DramParams) -> Option<Vec<TraceRequest>> 
         _ => return None,
     };
     Some(reqs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::desc::MachineDesc;
+
+    #[test]
+    fn a_trace_past_the_request_limit_is_refused_at_the_first_request_too_many() {
+        let p = DramParams::of(&MachineDesc::gold8());
+        let text = "# three requests\n0x0 READ 0\n\n0x4 READ 1\n0x8 WRITE 1\n";
+        assert_eq!(read_at_most(text.as_bytes(), &p, 3).unwrap().len(), 3);
+        let e = read_at_most(text.as_bytes(), &p, 2).unwrap_err();
+        assert_eq!(e.line, 5);
+        assert!(e.message.contains("more than 2 requests"), "{e}");
+    }
+
+    #[test]
+    fn limits_and_garbage_are_errors_naming_the_line() {
+        let p = DramParams::of(&MachineDesc::gold8());
+        let max = MAX_TRACE_CYCLE.to_string();
+        let past = (MAX_TRACE_CYCLE + 1).to_string();
+        let ok = format!("0x0 READ {max}\n");
+        assert_eq!(parse_trace(&ok, &p).unwrap()[0].cycle, MAX_TRACE_CYCLE);
+        let long = format!("# {}\n", "x".repeat(MAX_TRACE_LINE));
+        for (bad, line, what) in [
+            (
+                format!("0x0 READ 1\n0x4 READ {past}\n"),
+                2,
+                "past the latest",
+            ),
+            (
+                "0x0 READ 99999999999999999999999\n".into(),
+                1,
+                "past the latest",
+            ),
+            ("0x0 READ -1\n".into(), 1, "not negative"),
+            ("0x0 READ +1\n".into(), 1, "not a cycle number"),
+            ("0x0 READ 1e3\n".into(), 1, "not a cycle number"),
+            ("+1f READ 1\n".into(), 1, "hexadecimal"),
+            ("0x READ 1\n".into(), 1, "hexadecimal"),
+            ("0x10000000000000000 READ 1\n".into(), 1, "out of range"),
+            ("0x0 READ 1 2\n".into(), 1, "3 fields"),
+            ("0x0 read 1\n0x0 LOAD 1\n".into(), 2, "READ or WRITE"),
+            (long, 1, "longer than 4096 bytes"),
+            ("\0\u{1}\n".into(), 1, "`\\0\\u{1}`"),
+        ] {
+            let e = parse_trace(&bad, &p).unwrap_err();
+            assert_eq!(e.line, line, "{bad:?}: {e}");
+            assert!(e.to_string().contains(what), "{bad:?}: {e}");
+        }
+        let e = read_trace(&b"0x0 READ 1\n0x4 \xff\xfe 2\n"[..], &p).unwrap_err();
+        assert_eq!(e.line, 2);
+        assert!(e.message.contains("not UTF-8"), "{e}");
+        // A line of exactly the longest length is fine.
+        let edge = format!("#{}\n0x0 READ 0\n", "x".repeat(MAX_TRACE_LINE - 1));
+        assert_eq!(parse_trace(&edge, &p).unwrap().len(), 1);
+        for empty in ["", "\n\n", "# nothing\n"] {
+            let e = parse_trace(empty, &p).unwrap_err();
+            assert!(e.message.contains("no requests"), "{empty:?}: {e}");
+        }
+    }
 }
