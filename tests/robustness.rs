@@ -104,6 +104,21 @@ fn root(rel: &str) -> String {
         .to_string()
 }
 
+/// CRC-32 (ISO 3309, as PNG chunks use).
+fn crc32(bytes: &[u8]) -> u32 {
+    !bytes.iter().fold(!0u32, |mut c, &b| {
+        c ^= u32::from(b);
+        for _ in 0..8 {
+            c = if c & 1 == 1 {
+                (c >> 1) ^ 0xedb8_8320
+            } else {
+                c >> 1
+            };
+        }
+        c
+    })
+}
+
 const GARBAGE: &[u8] = &[0x00, 0xff, 0xfe, 0x89, b'P', b'N', b'G', 0x1a, 0x00, 0x9c];
 
 fn gold8() -> String {
@@ -347,6 +362,41 @@ fn scene_files() {
         scene("[[object]]\npatches = \"many.bpt\"\ntessellate = 4\n").as_bytes(),
         &["many.bpt"],
     );
+    // Textures: garbage, a truncated PNG, and a header declaring 100,000² texels (refused
+    // from the header, before anything is allocated).
+    let png = |w: u32, h: u32| {
+        let mut ihdr = b"IHDR".to_vec();
+        ihdr.extend_from_slice(&w.to_be_bytes());
+        ihdr.extend_from_slice(&h.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 6, 0, 0, 0]);
+        let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+        out.extend_from_slice(&13u32.to_be_bytes());
+        out.extend_from_slice(&ihdr);
+        out.extend_from_slice(&crc32(&ihdr).to_be_bytes());
+        out
+    };
+    let textured = |image: &str| {
+        scene(&format!(
+            "[[texture]]\nname = \"t\"\nimage = \"{image}\"\n[[material]]\nname = \"m\"\n\
+             shader = \"unlit\"\ntextures = [\"t\"]\n{sphere}material = \"m\"\n"
+        ))
+    };
+    file("garbage.png", GARBAGE);
+    file("truncated.png", png(4, 4));
+    file("huge.png", png(100_000, 100_000));
+    for (image, want) in [
+        ("garbage.png", "not a PNG"),
+        ("truncated.png", "not a PNG"),
+        ("huge.png", "4096 texels"),
+        ("no-such.png", "cannot read"),
+    ] {
+        let name = format!("texture-{image}.toml");
+        check(
+            &name,
+            textured(image).as_bytes(),
+            &["texture[0].image", want],
+        );
+    }
     refused(
         &["render", &dir().join("no-such.toml").to_string_lossy()],
         b"",
@@ -553,6 +603,11 @@ fn options_out_of_range() {
         (&["demo", "--crossing-capacity", "0"], "--crossing-capacity"),
         (&["demo", "--cycles", "18446744073709551615"], "--cycles"),
         (&["demo", "--core-mhz", "0"], "--core-mhz"),
+        (
+            &["machine", "bench", "--cycles", "18446744073709551615"],
+            "--cycles",
+        ),
+        (&["machine", "bench", "--cycles", "0"], "--cycles"),
         (
             &["dram", "--bench", "unit", "--policy", "fastest"],
             "fastest",

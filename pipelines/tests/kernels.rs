@@ -648,3 +648,23 @@ fn verifier_rejects_a_loop_value_used_after_the_loop() {
     let e = b.finish().unwrap_err();
     assert!(e.message.contains("after the loop"), "{e}");
 }
+
+/// `turbulence` on a machine with two condition codes has no schedule at any interval (not
+/// even one iteration at a time): the compiler gives up after a bounded number of tries,
+/// naming the kernel and the resource, where it used to try every interval up to three
+/// times the bound for minutes. About a minute of compiling: run with `--ignored`.
+#[test]
+#[ignore]
+fn the_compiler_gives_up_after_bounded_effort() {
+    let mut desc = machine("gold8");
+    desc.name = "two-codes".into();
+    desc.cluster.condition_codes = 2;
+    let kernel = (find("turbulence").unwrap().build)(&desc).unwrap();
+    let e = imagine_pipelines::compile::compile(&kernel, &desc)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("turbulence") && e.contains("condition codes") && e.contains("gave up"),
+        "{e}"
+    );
+}

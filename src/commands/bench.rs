@@ -3,14 +3,18 @@
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use imagine_units::desc::MachineDesc;
+use imagine_units::limits::MAX_DEMO_CYCLES;
 use imagine_units::runner::{RunOptions, run_kernel};
 use imagine_units::workloads::compute_dense;
 
 /// Runs the compute-dense loop on `machine` for about `cycles` core cycles (VCD off) and
 /// reports simulated cycles per host second and the op rate it implies.
 pub fn machine(machine: &str, cycles: u64) -> Result<ExitCode> {
+    if !(1..=MAX_DEMO_CYCLES).contains(&cycles) {
+        bail!("--cycles {cycles}: must be 1..={MAX_DEMO_CYCLES} (MAX_DEMO_CYCLES)");
+    }
     let desc = MachineDesc::resolve(machine)?;
     let body = desc.latency.divsqrt_issue_interval.max(8) as u64;
     let iterations = u32::try_from((cycles / body).max(1)).context("--cycles is too large")?;

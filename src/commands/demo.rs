@@ -44,9 +44,9 @@ pub fn run(a: DemoArgs) -> Result<ExitCode> {
             a.crossing_capacity
         );
     }
-    if a.cycles > MAX_DEMO_CYCLES {
+    if !(1..=MAX_DEMO_CYCLES).contains(&a.cycles) {
         bail!(
-            "--cycles {}: at most {MAX_DEMO_CYCLES} (MAX_DEMO_CYCLES)",
+            "--cycles {}: must be 1..={MAX_DEMO_CYCLES} (MAX_DEMO_CYCLES)",
             a.cycles
         );
     }

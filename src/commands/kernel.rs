@@ -262,8 +262,8 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             for (lk, kernel) in kernels {
                 let compiled = cache.compile(&kernel, &desc)?;
                 let inputs = (lk.inputs)(&desc, rows, seed);
-                let check =
-                    check(&kernel, &compiled, &desc, &inputs).map_err(|e| anyhow::anyhow!(e))?;
+                let check = check(&kernel, &compiled, &desc, &inputs)
+                    .map_err(|e| anyhow::anyhow!("kernel `{}` on {}: {e}", lk.name, desc.name))?;
                 failed |= check.mismatch.is_some();
                 let r = &compiled.report;
                 if json {

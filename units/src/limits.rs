@@ -75,8 +75,9 @@ pub const MAX_INPUT_WORDS: usize = 1 << 24;
 /// Most entries of the demonstration design's clock-crossing FIFO (`demo
 /// --crossing-capacity`).
 pub const MAX_CROSSING_CAPACITY: usize = 1 << 16;
-/// Most core cycles `imagine demo --cycles` simulates.
-pub const MAX_DEMO_CYCLES: u64 = 1 << 36;
+/// Most core cycles `imagine demo --cycles` and `imagine machine bench --cycles` simulate
+/// (2^32: minutes of host time; a larger count is taken for a typo).
+pub const MAX_DEMO_CYCLES: u64 = 1 << 32;
 
 // ---- files ----
 

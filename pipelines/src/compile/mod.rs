@@ -163,10 +163,13 @@ fn search(
             });
     }
     // Copies that move long-lived values out of a full LRF, then the same mode again.
-    // The effort is bounded by a count of schedules tried, not by time, so that whether a
-    // kernel compiles never depends on the host.
+    // A body that cannot even be list-scheduled one iteration at a time has no fallback,
+    // and its search is bounded by a count of schedules tried (not by time, so that whether
+    // a kernel compiles never depends on the host). With a fallback the search is bounded
+    // by the fallback's interval, as before.
     let attempts = std::cell::Cell::new(0usize);
-    let spent = || attempts.get() >= MAX_SCHEDULE_ATTEMPTS;
+    let bounded = std::cell::Cell::new(false);
+    let spent = || bounded.get() && attempts.get() >= MAX_SCHEDULE_ATTEMPTS;
     let gave_up = |(resource, why): (String, String)| {
         (
             resource,
@@ -218,6 +221,8 @@ fn search(
         Some(c) => (c.report.ii.unwrap_or(1) - 1).min(max_ii),
         None => max_ii,
     };
+    bounded.set(line.is_none());
+    attempts.set(0);
     // Big bodies are tried close to their bound first, in the order of their heights, …
     let near = if mii >= 64 {
         max_ii.min(mii + mii / 4)
@@ -278,13 +283,10 @@ fn search(
                 Err(Retry::Fatal(e)) => return Err(e),
                 Err(Retry::Larger(e) | Retry::Repair(_, e)) => last_error = Some(e),
             }
-            if spent() && line.is_none() {
+            if spent() {
                 let last = last_error.unwrap_or(("schedule".into(), "no schedule found".into()));
                 return Err(gave_up(last));
             }
-        }
-        if spent() {
-            break;
         }
     }
     line.ok_or_else(|| last_error.unwrap_or(("schedule".into(), "no schedule found".into())))
@@ -339,11 +341,13 @@ const RELIEF_SLACK: usize = 4;
 /// Repairs of a full LRF tried at one initiation interval before a larger one.
 const MAX_REPAIRS: usize = 96;
 
-/// Schedules a kernel may be tried with (each interval, variant and LRF repair counts one)
-/// before the compiler gives up on it. The library's kernels need at most 118 (`merge` on
-/// gold1); a kernel the machine cannot serve (e.g. `turbulence` with two condition codes)
-/// would otherwise try every interval up to three times its bound, for minutes.
-const MAX_SCHEDULE_ATTEMPTS: usize = 1000;
+/// Software-pipelined schedules a loop with no straight-line fallback may be tried with
+/// (each interval, variant and LRF repair counts one) before the compiler gives up on it.
+/// Of the library's and the pipelines' kernels on gold1, gold8, gold8+F, gold16 and gold32
+/// only `merge` on gold1 takes this path, and it needs 21; a kernel the machine cannot
+/// serve (e.g. `turbulence` with two condition codes) would otherwise try every interval up
+/// to three times its bound, for minutes.
+const MAX_SCHEDULE_ATTEMPTS: usize = 200;
 
 /// Intervals above the lower bound at which the local search is tried (see [`search`]).
 const SEARCH_ABOVE_BOUND: u32 = 1;

@@ -770,13 +770,25 @@ impl Cx {
         let (width, height, texels) = match (&t.image, &t.procedural) {
             (Some(file), None) => {
                 let (path, bytes) = self.read(&key("image"), file)?;
-                let img = image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
-                    .map_err(|e| {
-                        self.err(
-                            &key("image"),
-                            format!("`{}` is not a PNG image: {e}", path.display()),
-                        )
-                    })?;
+                // The size is checked from the header, before a hostile file's declared
+                // gigapixels are allocated.
+                let mut reader = image::ImageReader::with_format(
+                    std::io::Cursor::new(&bytes),
+                    image::ImageFormat::Png,
+                );
+                let mut limits = image::Limits::default();
+                limits.max_image_width = Some(MAX_WINDOW);
+                limits.max_image_height = Some(MAX_WINDOW);
+                reader.limits(limits);
+                let img = reader.decode().map_err(|e| {
+                    let problem = match e {
+                        image::ImageError::Limits(_) => {
+                            format!("is larger than {MAX_WINDOW} texels a side")
+                        }
+                        e => format!("is not a PNG image: {e}"),
+                    };
+                    self.err(&key("image"), format!("`{}` {problem}", path.display()))
+                })?;
                 use image::ColorType as C;
                 if !matches!(img.color(), C::L8 | C::La8 | C::Rgb8 | C::Rgba8) {
                     return Err(self.err(
