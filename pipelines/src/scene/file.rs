@@ -409,6 +409,12 @@ enum TrianglesFile {
 
 pub use imagine_units::limits::{MAX_SPHERE_DIVISIONS, MAX_TESSELLATE};
 
+/// Most triangles of a scene, all objects together: 16 times SPHERE's, 8 times RATE-1's in
+/// its 720 × 720 window, more than a machine's DRAM holds. A primitive or patch object that
+/// would pass it is refused before its mesh is built, so that a line of a scene file cannot
+/// ask for gigabytes (a `uv_sphere` of 4096 × 4096 is 33.5 M triangles).
+pub const MAX_TRIANGLES: usize = 1 << 22;
+
 /// Reads a scene file's text; `path` names it in errors and locates its assets.
 pub fn parse(text: &str, path: &Path, opts: &LoadOptions) -> Result<model::Scene, SceneError> {
     let cx = Cx {
@@ -582,6 +588,8 @@ impl Cx {
         }
         let mut default = None;
         let mut objects = Vec::new();
+        // Triangles the objects still to come may have.
+        let mut left = MAX_TRIANGLES;
         for (i, o) in f.object.iter().enumerate() {
             let material = match &o.material {
                 Some(name) => materials
@@ -602,7 +610,9 @@ impl Cx {
                 }),
             };
             let lit = materials[material].shader == model::Shader::Lit;
-            objects.push(self.object(i, o, material, lit, width, height, opts)?);
+            let object = self.object(i, o, material, lit, width, height, left, opts)?;
+            left -= object.mesh.triangles.len();
+            objects.push(object);
         }
         Ok(model::Scene {
             name: f.name.unwrap_or_else(|| stem(path)),
@@ -925,9 +935,27 @@ impl Cx {
         lit: bool,
         width: u32,
         height: u32,
+        left: usize,
         opts: &LoadOptions,
     ) -> R<model::Object> {
         let key = |k: &str| format!("object[{i}].{k}");
+        // `triangles` more than the scene has room for (`left` of MAX_TRIANGLES).
+        let room = |k: &str, triangles: u64| {
+            if triangles <= left as u64 {
+                return Ok(());
+            }
+            Err(self.err(
+                &key(k),
+                format!(
+                    "{triangles} triangles; a scene has at most {MAX_TRIANGLES}{}",
+                    if left < MAX_TRIANGLES {
+                        format!(" ({left} left after the objects before it)")
+                    } else {
+                        String::new()
+                    }
+                ),
+            ))
+        };
         let sources = [
             o.mesh.is_some(),
             o.primitive.is_some(),
@@ -984,6 +1012,10 @@ impl Cx {
                     format!("{n} is outside 1..={MAX_TESSELLATE}"),
                 ));
             }
+            room(
+                "tessellate",
+                patches.len() as u64 * 2 * u64::from(n) * u64::from(n),
+            )?;
             let basis = match o.basis.unwrap_or(BasisFile::Bezier) {
                 BasisFile::Bezier => Basis::Bezier,
                 BasisFile::Bspline => Basis::BSpline,
@@ -1024,6 +1056,7 @@ impl Cx {
                             format!("{s} is beyond {}", primitives::MAX_SUBDIVISIONS),
                         ));
                     }
+                    room("primitive", 20 << (2 * s))?;
                     ("icosphere".into(), primitives::icosphere(s))
                 }
                 PrimitiveKind::UvSphere => {
@@ -1040,6 +1073,7 @@ impl Cx {
                             format!("{s} is outside 3..={MAX_SPHERE_DIVISIONS}"),
                         ));
                     }
+                    room("primitive", 2 * u64::from(r) * u64::from(s))?;
                     ("uv_sphere".into(), primitives::uv_sphere(r, s))
                 }
                 PrimitiveKind::Rate => {
@@ -1060,6 +1094,13 @@ impl Cx {
                     }
                     space = Space::Window;
                     let n = p.size.expect("checked");
+                    if (1..=128).contains(&n) && n.is_power_of_two() {
+                        let (w, h) = super::rate_cell(n);
+                        room(
+                            "primitive",
+                            2 * u64::from(width / w) * u64::from(height / h),
+                        )?;
+                    }
                     let mesh = primitives::rate(n, width, height)
                         .map_err(|e| self.err(&pkey("size"), e))?;
                     (format!("rate-{n}"), mesh)
@@ -1071,6 +1112,7 @@ impl Cx {
             TrianglesFile::Separate => primitives::separate(&mesh),
         };
         self.check_mesh(&key("mesh"), &mesh)?;
+        room("mesh", mesh.triangles.len() as u64)?;
         let model = match space {
             Space::Window => IDENTITY,
             Space::World => self.model_matrix(i, o)?,
@@ -1403,6 +1445,66 @@ mod tests {
         assert_error(
             parse_in(&d, &format!("{WINDOW}[[object]]\npatches = \"gone.bpt\"\n")),
             &["`object[0].patches`", "gone.bpt"],
+        );
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    /// Out of memory in the `scene_toml` fuzz target (2 GB): a scene of a few lines asked
+    /// for a 33.5 M-triangle sphere and the loader built it.
+    #[test]
+    fn scene_file_refuses_more_triangles_than_a_scene_may_have() {
+        assert_error(
+            text(
+                "[window]\nwidth = 64\nheight = 64\n[[object]]\n\
+                 primitive = { kind = \"uv_sphere\", rings = 4096, segments = 4096 }\n\
+                 triangles = \"separate\"\n",
+            ),
+            &[
+                "`object[0].primitive`",
+                "33554432 triangles",
+                "at most 4194304",
+            ],
+        );
+        assert_error(
+            text(
+                "[window]\nwidth = 4096\nheight = 4096\n[[object]]\n\
+                 primitive = { kind = \"rate\", size = 1 }\n",
+            ),
+            &["`object[0].primitive`", "16777216 triangles"],
+        );
+        // The limit is the scene's: what the objects before have taken is not left.
+        let full =
+            "[[object]]\nprimitive = { kind = \"uv_sphere\", rings = 2048, segments = 1024 }\n";
+        assert_eq!(
+            text(&format!("{WINDOW}{full}")).unwrap().triangles(),
+            MAX_TRIANGLES
+        );
+        assert_error(
+            text(&format!("{WINDOW}{full}{BALL}")),
+            &[
+                "`object[1].primitive`",
+                "20 triangles",
+                "(0 left after the objects before it)",
+            ],
+        );
+        // Patches are counted before they are diced.
+        let d = dir("too-many-triangles");
+        let mut bpt = String::from("33\n");
+        for _ in 0..33 {
+            bpt += "3 3\n";
+            for row in 0..4 {
+                for col in 0..4 {
+                    bpt += &format!("{col} {row} 0\n");
+                }
+            }
+        }
+        std::fs::write(d.join("many.bpt"), bpt).unwrap();
+        assert_error(
+            parse_in(
+                &d,
+                &format!("{WINDOW}[[object]]\npatches = \"many.bpt\"\ntessellate = 256\n"),
+            ),
+            &["`object[0].tessellate`", "4325376 triangles"],
         );
         let _ = std::fs::remove_dir_all(&d);
     }
