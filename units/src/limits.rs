@@ -59,6 +59,11 @@ pub const MAX_TRI_COORDINATE: f32 = 1.0e6;
 pub const MAX_TESSELLATE: u32 = 256;
 /// Most rings or segments of a `uv_sphere`.
 pub const MAX_SPHERE_DIVISIONS: u32 = 4096;
+/// Most triangles of a scene, all objects together: 16 times SPHERE's, 8 times RATE-1's in
+/// its 720 × 720 window, more than a machine's DRAM holds. A primitive or patch object that
+/// would pass it is refused before its mesh is built, so that a line of a scene file cannot
+/// ask for gigabytes (a `uv_sphere` of 4096 × 4096 is 33.5 M triangles).
+pub const MAX_TRIANGLES: usize = 1 << 22;
 /// Most subdivisions of an icosphere (7: 327,680 triangles).
 pub const MAX_SUBDIVISIONS: u32 = 7;
 

@@ -407,13 +407,8 @@ enum TrianglesFile {
 
 // ---- resolving ----
 
-pub use imagine_units::limits::{MAX_SPHERE_DIVISIONS, MAX_TESSELLATE};
+pub use imagine_units::limits::{MAX_SPHERE_DIVISIONS, MAX_TESSELLATE, MAX_TRIANGLES};
 
-/// Most triangles of a scene, all objects together: 16 times SPHERE's, 8 times RATE-1's in
-/// its 720 × 720 window, more than a machine's DRAM holds. A primitive or patch object that
-/// would pass it is refused before its mesh is built, so that a line of a scene file cannot
-/// ask for gigabytes (a `uv_sphere` of 4096 × 4096 is 33.5 M triangles).
-pub const MAX_TRIANGLES: usize = 1 << 22;
 
 /// Reads a scene file's text; `path` names it in errors and locates its assets.
 pub fn parse(text: &str, path: &Path, opts: &LoadOptions) -> Result<model::Scene, SceneError> {
