@@ -347,7 +347,7 @@ const MAX_REPAIRS: usize = 96;
 /// only `merge` on gold1 takes this path, and it needs 21; a kernel the machine cannot
 /// serve (e.g. `turbulence` with two condition codes) would otherwise try every interval up
 /// to three times its bound, for minutes.
-const MAX_SCHEDULE_ATTEMPTS: usize = 200;
+const MAX_SCHEDULE_ATTEMPTS: usize = 64;
 
 /// Intervals above the lower bound at which the local search is tried (see [`search`]).
 const SEARCH_ABOVE_BOUND: u32 = 1;
