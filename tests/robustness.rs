@@ -588,6 +588,7 @@ fn options_out_of_range() {
             "subdivisions",
         ),
         (&["render", "RATE-1", "--size", "-5"], "-5"),
+        (&["render", "RATE-1", "--max-cycles", "0"], "--max-cycles"),
         (&["render", "NO-SUCH-SCENE"], "NO-SUCH-SCENE"),
         (&["render", "RATE-1", "--machine", "gold9"], "gold9"),
         (&["kernel", "check", "hash", "--rows", "0"], "--rows"),

@@ -58,7 +58,7 @@ pub enum KernelCommand {
         #[arg(long, value_enum, default_value_t = Format::Hex)]
         format: Format,
         /// Give up after this many core cycles
-        #[arg(long, default_value_t = 10_000_000)]
+        #[arg(long, default_value_t = 10_000_000, value_parser = clap::value_parser!(u64).range(1..))]
         max_cycles: u64,
         #[command(flatten)]
         waves: WaveArgs,

@@ -53,7 +53,7 @@ pub struct RenderArgs {
     #[arg(long)]
     no_cache: bool,
     /// Give up on a frame that takes longer, in core cycles
-    #[arg(long, default_value_t = MAX_RUN_CYCLES)]
+    #[arg(long, default_value_t = MAX_RUN_CYCLES, value_parser = clap::value_parser!(u64).range(1..))]
     max_cycles: u64,
     #[command(flatten)]
     waves: WaveArgs,

@@ -409,7 +409,6 @@ enum TrianglesFile {
 
 pub use imagine_units::limits::{MAX_SPHERE_DIVISIONS, MAX_TESSELLATE, MAX_TRIANGLES};
 
-
 /// Reads a scene file's text; `path` names it in errors and locates its assets.
 pub fn parse(text: &str, path: &Path, opts: &LoadOptions) -> Result<model::Scene, SceneError> {
     let cx = Cx {
