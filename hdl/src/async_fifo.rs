@@ -78,9 +78,24 @@ impl<T> AsyncFifoState<T> {
             .unwrap_or(self.write_ptr)
             - self.read_ptr) as usize
     }
+    /// Empty, nothing pushed or popped this cycle, and every synchroniser stage holding
+    /// the pointer it samples: an edge of either clock changes nothing.
+    fn is_settled(&self) -> bool {
+        self.items.is_empty()
+            && self.pushed.is_none()
+            && !self.popped
+            && self.write_ptr_sync.iter().all(|&p| p == self.write_ptr)
+            && self.read_ptr_sync.iter().all(|&p| p == self.read_ptr)
+    }
 }
 
 impl<T> AsyncFifoTx<T> {
+    /// Whether the FIFO is empty with both synchronisers settled, so that clock edges of
+    /// either domain change nothing (idle time may then be jumped over).
+    pub fn is_settled(&self) -> bool {
+        self.0.borrow().is_settled()
+    }
+
     /// Whether the writer may push this cycle (its synchronised view shows room and it has
     /// not pushed yet this cycle).
     pub fn can_push(&self) -> bool {
@@ -100,6 +115,14 @@ impl<T> AsyncFifoTx<T> {
         }
         s.pushed = Some(v);
         Ok(())
+    }
+}
+
+impl<T> AsyncFifoRx<T> {
+    /// Whether the FIFO is empty with both synchronisers settled (see
+    /// [`AsyncFifoTx::is_settled`]).
+    pub fn is_settled(&self) -> bool {
+        self.0.borrow().is_settled()
     }
 }
 
@@ -161,5 +184,40 @@ impl<T> Channel for AsyncFifoState<T> {
     fn trace(&self, t: &mut Trace) {
         t.value(self.ids[0], self.write_level() as u64);
         t.value(self.ids[1], self.read_level() as u64);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn settled_once_both_synchronisers_have_caught_up() {
+        let (core, dram) = (DomainId(0), DomainId(1));
+        let (mut tx, mut rx, ch) =
+            new_async_fifo::<u8>("f".into(), (core, dram), 4, 2, [SignalId(0), SignalId(1)]);
+        let (write, read) = (DomainSet(1), DomainSet(2));
+        let edge = |d: DomainSet| ch.borrow_mut().commit(d).unwrap();
+        assert!(tx.is_settled() && rx.is_settled());
+        tx.push(7).unwrap();
+        assert!(!tx.is_settled(), "pushed this cycle");
+        edge(write);
+        // The value crosses two read-domain flip-flops, and is popped.
+        edge(read);
+        edge(read);
+        assert!(!rx.is_settled() && rx.can_pop());
+        assert_eq!(rx.pop().unwrap(), 7);
+        edge(read);
+        // Empty, but the writer has not yet seen the pop.
+        assert!(!rx.is_settled());
+        edge(write);
+        assert!(!tx.is_settled());
+        edge(write);
+        assert!(tx.is_settled() && rx.is_settled());
+        // Settled: edges of either clock change nothing.
+        for d in [write, read, DomainSet(3)] {
+            edge(d);
+            assert!(tx.is_settled() && tx.can_push() && !rx.can_pop());
+        }
     }
 }

@@ -212,8 +212,8 @@ impl Clocks {
     /// Advances a single-domain clock by `n` rising edges at once, leaving it exactly as
     /// `n` calls of [`skip_falling_edges`](Self::skip_falling_edges) then
     /// [`next_edge`](Self::next_edge) would (same edge count, half-period index and time).
-    /// With several domains the relative phases would have to be replayed, so this returns
-    /// `false` and changes nothing; so it does if the edge count would overflow.
+    /// With several domains this returns `false` and changes nothing (use
+    /// [`skip_to`](Self::skip_to)); so it does if the edge count would overflow.
     pub fn skip_rising_edges(&mut self, n: u64) -> bool {
         if self.domains.len() != 1 {
             return false;
@@ -221,21 +221,63 @@ impl Clocks {
         if n == 0 {
             return true;
         }
-        // The last skipped rising edge is half-period `next_half + 2(n - 1)` (after
-        // rounding up to a rising edge); stepping leaves the index on the falling edge
-        // after it.
-        let first = self.next_half[0] + (self.next_half[0] & 1);
-        let Some(last) = (n - 1)
-            .checked_mul(2)
-            .and_then(|h| h.checked_add(first))
-            .filter(|l| l.checked_add(1).is_some())
-        else {
+        match self.cycles[0].checked_add(n) {
+            Some(target) => self.skip_to(DomainId(0), target),
+            None => false,
+        }
+    }
+
+    /// The rising edges every domain has had once domain `d` has had `cycles` of them, as
+    /// stepping without falling edges leaves them (see [`skip_to`](Self::skip_to)); `None`
+    /// unless `cycles` is ahead of `d`'s count, or if a count would overflow.
+    pub fn cycles_at(&self, d: DomainId, cycles: u64) -> Option<Vec<u64>> {
+        self.target(d, cycles)
+            .map(|t| t.into_iter().map(|(c, _)| c).collect())
+    }
+
+    /// Advances every domain at once to rising edge number `cycles` of domain `d` (counted
+    /// from 1), leaving edge counts, half-period indices and time exactly as repeated
+    /// [`skip_falling_edges`](Self::skip_falling_edges) then [`next_edge`](Self::next_edge)
+    /// leave them once `d` has had `cycles` rising edges. Returns `false`, changing nothing,
+    /// unless `cycles` is ahead of `d`'s count (or if a count would overflow).
+    ///
+    /// That state does not depend on where the clocks were: at the instant `T` of `d`'s
+    /// edge every domain has had exactly the rising edges at or before `T`; a domain with
+    /// an edge at `T` sits on the falling edge after it, every other domain on its next
+    /// rising edge (the step that reached `T` skipped their falling edges first).
+    pub fn skip_to(&mut self, d: DomainId, cycles: u64) -> bool {
+        let Some(target) = self.target(d, cycles) else {
             return false;
         };
-        self.time_ps = self.half_edge_ps(0, last);
-        self.next_half[0] = last + 1;
-        self.cycles[0] += n;
+        for (i, (c, at_t)) in target.into_iter().enumerate() {
+            self.cycles[i] = c;
+            self.next_half[i] = 2 * c - at_t as u64;
+        }
+        self.time_ps = self.half_edge_ps(d.0 as usize, 2 * (cycles - 1));
         true
+    }
+
+    /// Per domain, the rising edges up to and including the instant of `d`'s edge
+    /// `cycles − 1` (0-based), and whether it has an edge at that very instant.
+    fn target(&self, d: DomainId, cycles: u64) -> Option<Vec<(u64, bool)>> {
+        let d = d.0 as usize;
+        if cycles <= self.cycles[d] || cycles > u64::MAX / 2 {
+            return None;
+        }
+        // Edge r of d is at r / f_d; edge k of domain i is at or before it iff
+        // k · f_d <= r · f_i, exactly, in integers.
+        let r = (cycles - 1) as u128;
+        let fd = self.domains[d].freq_hz as u128;
+        self.domains
+            .iter()
+            .map(|dom| {
+                let num = r * dom.freq_hz as u128;
+                let c = u64::try_from(num / fd + 1)
+                    .ok()
+                    .filter(|&c| c <= u64::MAX / 2)?;
+                Some((c, num.is_multiple_of(fd)))
+            })
+            .collect()
     }
 
     fn cross(&self, i: usize, j: usize) -> (u128, u128) {
@@ -373,6 +415,80 @@ mod tests {
         let mut one = Clocks::new(vec![ClockDomain::mhz("dram", 1)]).unwrap();
         assert!(!one.skip_rising_edges(u64::MAX));
         assert_eq!(one.cycles(DomainId(0)), 0);
+    }
+
+    /// Steps as the simulator does without a tracer until domain `d` has `cycles` rising
+    /// edges.
+    fn step_to(c: &mut Clocks, d: DomainId, cycles: u64) {
+        while c.cycles(d) < cycles {
+            c.skip_falling_edges();
+            c.next_edge();
+        }
+    }
+
+    #[test]
+    fn skipping_to_an_edge_of_one_domain_equals_stepping_every_domain() {
+        let sets = [
+            default_domains(),
+            vec![ClockDomain::new("a", 400), ClockDomain::new("b", 300)],
+            vec![
+                ClockDomain::mhz("core", 500),
+                ClockDomain::mhz("dram", 167),
+                ClockDomain::mhz("io", 333),
+            ],
+            vec![ClockDomain::mhz("slow", 7), ClockDomain::mhz("fast", 1000)],
+            vec![ClockDomain::mhz("dram", 167)],
+        ];
+        let mut checked = 0;
+        for domains in sets {
+            let n = domains.len();
+            for d in (0..n).map(|i| DomainId(i as u8)) {
+                // Start points: fresh, after edges of every phase, and after falling edges
+                // too (a tracer was attached until then).
+                for start in [0usize, 1, 2, 3, 5, 8, 13] {
+                    for with_falling in [false, true] {
+                        let mut from = Clocks::new(domains.clone()).unwrap();
+                        for _ in 0..start {
+                            if !with_falling {
+                                from.skip_falling_edges();
+                            }
+                            from.next_edge();
+                        }
+                        for ahead in [1u64, 2, 3, 7, 167, 500, 1001, 30_011] {
+                            let target = from.cycles(d) + ahead;
+                            let mut stepped = from.clone();
+                            step_to(&mut stepped, d, target);
+                            let mut skipped = from.clone();
+                            let counts = skipped.cycles_at(d, target).unwrap();
+                            assert!(skipped.skip_to(d, target));
+                            let state =
+                                |c: &Clocks| (c.next_half.clone(), c.cycles.clone(), c.time_ps);
+                            assert_eq!(
+                                state(&skipped),
+                                state(&stepped),
+                                "{domains:?} d {d:?} start {start} {with_falling} ahead {ahead}"
+                            );
+                            assert_eq!(counts, stepped.cycles);
+                            // The edges after the skip are the same ones.
+                            for _ in 0..2 * n + 3 {
+                                skipped.skip_falling_edges();
+                                stepped.skip_falling_edges();
+                                assert_eq!(skipped.next_edge(), stepped.next_edge());
+                            }
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(checked, 10 * 7 * 2 * 8);
+        // Never backwards or in place, and no overflow.
+        let mut c = Clocks::new(default_domains()).unwrap();
+        step_to(&mut c, DomainId(0), 10);
+        let before = (c.next_half.clone(), c.cycles.clone(), c.time_ps);
+        assert!(!c.skip_to(DomainId(0), 10) && !c.skip_to(DomainId(0), 3));
+        assert!(!c.skip_to(DomainId(1), u64::MAX) && c.cycles_at(DomainId(0), 9).is_none());
+        assert_eq!((c.next_half.clone(), c.cycles.clone(), c.time_ps), before);
     }
 
     #[test]

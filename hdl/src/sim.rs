@@ -331,14 +331,20 @@ impl Sim {
         false
     }
 
-    /// Whether [`skip_cycles`](Self::skip_cycles) may be used: the design has one clock
-    /// domain and no tracer is attached (a waveform would have to show the skipped edges).
-    pub fn can_skip_cycles(&self) -> bool {
+    /// Whether idle time may be jumped over ([`skip_to`](Self::skip_to)): no tracer is
+    /// attached (a waveform would have to show the skipped edges).
+    pub fn can_skip(&self) -> bool {
         #[cfg(feature = "probes")]
         if self.trace.is_some() {
             return false;
         }
-        self.design.clocks.domains().len() == 1
+        true
+    }
+
+    /// Whether [`skip_cycles`](Self::skip_cycles) may be used: the design has one clock
+    /// domain and [`can_skip`](Self::can_skip).
+    pub fn can_skip_cycles(&self) -> bool {
+        self.can_skip() && self.design.clocks.domains().len() == 1
     }
 
     /// Advances time by `n` cycles without evaluating or committing anything: for a caller
@@ -348,6 +354,23 @@ impl Sim {
     /// [`can_skip_cycles`](Self::can_skip_cycles).
     pub fn skip_cycles(&mut self, n: u64) -> bool {
         self.can_skip_cycles() && self.design.clocks.skip_rising_edges(n)
+    }
+
+    /// The rising edges each domain will have had once the core clock has had
+    /// `core_cycles` ([`Clocks::cycles_at`]), for a caller about to
+    /// [`skip_to`](Self::skip_to) there that must bring the other domains' modules along.
+    pub fn cycles_at(&self, core_cycles: u64) -> Option<Vec<u64>> {
+        self.design.clocks.cycles_at(self.core, core_cycles)
+    }
+
+    /// Advances every clock until the core clock has had `core_cycles` rising edges,
+    /// exactly as stepping would leave them ([`Clocks::skip_to`]), without evaluating or
+    /// committing anything: for a caller that has itself brought every module of every
+    /// domain to the state those edges would leave, and whose channels are settled, so
+    /// committing them would change nothing. Returns `false`, changing nothing, unless
+    /// [`can_skip`](Self::can_skip) and `core_cycles` is ahead.
+    pub fn skip_to(&mut self, core_cycles: u64) -> bool {
+        self.can_skip() && self.design.clocks.skip_to(self.core, core_cycles)
     }
 
     /// Advances to the next clock edge of any domain (without a tracer, the next rising

@@ -362,3 +362,76 @@ fn kernels_a_small_microcode_store_evicts_are_loaded_again() {
     assert_eq!(got.pixels, want.pixels);
     assert!(got.stats.cycles > want.stats.cycles, "reloads cost cycles");
 }
+
+/// Everything a frame reports but the host's own timings and cache use.
+fn machine_results(f: &imagine_pipelines::opengl::render::Frame) -> (serde_json::Value, String) {
+    let mut json = serde_json::to_value(&f.stats).unwrap();
+    let obj = json.as_object_mut().unwrap();
+    for host in [
+        "host_seconds",
+        "compile_seconds",
+        "simulate_seconds",
+        "simulated_cycles_per_second",
+        "kernels_from_cache",
+    ] {
+        assert!(obj.remove(host).is_some(), "{host}");
+    }
+    (json, f.stats.batches_csv())
+}
+
+/// A frame whose kernels hold the clusters far longer than they run: stepping through the
+/// idle cycles and jumping over them give the same frame and every statistic.
+#[test]
+fn jumping_over_idle_time_changes_nothing_in_the_frame() {
+    let scene = scene::load(
+        "RATE-1",
+        &LoadOptions {
+            size: Some(16),
+            subdivisions: None,
+        },
+    )
+    .unwrap();
+    let gold8 = MachineDesc::gold8();
+    let refi = gold8.dram.refresh_interval as u64 * gold8.clocks.core_mhz / gold8.clocks.dram_mhz;
+    for min in [20_011, refi + 1] {
+        let mut desc = gold8.clone();
+        desc.stream_controller.min_kernel_cycles = min;
+        let render = |step_idle| {
+            let options = RenderOptions {
+                step_idle,
+                ..cached()
+            };
+            render_with(&scene, &desc, options, None, |_, _| {}).unwrap()
+        };
+        let (jumped, stepped) = (render(false), render(true));
+        assert_eq!(jumped.pixels, stepped.pixels);
+        assert_eq!(machine_results(&jumped), machine_results(&stepped));
+        let calls: u64 = jumped.stats.kernels.iter().map(|k| k.calls).sum();
+        assert!(jumped.stats.cycles >= calls * min);
+        assert!(jumped.stats.skipped_cycles > jumped.stats.cycles / 2);
+        assert_eq!(stepped.stats.skipped_cycles, 0);
+    }
+}
+
+/// The longest minimum kernel time a machine may ask for: the frame finishes (its idle
+/// time is jumped over), every kernel call holding the clusters for it.
+#[test]
+fn a_frame_of_kernels_held_for_the_longest_minimum_time_finishes() {
+    let scene = scene::load(
+        "RATE-1",
+        &LoadOptions {
+            size: Some(16),
+            subdivisions: None,
+        },
+    )
+    .unwrap();
+    let mut desc = MachineDesc::gold8();
+    desc.stream_controller.min_kernel_cycles = 1 << 24;
+    desc.validate().unwrap();
+    let f = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
+    let calls: u64 = f.stats.kernels.iter().map(|k| k.calls).sum();
+    assert!(calls > 10);
+    assert!(f.stats.cycles >= calls << 24, "{} cycles", f.stats.cycles);
+    let quick = render_with(&scene, &MachineDesc::gold8(), cached(), None, |_, _| {}).unwrap();
+    assert_eq!(f.pixels, quick.pixels);
+}

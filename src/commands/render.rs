@@ -240,9 +240,19 @@ fn print_stats(f: &Frame, m: &Metrics) {
         100.0 * m.differing_share,
         100.0 * m.coverage_mismatch_share
     );
+    let p = &s.phases;
+    let simulated = p.load_cycles + p.frame_plus_clear_cycles + p.readback_cycles;
+    let jumped = if s.skipped_cycles > 0 {
+        format!(
+            ", {:.1} % of them idle and jumped over",
+            100.0 * s.skipped_cycles as f64 / simulated.max(1) as f64
+        )
+    } else {
+        String::new()
+    };
     println!(
         "host               {:.2} s: compiling {:.2} s ({} of {} kernels from the cache), \
-         simulating {:.2} s ({:.2} M cycles/s)",
+         simulating {:.2} s ({:.2} M cycles/s{jumped})",
         s.host_seconds,
         s.compile_seconds,
         s.kernels_from_cache,

@@ -5,6 +5,7 @@
 
 use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation};
 
+#[derive(Debug)]
 pub struct CcFile {
     path: String,
     entries: usize,

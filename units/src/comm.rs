@@ -9,6 +9,7 @@ use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, 
 use crate::delay::{DelayLine, InFlight};
 use crate::microcode::Permutation;
 
+#[derive(Debug)]
 pub struct CommUnit {
     path: String,
     lanes: usize,
@@ -108,6 +109,14 @@ impl CommUnit {
 
     pub fn in_flight(&self) -> usize {
         self.line.in_flight()
+    }
+
+    /// Brings a unit with nothing in flight and nothing sent this cycle over `n ≥ 1`
+    /// cycles, as `n` commits would.
+    pub fn skip_idle(&mut self, n: u64) {
+        debug_assert!(self.in_flight() == 0 && !self.sent && n > 0);
+        self.line.skip_idle(n);
+        self.last_sent = false;
     }
 
     pub fn commit(&mut self) {

@@ -17,6 +17,7 @@ pub struct InFlight {
     pub masked: bool,
 }
 
+#[derive(Debug)]
 pub struct DelayLine {
     path: String,
     ring: Vec<InFlight>,
@@ -98,6 +99,13 @@ impl DelayLine {
     /// Values still in flight (including the one leaving this cycle).
     pub fn in_flight(&self) -> usize {
         self.in_flight
+    }
+
+    /// Brings an empty line over `n` cycles: only the ring position turns.
+    pub fn skip_idle(&mut self, n: u64) {
+        debug_assert_eq!(self.in_flight, 0);
+        let len = self.ring.len();
+        self.head = (self.head + (n % len as u64) as usize) % len;
     }
 
     #[inline]

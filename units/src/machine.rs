@@ -183,6 +183,18 @@ impl Fus {
             + self.divsqrts.iter().map(|u| u.in_flight()).sum::<usize>()
     }
 
+    fn is_quiet(&self) -> bool {
+        self.adders.iter().all(|u| u.is_quiet())
+            && self.multipliers.iter().all(|u| u.is_quiet())
+            && self.divsqrts.iter().all(|u| u.is_quiet())
+    }
+
+    fn skip_idle(&mut self, n: u64) {
+        self.adders.iter_mut().for_each(|u| u.skip_idle(n));
+        self.multipliers.iter_mut().for_each(|u| u.skip_idle(n));
+        self.divsqrts.iter_mut().for_each(|u| u.skip_idle(n));
+    }
+
     fn commit(&mut self) {
         self.adders.iter_mut().for_each(|u| u.commit());
         self.multipliers.iter_mut().for_each(|u| u.commit());
@@ -513,6 +525,67 @@ impl Machine {
     /// Whether no kernel is running.
     pub fn is_idle(&self) -> bool {
         self.uc.phase() == Phase::Idle
+    }
+
+    /// Whether the cycles ahead change nothing but counters and ring positions: no kernel
+    /// is running (none started, or the last one has finished and flushed), nothing is in
+    /// flight in any unit, and the SRF's stream buffers ask nothing of its port (see
+    /// [`Srf::idle_skippable`]). The stream controller may still hold a finished kernel
+    /// for its minimum time; the memory system's own stream buffers must be idle too.
+    pub fn idle_skippable(&self) -> bool {
+        self.uc.phase() == Phase::Idle
+            && !self.stalled
+            && self.fus.is_quiet()
+            && self.in_flight() == 0
+            && self.srf.idle_skippable()
+    }
+
+    /// Brings an [`idle_skippable`](Self::idle_skippable) machine over `n ≥ 1` cycles,
+    /// leaving it as `n` idle cycles would: the units' pipelines turn with nothing in
+    /// them, the probe latches of the last cycle clear, the SRF counts idle cycles.
+    pub fn skip_idle(&mut self, n: u64) {
+        debug_assert!(self.idle_skippable() && n > 0);
+        self.srf.skip_idle(n);
+        self.fus.skip_idle(n);
+        // Between idle cycles nothing is pending in an LRF or the condition codes: an
+        // LRF's commit only clears its probe latches, the condition codes' does nothing.
+        self.lrfs.iter_mut().for_each(|u| u.skip_idle());
+        self.scratchpads.iter_mut().for_each(|u| u.skip_idle(n));
+        self.comms.iter_mut().for_each(|u| u.skip_idle(n));
+        self.stream_reads.iter_mut().for_each(|u| u.skip_idle(n));
+        self.immediates.skip_idle(n);
+    }
+
+    /// Everything that evolves (tests compare a run that skipped idle cycles with one that
+    /// stepped them).
+    #[cfg(test)]
+    pub(crate) fn debug_state(&self) -> String {
+        let kernel = self.kernel.as_ref().map(|k| {
+            (
+                &k.program.name,
+                &k.bindings,
+                &k.stats,
+                k.flushing,
+                k.switch_writes_streams,
+            )
+        });
+        format!(
+            "srf {:?}\nadders {:?}\nmultipliers {:?}\ndivsqrts {:?}\nlrfs {:?}\ncc {:?}\n\
+             scratchpads {:?}\ncomms {:?}\nstream_reads {:?}\nimmediates {:?}\nuc {:?}\n\
+             kernel {kernel:?}\nstalled {}",
+            self.srf,
+            self.fus.adders,
+            self.fus.multipliers,
+            self.fus.divsqrts,
+            self.lrfs,
+            self.cc,
+            self.scratchpads,
+            self.comms,
+            self.stream_reads,
+            self.immediates,
+            self.uc,
+            self.stalled
+        )
     }
 
     /// Statistics of the current or last kernel.

@@ -89,6 +89,7 @@ impl Clone for State {
     }
 }
 
+#[derive(Debug)]
 pub struct Microcontroller {
     path: String,
     store_words: usize,

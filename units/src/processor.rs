@@ -15,6 +15,14 @@
 //! instructions plus the kernels they name; the host hands all of them to the stream
 //! controller before the first cycle and the run ends when every instruction has
 //! completed and the channels are idle.
+//!
+//! Idle time: when nothing in the processor can change before a known core cycle (the
+//! clusters held only for the minimum kernel time, the memory system and the channels
+//! idle), [`run_until`] jumps to that cycle in one step with exactly the state and
+//! counters stepping leaves (see [`idle`]); with a tracer attached it steps.
+
+use std::cell::Cell;
+use std::rc::Rc;
 
 use imagine_hdl::{
     ClockDomain, ContractError, Design, DomainId, Module, SignalId, SignalKind, Sim, Trace,
@@ -29,6 +37,9 @@ use crate::memory::{AddressGenerator, MemPorts, MemoryConfig, build_memory};
 use crate::microcode::Program;
 use crate::runner::{OnStart, RunError};
 use crate::stream_controller::{InstrRecord, Issue, StreamController, StreamInstr, Unit};
+
+pub mod idle;
+pub use idle::run_until;
 
 /// Kernels and the stream instructions that use them.
 #[derive(Clone, Debug, Default)]
@@ -49,6 +60,9 @@ pub struct ProcessorOptions {
     /// Words to place in the SRF before the run: (SRF word, words).
     pub srf_init: Vec<(usize, Vec<u32>)>,
     pub on_start: Option<OnStart>,
+    /// Step every idle cycle instead of jumping over idle time (the results are the same;
+    /// tests compare the two).
+    pub step_idle: bool,
 }
 
 /// A host interface transfer in progress, done at cycle `done`: a write's words land in
@@ -88,6 +102,13 @@ pub struct Processor {
     replies: Vec<Reply>,
     /// An error met at a clock edge, reported by the next `eval`.
     deferred: Option<ContractError>,
+    /// Whether [`run_until`] may jump over idle time, and the core cycles it has jumped.
+    skip_idle: bool,
+    skipped: u64,
+    /// Set at each edge when jumping is on and the clusters and the address generators are
+    /// idle: the cheap part of the idle test, which [`run_until`] reads every cycle
+    /// without looking the processor up among the modules.
+    maybe_idle: Rc<Cell<bool>>,
     path: String,
     ids: [SignalId; 5],
 }
@@ -124,6 +145,16 @@ impl Processor {
             .check(desc)
             .map_err(|e| format!("kernel `{}`: {e}", program.name))?;
         Ok(self.sc.add_program(program))
+    }
+
+    /// Core cycles [`run_until`] has jumped over as idle time (0 when stepping).
+    pub fn skipped_cycles(&self) -> u64 {
+        self.skipped
+    }
+
+    /// Whether [`run_until`] may jump over idle time (`false`: step every cycle).
+    pub fn set_skip_idle(&mut self, on: bool) {
+        self.skip_idle = on;
     }
 
     /// Whether every stream instruction has completed.
@@ -290,6 +321,8 @@ impl Module for Processor {
             self.deferred = Some(e);
         }
         self.cycle += 1;
+        self.maybe_idle
+            .set(self.skip_idle && self.machine.is_idle() && !self.ags.iter().any(|a| a.is_busy()));
     }
 
     fn trace(&self, t: &mut Trace) {
@@ -411,6 +444,9 @@ pub fn build(
         ag_ops: vec![None; n_ags],
         replies: Vec::new(),
         deferred: None,
+        skip_idle: !opts.step_idle,
+        skipped: 0,
+        maybe_idle: Rc::default(),
         path,
         ids,
     });
@@ -454,7 +490,7 @@ pub fn run(
     let done = |sim: &Sim| {
         processor(sim).is_done() && sim.modules_of::<DramChannel>().all(DramChannel::is_idle)
     };
-    let finished = sim.run_until(max_core_cycles, done)?;
+    let finished = run_until(sim, max_core_cycles, done)?;
     sim.finish()
         .map_err(|e| RunError::Setup(format!("cannot finish the trace: {e}")))?;
     if !finished {

@@ -8,6 +8,7 @@ use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, 
 
 use crate::delay::{DelayLine, InFlight};
 
+#[derive(Debug)]
 pub struct Scratchpad {
     path: String,
     words: usize,
@@ -27,6 +28,7 @@ pub struct Scratchpad {
     probes: SpProbes,
 }
 
+#[derive(Debug)]
 struct SpProbes {
     access: SignalId,
     write: SignalId,
@@ -199,6 +201,17 @@ impl Scratchpad {
     /// Accesses still in flight.
     pub fn in_flight(&self) -> usize {
         self.reads.in_flight() + self.write_addrs.in_flight()
+    }
+
+    /// Brings a scratchpad with nothing in flight and no access this cycle over `n ≥ 1`
+    /// cycles, as `n` commits would: the delay lines turn, the probe latch clears.
+    pub fn skip_idle(&mut self, n: u64) {
+        debug_assert!(self.in_flight() == 0 && self.write_data.in_flight() == 0 && n > 0);
+        debug_assert!(!self.accessed);
+        self.reads.skip_idle(n);
+        self.write_addrs.skip_idle(n);
+        self.write_data.skip_idle(n);
+        self.probes.last = None;
     }
 
     pub fn commit(&mut self) {

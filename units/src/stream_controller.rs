@@ -236,6 +236,16 @@ pub struct StreamController {
     stats: ScStats,
 }
 
+/// What an [`idle`](StreamController::idle) controller counts each cycle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IdleCounts {
+    /// An entry is ready but its unit is busy ([`ScStats::unit_busy_cycles`]).
+    pub unit_busy: bool,
+    /// The scoreboard is full and the queue holds instructions
+    /// ([`ScStats::scoreboard_full_cycles`]).
+    pub scoreboard_full: bool,
+}
+
 /// The operation the controller wants started this cycle.
 #[derive(Clone, Debug)]
 pub struct Issue {
@@ -333,6 +343,65 @@ impl StreamController {
         loader_free: bool,
         host_free: bool,
     ) -> Option<Issue> {
+        match self.pick(free_ag, ags, clusters_free, loader_free, host_free) {
+            (Some((id, unit)), _) => Some(Issue {
+                id,
+                unit,
+                instr: self.records[id].instr.clone(),
+            }),
+            (None, unit_busy) => {
+                self.stats.unit_busy_cycles += u64::from(unit_busy);
+                None
+            }
+        }
+    }
+
+    /// Whether the controller does nothing in the cycles ahead while its units stay as
+    /// they are (arguments as for [`select`](Self::select)): nothing may issue, and no
+    /// instruction moves from the host into the queue or from the queue into the
+    /// scoreboard. Then each such cycle only counts, as [`skip_idle`](Self::skip_idle)
+    /// does.
+    pub fn idle(
+        &mut self,
+        free_ag: impl Fn(usize) -> bool,
+        ags: usize,
+        clusters_free: bool,
+        loader_free: bool,
+        host_free: bool,
+    ) -> Option<IdleCounts> {
+        if !self.host.is_empty() && self.queue.len() < self.queue_cap {
+            return None;
+        }
+        if !self.queue.is_empty() && self.scoreboard.len() < self.sb_cap {
+            return None;
+        }
+        match self.pick(free_ag, ags, clusters_free, loader_free, host_free) {
+            (Some(_), _) => None,
+            (None, unit_busy) => Some(IdleCounts {
+                unit_busy,
+                scoreboard_full: !self.queue.is_empty(),
+            }),
+        }
+    }
+
+    /// Counts `n` cycles in which the controller was [`idle`](Self::idle) with `counts`,
+    /// as `n` cycles of `select` and `commit` would.
+    pub fn skip_idle(&mut self, n: u64, counts: IdleCounts) {
+        self.stats.unit_busy_cycles += n * u64::from(counts.unit_busy);
+        self.stats.scoreboard_full_cycles += n * u64::from(counts.scoreboard_full);
+        self.stats.max_occupancy = self.stats.max_occupancy.max(self.scoreboard.len());
+    }
+
+    /// The oldest entry that may issue (its instruction and unit), and whether some entry
+    /// was ready with its unit busy.
+    fn pick(
+        &mut self,
+        free_ag: impl Fn(usize) -> bool,
+        ags: usize,
+        clusters_free: bool,
+        loader_free: bool,
+        host_free: bool,
+    ) -> (Option<(usize, Unit)>, bool) {
         let mut unit_busy = false;
         let board = &self.scoreboard;
         let unblocked = self.unblocked.get_or_insert_with(|| {
@@ -360,20 +429,11 @@ impl StreamController {
                 }
             };
             match unit {
-                Some(unit) => {
-                    return Some(Issue {
-                        id: e.id,
-                        unit,
-                        instr: instr.clone(),
-                    });
-                }
+                Some(unit) => return (Some((e.id, unit)), unit_busy),
                 None => unit_busy = true,
             }
         }
-        if unit_busy {
-            self.stats.unit_busy_cycles += 1;
-        }
-        None
+        (None, unit_busy)
     }
 
     /// The clock edge: records the issue of `issue` in `cycle`, and moves one instruction
@@ -437,6 +497,17 @@ impl StreamController {
         }
         self.resident.push(p);
         Ok(())
+    }
+
+    /// Everything that evolves but the programs and the memo of unblocked entries (a
+    /// function of the scoreboard), for tests that compare a run that skipped idle cycles
+    /// with one that stepped them.
+    #[cfg(test)]
+    pub(crate) fn debug_state(&self) -> String {
+        format!(
+            "records {:?}\nhost {:?}\nqueue {:?}\nscoreboard {:?}\nresident {:?}\nstats {:?}",
+            self.records, self.host, self.queue, self.scoreboard, self.resident, self.stats
+        )
     }
 
     /// Whether program `p`'s microcode is in the store.

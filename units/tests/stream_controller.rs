@@ -165,6 +165,83 @@ fn double_buffering_overlaps_the_next_load_with_the_kernel() {
     );
 }
 
+/// Everything a run of the madd chain on `desc` reports and leaves in DRAM, its core
+/// cycles, and the core cycles it jumped over as idle time.
+fn chain_results(desc: &MachineDesc, buffers: usize, step_idle: bool) -> (String, u64, u64) {
+    let mut rng = Rng(7);
+    let total = N * BATCHES;
+    let [x, y, w]: [Vec<u32>; 3] =
+        std::array::from_fn(|_| (0..total).map(|_| rng.float()).collect());
+    let expected = madd_expected(&x, &y, &w);
+    let opts = ProcessorOptions {
+        dram_init: vec![(X, x), (Y, y), (W, w)],
+        step_idle,
+        ..ProcessorOptions::default()
+    };
+    let mut sim = processor::build(desc, chain(buffers, desc), opts).expect("builds");
+    let r = processor::run(&mut sim, desc, 1 << 40).expect("runs");
+    assert_eq!(processor::read_dram(&sim, desc, Z, total), expected);
+    let p = processor::processor(&sim);
+    let ags: Vec<_> = p.address_generators().iter().map(|a| a.stats()).collect();
+    let channels: Vec<_> = sim
+        .modules_of::<imagine_units::dram::DramChannel>()
+        .map(|c| (c.stats().clone(), c.violations().to_vec()))
+        .collect();
+    let results = format!(
+        "cycles {} {}\nrecords {:?}\nnames {:?}\ndram {:?}\nsc {:?}\nsrf {:?}\nags {:?}\n\
+         lrf {:?}\nchannels {channels:?}",
+        r.core_cycles,
+        r.dram_cycles,
+        r.records,
+        r.names,
+        r.dram,
+        p.controller().stats(),
+        p.machine().srf().stats(),
+        ags,
+        p.machine().lrf_words_moved(),
+    );
+    (results, r.core_cycles, p.skipped_cycles())
+}
+
+/// Kernels that hold the clusters far longer than they run (the host's dispatch overhead):
+/// jumping over the idle cycles gives every result, count and statistic stepping gives.
+#[test]
+fn jumping_over_idle_time_gives_what_stepping_gives() {
+    let gold8 = MachineDesc::gold8();
+    let refi = gold8.dram.refresh_interval as u64 * gold8.clocks.core_mhz / gold8.clocks.dram_mhz;
+    for (min, buffers) in [(100_000, 2), (100_000, 1), (refi + 3, 2), (300, 2)] {
+        let mut desc = gold8.clone();
+        desc.stream_controller.min_kernel_cycles = min;
+        let (jumped, _, skipped) = chain_results(&desc, buffers, false);
+        let (stepped, _, none) = chain_results(&desc, buffers, true);
+        assert!(jumped == stepped, "min {min}:\n{jumped}\n{stepped}");
+        assert_eq!(none, 0);
+        // A channel leaves its last row open until the next refresh closes it; from
+        // then on the idle time is jumped over.
+        if min > refi {
+            assert!(skipped > 0, "min {min}");
+        }
+        if min > 10 * refi {
+            assert!(
+                skipped > (BATCHES as u64 - 1) * min / 2,
+                "min {min}: {skipped}"
+            );
+        }
+    }
+}
+
+/// The longest minimum kernel time a machine may ask for finishes at once: the idle time
+/// is jumped over.
+#[test]
+fn kernels_held_for_the_longest_minimum_time_finish() {
+    let mut desc = MachineDesc::gold8();
+    desc.stream_controller.min_kernel_cycles = 1 << 24;
+    desc.validate().unwrap();
+    let (_, cycles, skipped) = chain_results(&desc, 2, false);
+    assert!(cycles >= (BATCHES as u64) << 24, "{cycles}");
+    assert!(skipped > (BATCHES as u64 - 1) << 24);
+}
+
 #[test]
 fn gather_record_and_scatter_streams_move_the_right_words() {
     gather_record_and_scatter(1);

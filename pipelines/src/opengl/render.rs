@@ -133,6 +133,9 @@ pub struct RenderOptions {
     pub cache: CompileCache,
     /// The host gives up on a frame that takes longer, in core cycles.
     pub max_cycles: u64,
+    /// Step the simulation through idle time instead of jumping over it (the same frame
+    /// and statistics either way; tests compare the two).
+    pub step_idle: bool,
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
@@ -150,6 +153,7 @@ impl Default for RenderOptions {
             specialise: true,
             cache: CompileCache::disabled(),
             max_cycles: MAX_RUN_CYCLES,
+            step_idle: false,
         }
     }
 }
@@ -932,6 +936,7 @@ pub fn render_with(
         interp_records: batch as u64,
     };
     let mut host = StreamHost::new(desc, lib, dram, on_start, options.max_cycles)?;
+    processor::processor_mut(host.sim_mut()).set_skip_idle(!options.step_idle);
     let mut stats = FrameStats {
         scene: scene.name.clone(),
         machine: desc.name.clone(),
@@ -1040,6 +1045,7 @@ pub fn render_with(
     stats.simulate_seconds = simulate_seconds - (stats.compile_seconds - compiled_before);
     stats.host_seconds = host_start.elapsed().as_secs_f64();
     stats.simulated_cycles_per_second = read as f64 / stats.simulate_seconds.max(1e-9);
+    stats.skipped_cycles = processor::processor(host.sim()).skipped_cycles();
     Ok(Frame {
         width: scene.width,
         height: scene.height,

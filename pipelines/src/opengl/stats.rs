@@ -133,6 +133,10 @@ pub struct FrameStats {
     pub kernels_from_cache: usize,
     /// Simulated core cycles (all phases) per second of simulation.
     pub simulated_cycles_per_second: f64,
+    /// Core cycles (all phases) the simulator jumped over as idle time instead of stepping
+    /// them: how the host simulated, not what the machine did.
+    #[serde(skip)]
+    pub skipped_cycles: u64,
     #[serde(skip)]
     pub batch_rows: Vec<BatchRow>,
 }

@@ -512,9 +512,7 @@ impl StreamHost {
 
     fn run_until(&mut self, done: impl Fn(&Sim) -> bool) -> Result<(), HostError> {
         let left = self.max_cycles.saturating_sub(self.sim.core_cycles());
-        let finished = self
-            .sim
-            .run_until(left, done)
+        let finished = processor::run_until(&mut self.sim, left, done)
             .map_err(|e| HostError(format!("the machine stopped: {e}")))?;
         if !finished {
             return Err(HostError(format!(

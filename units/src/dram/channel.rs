@@ -210,14 +210,20 @@ impl DramChannel {
     /// Whether the cycles from now until the next request arrives can be skipped with
     /// [`skip_idle`](Self::skip_idle): nothing pending, in flight or on the buses, every
     /// bank closed, no timing constraint running, and the scheduler timed like the part (so
-    /// the checker has nothing to flag). Idle cycles then only count and refresh.
+    /// the checker has nothing to flag); a crossing FIFO to or from the core domain empty
+    /// with its synchronisers settled (so that no edge of either clock changes it). Idle
+    /// cycles then only count and refresh.
     pub fn can_skip_idle(&self) -> bool {
         let input_empty = match &self.input {
             ChannelInput::Local(rx) => rx.available() == 0,
-            // A crossing's synchronisers move every cycle: step them.
-            ChannelInput::Crossing(_) => false,
+            ChannelInput::Crossing(rx) => rx.is_settled(),
+        };
+        let output_settled = match &self.output {
+            ChannelOutput::Crossing(tx) => tx.is_settled(),
+            ChannelOutput::Discard | ChannelOutput::Local(_) => true,
         };
         input_empty
+            && output_settled
             && self.reads.is_empty()
             && self.returns.is_empty()
             && self.bus_q.is_none()

@@ -296,6 +296,19 @@ impl DivSqrt {
         }
     }
 
+    /// Whether nothing is in flight, issued this cycle or in the recurrence core, so that
+    /// cycles only turn the ring.
+    pub fn is_quiet(&self) -> bool {
+        !self.issued && self.ring.in_flight() == 0 && self.last.is_none()
+    }
+
+    /// Brings a quiet unit over `n ≥ 1` cycles, as `n` commits without issues would.
+    pub fn skip_idle(&mut self, n: u64) {
+        debug_assert!(self.is_quiet() && n > 0);
+        self.ring.skip_idle(n);
+        self.latch.valid = false;
+    }
+
     /// Whether the recurrence core holds a job that blocks an issue in the current cycle.
     pub fn busy(&self) -> bool {
         self.last

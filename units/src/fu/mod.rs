@@ -304,6 +304,14 @@ impl Ring {
         self.cycle += 1;
     }
 
+    /// Brings an empty ring over `n` cycles: the position turns and the cycle counts on.
+    pub fn skip_idle(&mut self, n: u64) {
+        debug_assert_eq!(self.in_flight(), 0);
+        let len = self.slots.len();
+        self.head = (self.head + (n % len as u64) as usize) % len;
+        self.cycle += n;
+    }
+
     /// The conflict error for an op of `latency` whose slot is taken.
     #[cold]
     #[inline(never)]

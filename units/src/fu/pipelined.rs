@@ -171,6 +171,18 @@ impl<K: PipelinedKind> Pipelined<K> {
         self.issued = false;
     }
 
+    /// Whether nothing is in flight or issued this cycle, so that cycles only turn the ring.
+    pub fn is_quiet(&self) -> bool {
+        !self.issued && self.ring.in_flight() == 0
+    }
+
+    /// Brings a quiet unit over `n ≥ 1` cycles, as `n` commits without issues would.
+    pub fn skip_idle(&mut self, n: u64) {
+        debug_assert!(self.is_quiet() && n > 0);
+        self.ring.skip_idle(n);
+        self.latch.valid = false;
+    }
+
     /// Reports every probe (after a commit).
     pub fn trace(&self, t: &mut Trace) {
         let stages = self.ring.stages(self.max_latency);

@@ -126,6 +126,7 @@ pub struct AgStats {
     pub busy_cycles: u64,
 }
 
+#[derive(Debug)]
 pub struct AddressGenerator {
     id: u8,
     path: String,
@@ -187,6 +188,13 @@ impl AddressGenerator {
 
     pub fn is_busy(&self) -> bool {
         self.op.is_some()
+    }
+
+    /// Brings an idle generator over `n ≥ 1` cycles with no operation started, as their
+    /// edges would: only the end-of-operation flag clears.
+    pub fn skip_idle(&mut self, n: u64) {
+        debug_assert!(self.op.is_none() && n > 0);
+        self.finished = false;
     }
 
     /// Whether an operation ended at the last edge (and it is free again).

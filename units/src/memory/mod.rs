@@ -60,6 +60,14 @@ impl MemPorts {
         &self.params
     }
 
+    /// Whether every crossing FIFO is empty with its synchronisers settled and nothing was
+    /// pushed this cycle: clock edges change nothing in them.
+    pub fn is_settled(&self) -> bool {
+        self.pushed == 0
+            && self.requests.iter().all(AsyncFifoTx::is_settled)
+            && self.replies.iter().all(AsyncFifoRx::is_settled)
+    }
+
     /// Ends the cycle.
     pub fn commit(&mut self) {
         self.pushed = 0;
