@@ -1,5 +1,6 @@
-//! Helpers shared by the fuzz targets of `fuzz_targets/`: the machines they use, built
-//! once per process, and small deterministic inputs for the simulations.
+//! Helpers shared by the fuzz targets of `fuzz_targets/`: gold8 parsed once per process,
+//! deterministic inputs for the simulations, the invariants loaded scenes keep, and the
+//! seeds the targets make themselves (see `.ci/fuzz`).
 
 use std::path::PathBuf;
 use std::sync::OnceLock;
@@ -55,18 +56,16 @@ pub fn input_streams(program: &Program, len: usize) -> Vec<Vec<u32>> {
         .collect()
 }
 
-/// What every scene the loaders return guarantees the renderer: per-vertex arrays as long
-/// as the positions or empty, triangles naming existing vertices, finite positions.
+/// What every scene the loaders return guarantees the renderer: each object's material
+/// exists and its mesh keeps [`assert_mesh_invariants`].
 pub fn assert_scene_invariants(scene: &imagine_pipelines::scene::model::Scene) {
-    assert!(!scene.objects.is_empty() || scene.triangles() == 0);
     for o in &scene.objects {
-        let m = &o.mesh;
-        assert_mesh_invariants(m);
+        assert_mesh_invariants(&o.mesh);
         assert!(o.material < scene.materials.len(), "object `{}`", o.name);
     }
 }
 
-/// See [`assert_scene_invariants`].
+/// Per-vertex arrays as long as the positions or empty, triangles naming existing vertices.
 pub fn assert_mesh_invariants(m: &imagine_pipelines::scene::model::Mesh) {
     let n = m.positions.len();
     for len in [m.normals.len(), m.colours.len(), m.texcoords.len()] {

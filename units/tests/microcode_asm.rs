@@ -962,3 +962,18 @@ fn pass_errors() {
         "instruction 1, `ctl.pass`: the pass of instructions 1..=1 reads 2 unconditional words",
     );
 }
+
+/// Found by fuzzing (`fuzz/fuzz_targets/asm.rs`): the destination of a `perm[i]`
+/// communication slot was not checked, and encoding the program panicked on the entry
+/// that does not fit its field (the minimised input).
+#[test]
+fn a_per_cluster_communication_is_refused_a_destination_beyond_its_lrf() {
+    let text = "kernel k\nin x\nout s\n    comm0 data[1], perm[3] -> add0.b[40]\ndone\n";
+    let e = assemble(text, &gold8()).expect_err("must not assemble");
+    assert_eq!(e.line, 4, "{e}");
+    assert!(
+        e.message
+            .contains("entry 40 is out of range: LRF `add0.b` has 16 entries"),
+        "{e}"
+    );
+}

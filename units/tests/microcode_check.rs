@@ -636,6 +636,41 @@ fn scratchpad_bases_and_offsets() {
     program(&big, ins).check(&big).unwrap();
 }
 
+/// Found by fuzzing (`fuzz/fuzz_targets/asm.rs`): a `perm[i]` permutation skipped the
+/// check of the slot's destinations, so an entry beyond its LRF passed, and then failed to
+/// encode (a panic) or, within the field's width, reached the machine.
+#[test]
+fn per_cluster_permutations_check_their_destinations() {
+    let d = gold8();
+    for (perm, field) in [
+        (Permutation::PerCluster(0), "comm0.dest0"),
+        (Permutation::Rotate(1), "comm0.dest0"),
+    ] {
+        let mut ins = empty(&d);
+        ins.comm[0] = Some(CommSlot {
+            data: 1,
+            perm,
+            dests: [Some(lrf(&d, "add0.b", 16)), None],
+            stage: 0,
+        });
+        fails(
+            &d,
+            &program(&d, ins),
+            0,
+            field,
+            "entry 16 is out of range: LRF `add0.b` has 16 entries",
+        );
+    }
+    let mut ins = empty(&d);
+    ins.comm[0] = Some(CommSlot {
+        data: 1,
+        perm: Permutation::PerCluster(3),
+        dests: [Some(lrf(&d, "add0.b", 1)), Some(lrf(&d, "add0.b", 2))],
+        stage: 0,
+    });
+    fails(&d, &program(&d, ins), 0, "comm0.dest1", "one write port");
+}
+
 #[test]
 fn permutation_constants_name_clusters() {
     let d = gold8();

@@ -900,7 +900,10 @@ impl Checker<'_> {
         let c = self.shape.clusters;
         let field = format!("{name}.perm");
         let (what, k) = match s.perm {
-            Permutation::PerCluster(e) => return self.check_entry(i, name, "perm", e),
+            Permutation::PerCluster(e) => {
+                self.check_entry(i, name, "perm", e)?;
+                return self.check_dests(i, name, &s.dests);
+            }
             Permutation::Rotate(k) => ("rotate", k),
             Permutation::Xor(k) => ("xor", k),
             Permutation::Broadcast(k) => ("bcast", k),
