@@ -217,6 +217,16 @@ fn machine_descriptions() {
     );
     refused(&["machine", "show", &dir().to_string_lossy()], b"", &[]);
     refused(&["machine", "show", "/dev/zero"], b"", &["/dev/zero"]);
+    // A named pipe nobody writes would block the open for ever.
+    let fifo = dir().join("fifo.toml");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if made.is_ok_and(|s| s.success()) {
+        let fifo = fifo.to_str().unwrap();
+        refused(&["machine", "show", fifo], b"", &["named pipe"]);
+        refused(&["kernel", "asm", fifo], b"", &["named pipe"]);
+        refused(&["render", "--machine", fifo], b"", &["named pipe"]);
+        refused(&["dram", "--trace", fifo], b"", &["named pipe"]);
+    }
 }
 
 #[test]

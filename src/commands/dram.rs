@@ -152,8 +152,8 @@ fn load_requests(a: &DramArgs, p: &DramParams) -> Result<(String, Vec<TraceReque
         return Ok((format!("bench {name}"), reqs));
     }
     let path = a.trace.as_ref().expect("clap requires --trace or --bench");
-    let file =
-        File::open(path).with_context(|| format!("cannot read trace `{}`", path.display()))?;
+    let file = imagine_units::limits::open_input(path)
+        .with_context(|| format!("cannot read trace `{}`", path.display()))?;
     let reqs = read_trace(BufReader::new(file), p)
         .map_err(|e| anyhow::anyhow!("trace `{}`: {e}", path.display()))?;
     Ok((path.display().to_string(), reqs))

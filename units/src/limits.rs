@@ -97,17 +97,33 @@ pub fn read_file(path: &Path) -> io::Result<Vec<u8>> {
     read_at_most(path, MAX_FILE_BYTES)
 }
 
-fn read_at_most(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
+/// Opens an input file for reading, refusing what could never be read to its end: a
+/// directory, and a named pipe (opening one waits for a writer, for ever if none comes).
+pub fn open_input(path: &Path) -> io::Result<std::fs::File> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if std::fs::metadata(path)?.file_type().is_fifo() {
+            return Err(io::Error::other(
+                "is a named pipe: give a file (a pipe may never be written)",
+            ));
+        }
+    }
     let file = std::fs::File::open(path)?;
+    if file.metadata()?.is_dir() {
+        return Err(io::Error::other("is a directory"));
+    }
+    Ok(file)
+}
+
+fn read_at_most(path: &Path, limit: u64) -> io::Result<Vec<u8>> {
+    let file = open_input(path)?;
     let meta = file.metadata()?;
     let too_large = || {
         io::Error::other(format!(
             "larger than the {limit} bytes an input file may have (MAX_FILE_BYTES)"
         ))
     };
-    if meta.is_dir() {
-        return Err(io::Error::other("is a directory"));
-    }
     if meta.len() > limit {
         return Err(too_large());
     }
