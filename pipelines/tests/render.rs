@@ -379,18 +379,23 @@ fn machine_results(f: &imagine_pipelines::opengl::render::Frame) -> (serde_json:
     (json, f.stats.batches_csv())
 }
 
-/// A frame whose kernels hold the clusters far longer than they run: stepping through the
-/// idle cycles and jumping over them give the same frame and every statistic.
-#[test]
-fn jumping_over_idle_time_changes_nothing_in_the_frame() {
-    let scene = scene::load(
+/// RATE-1 in a 16 × 16 window: a frame of many short kernel calls.
+fn rate1_16x16() -> Scene {
+    scene::load(
         "RATE-1",
         &LoadOptions {
             size: Some(16),
             subdivisions: None,
         },
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// A frame whose kernels hold the clusters far longer than they run: stepping through the
+/// idle cycles and jumping over them give the same frame and every statistic.
+#[test]
+fn jumping_over_idle_time_changes_nothing_in_the_frame() {
+    let scene = rate1_16x16();
     let gold8 = MachineDesc::gold8();
     let refi = gold8.dram.refresh_interval as u64 * gold8.clocks.core_mhz / gold8.clocks.dram_mhz;
     for min in [20_011, refi + 1] {
@@ -417,14 +422,7 @@ fn jumping_over_idle_time_changes_nothing_in_the_frame() {
 /// time is jumped over), every kernel call holding the clusters for it.
 #[test]
 fn a_frame_of_kernels_held_for_the_longest_minimum_time_finishes() {
-    let scene = scene::load(
-        "RATE-1",
-        &LoadOptions {
-            size: Some(16),
-            subdivisions: None,
-        },
-    )
-    .unwrap();
+    let scene = rate1_16x16();
     let mut desc = MachineDesc::gold8();
     desc.stream_controller.min_kernel_cycles = 1 << 24;
     desc.validate().unwrap();

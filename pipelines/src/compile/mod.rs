@@ -192,9 +192,8 @@ fn search(
                 other => return other,
             }
         }
-        Err(Retry::Larger(last.unwrap_or_else(|| {
-            ("schedule".into(), "no schedule found".into())
-        })))
+        // A call starts only while the budget lasts, so at least one schedule was tried.
+        Err(Retry::Larger(last.expect("a schedule was tried")))
     };
     // The body list-scheduled, one iteration at a time: the interval to beat. Its order is
     // also the order the scheduler places big loops in far from their bound.
@@ -284,8 +283,7 @@ fn search(
                 Err(Retry::Larger(e) | Retry::Repair(_, e)) => last_error = Some(e),
             }
             if spent() {
-                let last = last_error.unwrap_or(("schedule".into(), "no schedule found".into()));
-                return Err(gave_up(last));
+                return Err(gave_up(last_error.expect("a schedule was tried")));
             }
         }
     }
