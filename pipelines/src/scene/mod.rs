@@ -23,6 +23,7 @@
 
 pub mod bpt;
 pub mod file;
+pub mod mipmap;
 pub mod model;
 pub mod obj;
 pub mod primitives;
