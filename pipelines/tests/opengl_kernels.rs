@@ -2,7 +2,7 @@
 
 use imagine_pipelines::compile::compile;
 use imagine_pipelines::kernels::{records_to_stream, stream_to_records};
-use imagine_pipelines::opengl::kernels::{self, FrameShape};
+use imagine_pipelines::opengl::kernels::{self, FrameShape, Varyings};
 use imagine_pipelines::opengl::vertex_program::VertexProgram;
 use imagine_pipelines::scene::model::{Cull, DepthTest};
 use imagine_units::desc::MachineDesc;
@@ -27,12 +27,14 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             lights: 3,
             specular: true,
             shininess: 16,
+            texcoords: false,
         };
         // The most lights a scene has: the first kernel's three, then a pass of five.
         let lit8 = VertexProgram::Lit {
             lights: 8,
             specular: true,
             shininess: 16,
+            texcoords: false,
         };
         let lit8_passes = lit8.passes(&desc);
         assert_eq!(lit8_passes.len(), 1);
@@ -44,15 +46,16 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             lit8_passes[0].clone(),
             VertexProgram::Unlit {
                 per_vertex_colour: true,
+                texcoords: false,
             }
             .build(&desc),
             kernels::clear(&desc).unwrap(),
-            kernels::assemble_clip(&desc).unwrap(),
+            kernels::assemble_clip(&desc, Varyings::default()).unwrap(),
             kernels::viewport_cull(&desc, shape).unwrap(),
             kernels::xyprep(&desc, shape).unwrap(),
-            kernels::baryprep(&desc).unwrap(),
+            kernels::baryprep(&desc, Varyings::default()).unwrap(),
             kernels::xyrast(&desc, shape).unwrap(),
-            kernels::irast(&desc).unwrap(),
+            kernels::irast(&desc, Varyings::default()).unwrap(),
             kernels::hash(&desc, shape).unwrap(),
             kernels::zcompare(&desc, shape).unwrap(),
             kernels::compact_recycle(&desc, [0, 1]).unwrap(),
@@ -292,7 +295,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             })
             .collect();
         let assembled = run_checked(
-            &kernels::assemble_clip(&desc).unwrap(),
+            &kernels::assemble_clip(&desc, Varyings::default()).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![records_to_stream(&vertices, c), vec![], vec![]],
@@ -335,7 +338,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             "{name}: {kept} of {tris} triangles face the eye"
         );
         let bary = run_checked(
-            &kernels::baryprep(&desc).unwrap(),
+            &kernels::baryprep(&desc, Varyings::default()).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![assembled[2].clone(), viewed[2].clone(), vec![]],
@@ -432,6 +435,7 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
     sphere.objects[0].model = random_matrix;
     let unlit = VertexProgram::Unlit {
         per_vertex_colour: false,
+        texcoords: false,
     };
     let lit = VertexProgram::for_object(&sphere, &sphere.objects[0], false).unwrap();
     for name in ["gold1", "gold8", "gold32"] {

@@ -127,11 +127,12 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
         }
     })?;
     let image = image_of(&frame);
-    let reference_image = reference::render(&scene)?;
-    let metrics = compare(&image, &reference_image).map_err(anyhow::Error::msg)?;
+    // Written before the reference runs, so that a frame is kept whatever the comparison.
     if let Some(p) = &a.png {
         image.write_png(p).map_err(anyhow::Error::msg)?;
     }
+    let reference_image = reference::render(&scene)?;
+    let metrics = compare(&image, &reference_image).map_err(anyhow::Error::msg)?;
     if let Some(p) = &a.reference_png {
         reference_image.write_png(p).map_err(anyhow::Error::msg)?;
     }

@@ -98,6 +98,40 @@ impl FrameShape {
     }
 }
 
+/// What a frame's vertices carry beyond the clip position and the colour: texture
+/// coordinates (when any object is textured), and with them the per-triangle sums their
+/// screen-space derivatives need (when any texture is mipmapped).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Varyings {
+    pub texcoords: bool,
+    pub derivatives: bool,
+}
+
+impl Varyings {
+    /// Words of a shaded vertex: clip x, y, z, w, r, g, b, then s, t.
+    pub fn shaded_words(self) -> usize {
+        7 + 2 * usize::from(self.texcoords)
+    }
+
+    /// Words of an `attribs` record: [`ATTRIB_WORDS`], then s, t of each corner.
+    pub fn attrib_words(self) -> usize {
+        ATTRIB_WORDS + 6 * usize::from(self.texcoords)
+    }
+
+    /// Words of an interpolation record: [`INTERP_WORDS`], then s, t of each corner, then
+    /// the derivative sums `ΣA, ΣB, Σs·A, Σs·B, Σt·A, Σt·B` over the edge functions
+    /// `E_k = A_k·X + B_k·Y + C_k`.
+    pub fn interp_words(self) -> usize {
+        INTERP_WORDS + 6 * usize::from(self.texcoords) + 6 * usize::from(self.derivatives)
+    }
+
+    /// Words `irast` writes per fragment to `varyings` (textured frames): r, g, b, s, t,
+    /// then ∂s/∂X, ∂s/∂Y, ∂t/∂X, ∂t/∂Y.
+    pub fn fragment_words(self) -> usize {
+        5 + 4 * usize::from(self.derivatives)
+    }
+}
+
 /// The most triangles per cluster `xyrast` can hold in `desc`'s scratchpad: its raster
 /// records, a sentinel and the word read past it, below the words conditional streams keep.
 pub fn xyrast_rows(desc: &MachineDesc) -> usize {
@@ -199,7 +233,10 @@ pub const WINDOW_WORDS: usize = 14;
 ///
 /// Needs a power-of-two cluster count (a vertex's row is its index shifted right by
 /// `log2 C`).
-pub fn assemble_clip(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+pub fn assemble_clip(
+    desc: &MachineDesc,
+    varyings: Varyings,
+) -> Result<Kernel, MachineRequirementError> {
     Needs::new("assemble_clip", desc).power_of_two_clusters(None)?;
     let clusters = desc.cluster.count;
     let mut b = KernelBuilder::new("assemble_clip");
@@ -234,17 +271,20 @@ pub fn assemble_clip(desc: &MachineDesc) -> Result<Kernel, MachineRequirementErr
         .collect();
 
     b.begin_loop(LoopSpec::OverStream(shaded));
-    let rows: Vec<[Value; 7]> = (0..3)
-        .map(|_| std::array::from_fn(|_| b.read_f32(shaded)))
+    let words = varyings.shaded_words();
+    let rows: Vec<Vec<Value>> = (0..3)
+        .map(|_| (0..words).map(|_| b.read_f32(shaded)).collect())
         .collect();
-    let v: Vec<[Value; 7]> = corners
+    let v: Vec<Vec<Value>> = corners
         .iter()
         .map(|&(source, row0, row1)| {
-            std::array::from_fn(|j| {
-                let later = b.select(row1, rows[1][j], rows[2][j]);
-                let sent = b.select(row0, rows[0][j], later);
-                b.comm(sent, Perm::PerCluster(source))
-            })
+            (0..words)
+                .map(|j| {
+                    let later = b.select(row1, rows[1][j], rows[2][j]);
+                    let sent = b.select(row0, rows[0][j], later);
+                    b.comm(sent, Perm::PerCluster(source))
+                })
+                .collect()
         })
         .collect();
     // Trivial reject: all three corners outside one clip plane.
@@ -287,6 +327,11 @@ pub fn assemble_clip(desc: &MachineDesc) -> Result<Kernel, MachineRequirementErr
     for c in &v {
         for &channel in &c[4..7] {
             b.write(attribs, channel);
+        }
+    }
+    for c in &v {
+        for &st in &c[7..] {
+            b.write(attribs, st);
         }
     }
     b.end_loop();
@@ -557,10 +602,11 @@ pub fn xyprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
 /// `baryprep`: per triangle, the interpolation record `irast` reads ([`INTERP_WORDS`]):
 /// `z_k / |det|` of each corner, the corners' colours and the primitive number
 /// `prim_base + index + 1` (parameter `prim_base`). Inputs: `attribs` and `det`.
-pub fn baryprep(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+pub fn baryprep(desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("baryprep");
     let attribs = b.input("attribs");
     let det = b.input("det");
+    let window = varyings.derivatives.then(|| b.input("window"));
     let interp = b.output("interp");
     let prim_base = b.param("prim_base", Ty::I32);
     let one_f = b.f32(1.0);
@@ -571,6 +617,14 @@ pub fn baryprep(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let index0 = b.carried(cluster);
     let z: [Value; 3] = std::array::from_fn(|_| b.read_f32(attribs));
     let colours: [Value; 9] = std::array::from_fn(|_| b.read_f32(attribs));
+    let texcoords: Vec<Value> = (0..6 * usize::from(varyings.texcoords))
+        .map(|_| b.read_f32(attribs))
+        .collect();
+    // The edge functions' A and B (sign-normalised, as `xyrast` evaluates them).
+    let edges: Option<Vec<Value>> = window.map(|w| {
+        let words: Vec<Value> = (0..WINDOW_WORDS).map(|_| b.read_f32(w)).collect();
+        words[..9].to_vec()
+    });
     let abs_det = b.read_f32(det);
     let inv_det = b.fdiv(one_f, abs_det);
     for z in z {
@@ -585,6 +639,31 @@ pub fn baryprep(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
         b.iadd(p, one)
     };
     b.write(interp, prim);
+    for &st in &texcoords {
+        b.write(interp, st);
+    }
+    if let Some(e) = edges {
+        // ΣA, ΣB, Σs·A, Σs·B, Σt·A, Σt·B: with them `irast` finds s's derivative
+        // ∂s/∂X = (Σs·A − s·ΣA)/ΣE (λ_k = E_k/ΣE), and likewise for Y and t.
+        let sum = |b: &mut KernelBuilder, terms: [Value; 3]| {
+            let s = b.fadd(terms[0], terms[1]);
+            b.fadd(s, terms[2])
+        };
+        for coefficient in 0..2 {
+            let c: [Value; 3] = std::array::from_fn(|k| e[3 * k + coefficient]);
+            let total = sum(&mut b, c);
+            b.write(interp, total);
+        }
+        for channel in 0..2 {
+            for coefficient in 0..2 {
+                let terms: [Value; 3] = std::array::from_fn(|k| {
+                    b.fmul(texcoords[2 * k + channel], e[3 * k + coefficient])
+                });
+                let total = sum(&mut b, terms);
+                b.write(interp, total);
+            }
+        }
+    }
     let next_index = b.iadd(index0, row_c);
     b.set_next(index0, next_index);
     b.end_loop();
@@ -776,19 +855,27 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
 /// `irast`: a fragment's perspective-correct colour (packed RGBA8, alpha 255) and window
 /// depth from its edge values and its triangle's interpolation record (gathered from
 /// memory by triangle index), and the triangle's primitive number.
-pub fn irast(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("irast");
     let e_in: [StreamId; 3] = ["e0", "e1", "e2"].map(|n| b.input(n));
     let interp = b.input("interp");
     let z_out = b.output("z");
-    let colour_out = b.output("colour");
+    // Textured frames hand the interpolated values to the fragment program instead of
+    // packing the colour here.
+    let (colour_out, varyings_out) = if varyings.texcoords {
+        (None, Some(b.output("varyings")))
+    } else {
+        (Some(b.output("colour")), None)
+    };
     let prim_out = b.output("prim");
     let (zero_f, half, one_f) = (b.f32(0.0), b.f32(0.5), b.f32(1.0));
     let scale = b.f32(255.0);
     let alpha = b.word(0xFF00_0000);
     b.begin_loop(LoopSpec::OverStream(e_in[0]));
     let e: Vec<Value> = e_in.iter().map(|&s| b.read_f32(s)).collect();
-    let rec: Vec<Value> = (0..INTERP_WORDS).map(|_| b.read_f32(interp)).collect();
+    let rec: Vec<Value> = (0..varyings.interp_words())
+        .map(|_| b.read_f32(interp))
+        .collect();
     let sum = b.fadd(e[0], e[1]);
     let sum = b.fadd(sum, e[2]);
     let inv = b.fdiv(one_f, sum);
@@ -803,20 +890,51 @@ pub fn irast(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let z_ndc = weighted(&mut b, &e, [rec[0], rec[1], rec[2]]);
     let z = b.fmul(z_ndc, half);
     let z = b.fadd(z, half);
-    let mut colour = alpha;
-    for ch in 0..3 {
-        let c = weighted(&mut b, &lambda, [rec[3 + ch], rec[6 + ch], rec[9 + ch]]);
+    let channel = |b: &mut KernelBuilder, ch: usize| {
+        let c = weighted(b, &lambda, [rec[3 + ch], rec[6 + ch], rec[9 + ch]]);
         let c = b.fmax(c, zero_f);
-        let c = b.fmin(c, one_f);
-        let c = b.fmul(c, scale);
-        let c = b.fadd(c, half);
-        let byte = b.ftoi_trunc(c);
-        let shift = b.i32(8 * ch as i32);
-        let byte = b.shl(byte, shift);
-        colour = b.or(colour, byte);
+        b.fmin(c, one_f)
+    };
+    if let Some(out) = colour_out {
+        let mut colour = alpha;
+        for ch in 0..3 {
+            let c = channel(&mut b, ch);
+            let c = b.fmul(c, scale);
+            let c = b.fadd(c, half);
+            let byte = b.ftoi_trunc(c);
+            let shift = b.i32(8 * ch as i32);
+            let byte = b.shl(byte, shift);
+            colour = b.or(colour, byte);
+        }
+        b.write(z_out, z);
+        b.write(out, colour);
     }
-    b.write(z_out, z);
-    b.write(colour_out, colour);
+    if let Some(out) = varyings_out {
+        b.write(z_out, z);
+        let channels: Vec<Value> = (0..3).map(|ch| channel(&mut b, ch)).collect();
+        for &c in &channels {
+            b.write(out, c);
+        }
+        let st: Vec<Value> = (0..2)
+            .map(|ch| weighted(&mut b, &lambda, [rec[13 + ch], rec[15 + ch], rec[17 + ch]]))
+            .collect();
+        for &v in &st {
+            b.write(out, v);
+        }
+        if varyings.derivatives {
+            // ∂s/∂X = (Σs·A − s·ΣA)/ΣE, and so on (4 multiplies and 4 subtracts, then the
+            // 4 multiplies by 1/ΣE).
+            let (sum_a, sum_b) = (rec[19], rec[20]);
+            for (ch, &value) in st.iter().enumerate() {
+                for (k, total) in [sum_a, sum_b].into_iter().enumerate() {
+                    let p = b.fmul(value, total);
+                    let d = b.fsub(rec[21 + 2 * ch + k], p);
+                    let d = b.fmul(d, inv);
+                    b.write(out, d);
+                }
+            }
+        }
+    }
     b.write(prim_out, rec[12]);
     b.end_loop();
     Ok(finish(b))

@@ -44,17 +44,17 @@ use std::time::Instant;
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::dram::ReplayReport;
-use imagine_units::machine::KernelStats;
+use imagine_units::machine::{KernelStats, StreamBinding};
 use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
 
+use super::fragment_program::{self, FragmentProgram, TextureMemory};
 use super::kernels::{
-    self, ATTRIB_WORDS, CLIPPED_WORDS, FrameShape, INTERP_WORDS, NULL_DEPTH, PIXEL_WORDS,
-    RASTER_WORDS, WINDOW_WORDS,
+    self, CLIPPED_WORDS, FrameShape, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS, Varyings, WINDOW_WORDS,
 };
 use super::mergefrag::{self, GROUP};
 use super::stats::{BatchRow, Phases, Specialisation};
-use super::vertex_program::{SHADED_WORDS, VertexProgram};
+use super::vertex_program::{self, VertexProgram};
 use crate::compile::CompileCache;
 use crate::kernel::MachineRequirementError;
 use crate::scene::MAX_WINDOW;
@@ -206,7 +206,21 @@ struct Streams {
     newaddr: StreamId,
     conflict: StreamId,
     conflicts: StreamId,
+    /// The fragment program's streams (textured frames).
+    texturing: Option<TexturingStreams>,
     chunk: usize,
+}
+
+/// A chunk's streams between `irast` and the composite in a textured frame: the
+/// interpolated values, then the fragment program's address, weight and texel streams
+/// (texels are gathered over their addresses).
+struct TexturingStreams {
+    varyings: StreamId,
+    addr: Option<StreamId>,
+    weights: Option<StreamId>,
+    addr8: Option<StreamId>,
+    weights5: Option<StreamId>,
+    filtered: Option<StreamId>,
 }
 
 /// Words of the largest state and parameter lists of the scene's vertex programs.
@@ -221,6 +235,12 @@ struct Sizes {
     /// most passes a program has after its first kernel.
     partial_words: usize,
     passes: usize,
+    varyings: Varyings,
+    /// The most texel fetches outside mipmapped units, bilinear weights and mipmapped
+    /// units of any fragment program.
+    direct_fetches: usize,
+    direct_weights: usize,
+    mipmapped: usize,
 }
 
 /// Words of `perlight`'s parameters (see [`VertexProgram::perlight_params`]).
@@ -253,7 +273,12 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         baryprep_params: p.stream("baryprep_params", words, c, always),
         vertices: p.stream("vertices", Layout::records(s.vertex_words), 3 * b, always),
         corner_index: p.buffers("corner_index", words, 3 * b, always),
-        shaded: p.buffers("shaded", Layout::records(SHADED_WORDS), 3 * b, always),
+        shaded: p.buffers(
+            "shaded",
+            Layout::records(s.varyings.shaded_words()),
+            3 * b,
+            always,
+        ),
         // Written and read by the deferred vertex work of one batch, which runs in order.
         partial: (0..s.passes.min(2))
             .map(|i| {
@@ -263,7 +288,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
             .collect(),
         corners: p.stream(
             "corners",
-            Layout::records(SHADED_WORDS),
+            Layout::records(s.varyings.shaded_words()),
             3 * b,
             live("assemble", "assemble"),
         ),
@@ -275,7 +300,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         ),
         attribs: p.stream(
             "attribs",
-            Layout::records(ATTRIB_WORDS),
+            Layout::records(s.varyings.attrib_words()),
             b,
             live("assemble", "baryprep"),
         ),
@@ -291,7 +316,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         // so that `xyprep` and `xyrast` do not wait for it.
         interp: p.stream(
             "interp",
-            Layout::records(INTERP_WORDS),
+            Layout::records(s.varyings.interp_words()),
             b,
             live("baryprep", "xyrast"),
         ),
@@ -313,7 +338,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         edges: ["e0", "e1", "e2"].map(|n| p.elastic(n, words, live("xyrast", "composite"))),
         gathered: p.buffers(
             "gathered",
-            Layout::records(INTERP_WORDS),
+            Layout::records(s.varyings.interp_words()),
             chunk,
             live("composite", "composite"),
         ),
@@ -342,6 +367,33 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
             live("composite", "composite"),
         ),
         conflicts: p.stream("conflicts", words, c, live("composite", "composite")),
+        texturing: s.varyings.texcoords.then(|| {
+            let mut per_fragment = |name: &str, words: usize| {
+                (words > 0).then(|| {
+                    p.stream(
+                        name,
+                        Layout::records(words),
+                        chunk,
+                        live("composite", "composite"),
+                    )
+                })
+            };
+            TexturingStreams {
+                varyings: per_fragment("varyings", s.varyings.fragment_words())
+                    .expect("a textured frame's fragments carry their varyings"),
+                addr: per_fragment("texel_addr", s.direct_fetches),
+                weights: per_fragment("texel_weights", s.direct_weights),
+                addr8: per_fragment(
+                    "mipmap_addr",
+                    fragment_program::FILTER8_TEXELS * s.mipmapped,
+                ),
+                weights5: per_fragment(
+                    "mipmap_weights",
+                    fragment_program::FILTER8_WEIGHTS * s.mipmapped,
+                ),
+                filtered: per_fragment("filtered", s.mipmapped),
+            }
+        }),
         chunk,
     };
     let plan = p.place()?;
@@ -413,15 +465,22 @@ struct Kernels {
     clear: KernelId,
     /// `sort32` and `mergefrag`, when the depth test allows merging.
     merge: Option<(KernelId, KernelId)>,
+    /// Per object (textured frames): its fragment program's `texaddr` (none without
+    /// textures) and `fragment` kernels.
+    fragment: Vec<(Option<KernelId>, KernelId)>,
+    /// `filter8`, when a texture is mipmapped.
+    filter8: Option<KernelId>,
 }
 
 fn register_kernels(
     lib: &mut KernelLibrary,
     desc: &MachineDesc,
     shape: FrameShape,
-    programs: &[VertexProgram],
+    pp: &PipelinePlan,
     options: &RenderOptions,
 ) -> Result<Kernels, MachineRequirementError> {
+    let programs = &pp.programs;
+    let varyings = pp.varyings;
     let mut per_program: Vec<(VertexProgram, ObjectKernels)> = Vec::new();
     let per_object = programs
         .iter()
@@ -449,12 +508,41 @@ fn register_kernels(
         .collect();
     // Built in pipeline order, so that a machine shape none of them can serve is named by
     // the first kernel a frame needs.
-    let assemble_clip = lib.register("assemble_clip", kernels::assemble_clip(desc)?);
+    let assemble_clip = lib.register("assemble_clip", kernels::assemble_clip(desc, varyings)?);
     let viewport_cull = lib.register("viewport_cull", kernels::viewport_cull(desc, shape)?);
-    let baryprep = lib.register("baryprep", kernels::baryprep(desc)?);
+    let baryprep = lib.register("baryprep", kernels::baryprep(desc, varyings)?);
     let xyprep = lib.register("xyprep", kernels::xyprep(desc, shape)?);
     let xyrast = lib.register("xyrast", kernels::xyrast(desc, shape)?);
-    let irast = lib.register("irast", kernels::irast(desc)?);
+    let irast = lib.register("irast", kernels::irast(desc, varyings)?);
+    let mut fragment = Vec::new();
+    let mut registered: Vec<(&FragmentProgram, (Option<KernelId>, KernelId))> = Vec::new();
+    for fp in pp.fragment_programs.iter().flatten() {
+        let ids = match registered.iter().find(|(p, _)| *p == fp) {
+            Some((_, ids)) => *ids,
+            None => {
+                let name = fp.name();
+                let texaddr = if fp.units.is_empty() {
+                    None
+                } else {
+                    Some(lib.register(&format!("texaddr:{name}"), fp.texaddr(varyings)?))
+                };
+                let colour = lib.register(&format!("fragment:{name}"), fp.fragment(varyings)?);
+                registered.push((fp, (texaddr, colour)));
+                (texaddr, colour)
+            }
+        };
+        fragment.push(ids);
+    }
+    let filter8 = if pp
+        .fragment_programs
+        .iter()
+        .flatten()
+        .any(|f| f.mipmapped() > 0)
+    {
+        Some(lib.register("filter8", fragment_program::filter8(desc)?))
+    } else {
+        None
+    };
     let hash = lib.register("hash", kernels::hash(desc, shape)?);
     let zcompare = lib.register("zcompare", kernels::zcompare(desc, shape)?);
     let recycle_zc = lib.register(
@@ -488,6 +576,8 @@ fn register_kernels(
         recycle_ap,
         clear,
         merge,
+        fragment,
+        filter8,
     })
 }
 
@@ -614,12 +704,6 @@ fn check_supported(scene: &Scene) -> Result<(), RenderError> {
     if scene.pipeline.blend != Blend::None {
         return bad("blending is not supported yet (pipeline.blend must be \"none\")".into());
     }
-    if let Some(m) = scene.materials.iter().find(|m| !m.textures.is_empty()) {
-        return bad(format!(
-            "material `{}` has textures, which are not supported yet",
-            m.name
-        ));
-    }
     if scene.width == 0
         || scene.height == 0
         || scene.width > MAX_WINDOW
@@ -646,6 +730,12 @@ pub struct PipelinePlan {
     general: bool,
     /// Whether the merge stage may run (depth test LESS, merging on).
     merge: bool,
+    /// What vertices carry beyond position and colour.
+    pub varyings: Varyings,
+    /// Per object, in a textured frame, its fragment program (none in other frames).
+    pub fragment_programs: Vec<Option<FragmentProgram>>,
+    /// Where the textures lie in DRAM.
+    pub textures: TextureMemory,
 }
 
 impl PipelinePlan {
@@ -682,6 +772,26 @@ impl PipelinePlan {
             ]
             .map(String::from),
         );
+        for fp in self.fragment_programs.iter().flatten() {
+            let name = fp.name();
+            let mut these = vec![format!("fragment:{name}")];
+            if !fp.units.is_empty() {
+                these.insert(0, format!("texaddr:{name}"));
+            }
+            for n in these {
+                if !names.contains(&n) {
+                    names.push(n);
+                }
+            }
+        }
+        if self
+            .fragment_programs
+            .iter()
+            .flatten()
+            .any(|f| f.mipmapped() > 0)
+        {
+            names.push("filter8".into());
+        }
         if self.merge {
             names.extend(["sort32".into(), "mergefrag".into()]);
         }
@@ -710,14 +820,18 @@ impl PipelinePlan {
                 matches!(
                     p,
                     VertexProgram::Unlit {
-                        per_vertex_colour: false
+                        per_vertex_colour: false,
+                        ..
                     }
                 )
             }) {
                 out.push("per-vertex colours (a constant colour instead)".to_string());
             }
         }
-        out.extend(["textures", "procedural noise", "blending"].map(String::from));
+        if !self.varyings.texcoords {
+            out.push("textures".into());
+        }
+        out.extend(["procedural noise", "blending"].map(String::from));
         if !self.merge {
             out.push("merge of conflicting fragments (sort32, mergefrag)".into());
         }
@@ -762,6 +876,31 @@ pub fn plan_pipeline(
         .map(|o| VertexProgram::for_object(scene, o, general))
         .collect::<Result<_, _>>()
         .map_err(|e| RenderError(format!("scene `{}`: {e}", scene.name)))?;
+    let textured = vertex_program::textured(scene);
+    let textures = TextureMemory::new(scene);
+    let fragment_programs: Vec<Option<FragmentProgram>> = scene
+        .objects
+        .iter()
+        .map(|o| {
+            let m = &scene.materials[o.material];
+            textured.then(|| FragmentProgram::new(scene, &m.textures, m.texture_mode, &textures))
+        })
+        .collect();
+    let varyings = Varyings {
+        texcoords: textured,
+        derivatives: fragment_programs
+            .iter()
+            .flatten()
+            .any(|f| f.mipmapped() > 0),
+    };
+    let most_of = |f: fn(&FragmentProgram) -> usize| {
+        fragment_programs.iter().flatten().map(f).max().unwrap_or(0)
+    };
+    let (direct_fetches, direct_weights, mipmapped) = (
+        most_of(FragmentProgram::direct_fetches),
+        most_of(FragmentProgram::direct_weights),
+        most_of(FragmentProgram::mipmapped),
+    );
     let rows = kernels::xyrast_rows(desc);
     if rows == 0 {
         // `xyrast` names what its scratchpad lacks for a batch of one row.
@@ -832,6 +971,10 @@ pub fn plan_pipeline(
         light_words,
         partial_words: partial_words.unwrap_or(1),
         passes,
+        varyings,
+        direct_fetches,
+        direct_weights,
+        mipmapped,
     };
     let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
     let shape = FrameShape {
@@ -850,6 +993,9 @@ pub fn plan_pipeline(
         streams: s,
         shape,
         general,
+        varyings,
+        fragment_programs,
+        textures,
     })
 }
 
@@ -881,7 +1027,7 @@ pub fn render_with(
         (&pp.programs, pp.batch, &pp.plan, &pp.streams, pp.shape);
     let (phase_plan, ps) = plan_phases(desc)?;
     let mut lib = KernelLibrary::new(desc, options.cache.clone());
-    let k = register_kernels(&mut lib, desc, shape, programs, &options)
+    let k = register_kernels(&mut lib, desc, shape, &pp, &options)
         .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
     // Compile what every frame reaches now, on the host's cores; the merge stage when a
     // round first needs it (or now, for the general pipeline).
@@ -908,6 +1054,15 @@ pub fn render_with(
         k.recycle_zc,
         k.recycle_ap,
     ]);
+    let fragment_kernels = k
+        .fragment
+        .iter()
+        .flat_map(|&(t, c)| t.into_iter().chain([c]));
+    for id in fragment_kernels.chain(k.filter8) {
+        if !eager.contains(&id) {
+            eager.push(id);
+        }
+    }
     if general && let Some((a, b)) = k.merge {
         eager.extend([a, b]);
     }
@@ -918,7 +1073,10 @@ pub fn render_with(
     let pixels = (scene.width * scene.height) as usize + 1;
     let mut dram = DramMap::new(desc);
     let fb_pixels = pixels.div_ceil(clusters) * clusters;
+    let shaded_words = pp.varyings.shaded_words();
     let m = Memory {
+        textures: dram.buffer("textures", pp.textures.words.len().max(1) as u64)?,
+        texture_words: pp.textures.words.len().max(1) as u64,
         vertices: dram.buffer("vertices", input.vertex_words.len() as u64)?,
         indices: dram.buffer("corner_indices", input.index_words.len() as u64)?,
         state: dram.buffer(
@@ -927,10 +1085,10 @@ pub fn render_with(
         )?,
         lights: dram.buffer("lights", input.light_words.len() as u64)?,
         shaded: [
-            dram.buffer("shaded[0]", (3 * batch * SHADED_WORDS) as u64)?,
-            dram.buffer("shaded[1]", (3 * batch * SHADED_WORDS) as u64)?,
+            dram.buffer("shaded[0]", (3 * batch * shaded_words) as u64)?,
+            dram.buffer("shaded[1]", (3 * batch * shaded_words) as u64)?,
         ],
-        interp: dram.buffer("interp", (batch * INTERP_WORDS) as u64)?,
+        interp: dram.buffer("interp", (batch * pp.varyings.interp_words()) as u64)?,
         framebuffer: dram.buffer("framebuffer", (fb_pixels * PIXEL_WORDS) as u64)?,
         pixels: pixels as u64,
         interp_records: batch as u64,
@@ -960,6 +1118,8 @@ pub fn render_with(
         host.upload(words, m.state, *at, staging);
     }
     host.upload(&input.light_words, m.lights, 0, staging);
+    // The textures' mipmap pyramids, built when the scene loaded.
+    host.upload(&pp.textures.words, m.textures, 0, staging);
     host.drain()?;
     let loaded = host.cycles();
 
@@ -1007,6 +1167,9 @@ pub fn render_with(
         last_cycles: cleared,
         max_fragment_words: 0,
         programs,
+        varyings: pp.varyings,
+        fragment_programs: &pp.fragment_programs,
+        current_object: 0,
     };
     let batches = input.batches.len();
     let mut run = (&mut host, &mut frame);
@@ -1062,6 +1225,10 @@ pub fn pack_rgb(c: [f32; 3]) -> u32 {
 
 /// DRAM buffers of the frame.
 struct Memory {
+    /// Every texture's levels ([`TextureMemory`]), and its words: the bound of texel
+    /// gathers.
+    textures: Buffer,
+    texture_words: u64,
     vertices: Buffer,
     /// The lights as `perlight` reads them.
     lights: Buffer,
@@ -1086,6 +1253,10 @@ struct FrameRun<'a> {
     input: &'a Inputs,
     scene: &'a Scene,
     programs: &'a [VertexProgram],
+    varyings: Varyings,
+    fragment_programs: &'a [Option<FragmentProgram>],
+    /// The object of the batch being rasterized.
+    current_object: usize,
     merge_min_conflicts: Option<usize>,
     stats: &'a mut FrameStats,
     batch: usize,
@@ -1195,12 +1366,13 @@ impl FrameRun<'_> {
             ..BatchRow::default()
         });
         let tris = self.batch;
+        self.current_object = bt.object;
         let set = b % 2;
         let corners = match bt.index_at {
             None => p.first(s.shaded[set], 3 * tris),
             Some(_) => {
                 // Shared vertices: shaded once, then gathered three per triangle.
-                let shaded = Layout::records(SHADED_WORDS);
+                let shaded = Layout::records(self.varyings.shaded_words());
                 h.store(
                     p.first(s.shaded[set], bt.vertices),
                     shaded,
@@ -1238,16 +1410,18 @@ impl FrameRun<'_> {
         let bparams = p.whole(s.baryprep_params);
         h.write_params(bparams, &[bt.first_prim as u32]);
         let interp = p.first(s.interp, tris);
-        h.call(
-            self.k.baryprep,
-            &[
-                ("attribs", attribs),
-                ("det", det),
-                ("interp", interp),
-                (PARAMS, bparams),
-            ],
-        )?;
-        h.store(interp, Layout::records(INTERP_WORDS), tris, m.interp, 0);
+        let mut bindings = vec![
+            ("attribs", attribs),
+            ("det", det),
+            ("interp", interp),
+            (PARAMS, bparams),
+        ];
+        if self.varyings.derivatives {
+            bindings.push(("window", window));
+        }
+        h.call(self.k.baryprep, &bindings)?;
+        let records = Layout::records(self.varyings.interp_words());
+        h.store(interp, records, tris, m.interp, 0);
         let (w, ht) = (self.scene.width as i32, self.scene.height as i32);
         let splits = split_to_fit(
             [0, 0, w - 1, ht - 1],
@@ -1369,7 +1543,7 @@ impl FrameRun<'_> {
             m.interp,
             tri,
             m.interp_records,
-            Layout::records(INTERP_WORDS),
+            Layout::records(self.varyings.interp_words()),
             len,
             to,
         );
@@ -1388,6 +1562,10 @@ impl FrameRun<'_> {
         let c = h.clusters();
         let edge = |i: usize| p.slice(s.edges[i], start, len);
         let [z, colour, _, prim] = s.zcap[0];
+        let interpolated = match &s.texturing {
+            Some(t) => ("varyings", p.first(t.varyings, len)),
+            None => ("colour", p.first(colour, len)),
+        };
         h.call(
             self.k.irast,
             &[
@@ -1396,10 +1574,13 @@ impl FrameRun<'_> {
                 ("e2", edge(2)),
                 ("interp", p.first(s.gathered[buffer], len)),
                 ("z", p.first(z, len)),
-                ("colour", p.first(colour, len)),
+                interpolated,
                 ("prim", p.first(prim, len)),
             ],
         )?;
+        if let Some(t) = &s.texturing {
+            self.fragment_program(h, t, len, p.first(colour, len))?;
+        }
         // The current round's streams: (stream, first record).
         let mut current = [(z, 0), (colour, 0), (s.addr, start), (prim, 0)];
         let mut len = len;
@@ -1534,6 +1715,71 @@ impl FrameRun<'_> {
             current = next.map(|id| (id, 0));
             set = if set == 1 { 2 } else { 1 };
         }
+    }
+
+    /// The fragment program of the batch's object on `len` fragments (`varyings`): its
+    /// `texaddr`, the texel gathers (each texel over its address), `filter8` for mipmapped
+    /// units and `fragment`, which writes the packed colours to `colour`.
+    fn fragment_program(
+        &mut self,
+        h: &mut StreamHost,
+        t: &TexturingStreams,
+        len: usize,
+        colour: StreamBinding,
+    ) -> Result<(), RenderError> {
+        let (p, m) = (self.plan, self.m);
+        let object = self.current_object;
+        let (texaddr, fragment) = self.k.fragment[object];
+        let varyings = p.first(t.varyings, len);
+        let fp = self.fragment_programs[object]
+            .as_ref()
+            .expect("a textured frame has a fragment program per object");
+        let per_fragment = |id: Option<StreamId>, words: usize| {
+            id.filter(|_| words > 0).map(|id| p.words(id, len * words))
+        };
+        let addr = per_fragment(t.addr, fp.direct_fetches());
+        let weights = per_fragment(t.weights, fp.direct_weights());
+        let mipmapped = fp.mipmapped();
+        let addr8 = per_fragment(t.addr8, fragment_program::FILTER8_TEXELS * mipmapped);
+        let weights5 = per_fragment(t.weights5, fragment_program::FILTER8_WEIGHTS * mipmapped);
+        let filtered = per_fragment(t.filtered, mipmapped);
+        if let Some(texaddr) = texaddr {
+            let mut bindings = vec![("varyings", varyings)];
+            bindings.extend(addr.map(|b| ("addr", b)));
+            bindings.extend(weights.map(|b| ("weights", b)));
+            bindings.extend(addr8.map(|b| ("addr8", b)));
+            bindings.extend(weights5.map(|b| ("weights5", b)));
+            h.call(texaddr, &bindings)?;
+            for (index, words) in [
+                (addr, fp.direct_fetches()),
+                (addr8, fragment_program::FILTER8_TEXELS * mipmapped),
+            ] {
+                if let Some(index) = index {
+                    h.gather(
+                        m.textures,
+                        index,
+                        m.texture_words,
+                        Layout::words(),
+                        len * words,
+                        index,
+                    );
+                }
+            }
+        }
+        if let (Some(texels), Some(w), Some(out)) = (addr8, weights5, filtered) {
+            let filter8 = self.k.filter8.expect("filter8 for mipmapped textures");
+            h.call(
+                filter8,
+                &[("texels", texels), ("weights", w), ("filtered", out)],
+            )?;
+        }
+        let mut bindings = vec![("varyings", varyings)];
+        bindings.extend(addr.map(|b| ("texels", b)));
+        bindings.extend(weights.map(|b| ("weights", b)));
+        bindings.extend(filtered.map(|b| ("filtered", b)));
+        bindings.push(("colour", colour));
+        h.call(fragment, &bindings)?;
+        Ok(())
     }
 
     fn finish_batch(&mut self, h: &mut StreamHost) {

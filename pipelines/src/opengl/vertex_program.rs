@@ -49,19 +49,33 @@ pub const SHADED_WORDS: usize = 7;
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum VertexProgram {
     /// Unlit; `per_vertex_colour`: vertices carry their colour (else it is a parameter).
-    Unlit { per_vertex_colour: bool },
+    /// `texcoords`: vertices carry texture coordinates, passed through to the record.
+    Unlit {
+        per_vertex_colour: bool,
+        texcoords: bool,
+    },
     /// Lit by `lights` lights with the specular term (when `specular`) to an integer
     /// power `shininess`.
     Lit {
         lights: usize,
         specular: bool,
         shininess: u32,
+        texcoords: bool,
     },
     /// The general fixed-function program (`--no-specialize`): every vertex carries its
     /// position, normal and colour; lighting by `lights` lights with the specular term is
     /// always computed, and a parameter chooses it or the vertex colour (only the exponent
     /// is built in: the material's).
     General { lights: usize, shininess: u32 },
+}
+
+/// Whether any object of `scene` is drawn with a texture: then every vertex carries texture
+/// coordinates (the shaded record has one size in a frame).
+pub fn textured(scene: &Scene) -> bool {
+    scene
+        .objects
+        .iter()
+        .any(|o| !scene.materials[o.material].textures.is_empty())
 }
 
 /// The fewest lights the general program is built for.
@@ -75,7 +89,23 @@ impl VertexProgram {
         general: bool,
     ) -> Result<VertexProgram, String> {
         let m: &Material = &scene.materials[object.material];
+        let texcoords = textured(scene);
+        if texcoords
+            && !m.textures.is_empty()
+            && object.mesh.texcoords.len() != object.mesh.positions.len()
+        {
+            return Err(format!(
+                "object `{}` has textured material `{}` but its mesh has {} texture coordinates for {} vertices",
+                object.name,
+                m.name,
+                object.mesh.texcoords.len(),
+                object.mesh.positions.len()
+            ));
+        }
         if general {
+            if texcoords {
+                return Err("the general pipeline (--no-specialize) draws no textures".into());
+            }
             if m.shader == Shader::Lit && object.mesh.normals.len() != object.mesh.positions.len() {
                 return Err(format!(
                     "object `{}` is lit but its mesh has {} normals for {} vertices",
@@ -99,6 +129,7 @@ impl VertexProgram {
         match m.shader {
             Shader::Unlit => Ok(VertexProgram::Unlit {
                 per_vertex_colour: !object.mesh.colours.is_empty(),
+                texcoords,
             }),
             Shader::Lit => {
                 if m.shininess.fract() != 0.0 || !(0.0..=128.0).contains(&m.shininess) {
@@ -125,6 +156,7 @@ impl VertexProgram {
                     lights: scene.lights.len(),
                     specular: any_specular,
                     shininess: m.shininess as u32,
+                    texcoords,
                 })
             }
         }
@@ -132,17 +164,49 @@ impl VertexProgram {
 
     /// The name it is registered and reported under.
     pub fn name(&self) -> String {
+        let base = self.base_name();
+        if self.texcoords() {
+            format!("{base}_tex")
+        } else {
+            base
+        }
+    }
+
+    /// Whether vertices carry texture coordinates (s, t), passed through to the shaded
+    /// record after the colour.
+    pub fn texcoords(&self) -> bool {
+        matches!(
+            self,
+            VertexProgram::Unlit {
+                texcoords: true,
+                ..
+            } | VertexProgram::Lit {
+                texcoords: true,
+                ..
+            }
+        )
+    }
+
+    /// Words of the shaded record: clip x, y, z, w, r, g, b, then s, t when textured.
+    pub fn shaded_words(&self) -> usize {
+        SHADED_WORDS + 2 * usize::from(self.texcoords())
+    }
+
+    fn base_name(&self) -> String {
         match self {
             VertexProgram::Unlit {
                 per_vertex_colour: true,
+                ..
             } => "vertex_unlit".into(),
             VertexProgram::Unlit {
                 per_vertex_colour: false,
+                ..
             } => "vertex_unlit_flat".into(),
             VertexProgram::Lit {
                 lights,
                 specular,
                 shininess,
+                ..
             } => {
                 if *specular {
                     format!("vertex_lit{lights}_s{shininess}")
@@ -184,18 +248,25 @@ impl VertexProgram {
 
     /// Words of a vertex record in memory.
     pub fn record_words(&self) -> usize {
-        match self {
-            VertexProgram::Unlit {
-                per_vertex_colour: false,
-            } => 3,
-            VertexProgram::General { .. } => 9,
-            _ => 6,
-        }
+        2 * usize::from(self.texcoords())
+            + match self {
+                VertexProgram::Unlit {
+                    per_vertex_colour: false,
+                    ..
+                } => 3,
+                VertexProgram::General { .. } => 9,
+                _ => 6,
+            }
     }
 
-    /// Interpolated words per fragment the program's outputs feed (colour).
+    /// Interpolated words per fragment the program's outputs feed (colour, texture
+    /// coordinates).
     pub fn interpolants(&self) -> Vec<&'static str> {
-        vec!["r", "g", "b"]
+        let mut names = vec!["r", "g", "b"];
+        if self.texcoords() {
+            names.extend(["s", "t"]);
+        }
+        names
     }
 
     /// Vertex `v` of `object`'s mesh as the program reads it.
@@ -205,12 +276,14 @@ impl VertexProgram {
         match self {
             VertexProgram::Unlit {
                 per_vertex_colour: true,
+                ..
             } => {
                 let c = mesh.colours.get(v).copied().unwrap_or(object.colour);
                 out.extend(c.map(f32::to_bits));
             }
             VertexProgram::Unlit {
                 per_vertex_colour: false,
+                ..
             } => {}
             VertexProgram::Lit { .. } => out.extend(mesh.normals[v].map(f32::to_bits)),
             VertexProgram::General { .. } => {
@@ -218,6 +291,11 @@ impl VertexProgram {
                 let c = mesh.colours.get(v).copied().unwrap_or(object.colour);
                 out.extend(n.into_iter().chain(c).map(f32::to_bits));
             }
+        }
+        if self.texcoords() {
+            // An object whose material has no texture still carries (0, 0).
+            let st = mesh.texcoords.get(v).copied().unwrap_or([0.0; 2]);
+            out.extend(st.map(f32::to_bits));
         }
     }
 
@@ -231,6 +309,7 @@ impl VertexProgram {
         w.extend(camera.projection);
         if let VertexProgram::Unlit {
             per_vertex_colour: false,
+            ..
         } = self
         {
             w.extend(object.colour);
@@ -308,9 +387,11 @@ impl VertexProgram {
         match self {
             VertexProgram::Unlit {
                 per_vertex_colour: true,
+                ..
             } => {}
             VertexProgram::Unlit {
                 per_vertex_colour: false,
+                ..
             } => {
                 for &v in &state[48..51] {
                     b.write(params_out, v);
@@ -420,9 +501,11 @@ impl VertexProgram {
         16 + match self {
             VertexProgram::Unlit {
                 per_vertex_colour: true,
+                ..
             } => 0,
             VertexProgram::Unlit {
                 per_vertex_colour: false,
+                ..
             } => 3,
             VertexProgram::Lit { .. } => 12 + 9,
             VertexProgram::General { .. } => 12 + 9 + 1,
@@ -433,6 +516,7 @@ impl VertexProgram {
         48 + match self {
             VertexProgram::Unlit {
                 per_vertex_colour: false,
+                ..
             } => 3,
             VertexProgram::General { .. } => 1,
             _ => 0,
@@ -468,12 +552,13 @@ impl VertexProgram {
     /// the colour so far r, g, b, the eye-space position, the unit normal and (with the
     /// specular term) the unit vector to the eye. 0 for unlit programs.
     pub fn partial_words(&self) -> usize {
-        match self {
-            VertexProgram::Lit { specular, .. } => 13 + 3 * usize::from(*specular),
-            // The vertex colour travels too, for the last kernel's choice.
-            VertexProgram::General { .. } => 13 + 3 + 3,
-            VertexProgram::Unlit { .. } => 0,
-        }
+        2 * usize::from(self.texcoords() && self.lit())
+            + match self {
+                VertexProgram::Lit { specular, .. } => 13 + 3 * usize::from(*specular),
+                // The vertex colour travels too, for the last kernel's choice.
+                VertexProgram::General { .. } => 13 + 3 + 3,
+                VertexProgram::Unlit { .. } => 0,
+            }
     }
 
     /// The lights each kernel of the program adds, `split.0` in the first kernel and
@@ -503,6 +588,7 @@ impl VertexProgram {
         };
         let shininess = self.shininess();
         let general = matches!(self, VertexProgram::General { .. });
+        let texcoords = self.texcoords();
         let ranges = self.light_ranges(split);
         let count = ranges.len();
         ranges
@@ -533,6 +619,7 @@ impl VertexProgram {
                         general.then(|| std::array::from_fn(|_| b.read_f32(input)));
                     let mut v = transform_vertex(&mut b, &p, position, normal, specular, zero);
                     v.vertex_colour = vertex_colour;
+                    v.texcoords = texcoords.then(|| [b.read_f32(input), b.read_f32(input)]);
                     v
                 } else {
                     let mut w = || b.read_f32(input);
@@ -542,6 +629,7 @@ impl VertexProgram {
                     let unit_n = std::array::from_fn(|_| w());
                     let e = specular.then(|| std::array::from_fn(|_| w()));
                     let vertex_colour = general.then(|| std::array::from_fn(|_| w()));
+                    let texcoords = texcoords.then(|| [w(), w()]);
                     LitVertex {
                         clip,
                         colour,
@@ -549,6 +637,7 @@ impl VertexProgram {
                         unit_n,
                         e,
                         vertex_colour,
+                        texcoords,
                     }
                 };
                 for l in lights {
@@ -578,6 +667,9 @@ impl VertexProgram {
                     for c in rest.chain(v.vertex_colour.into_iter().flatten()) {
                         b.write(output, c);
                     }
+                }
+                for st in v.texcoords.into_iter().flatten() {
+                    b.write(output, st);
                 }
                 b.end_loop();
                 finish(b)
@@ -619,7 +711,11 @@ impl VertexProgram {
     }
 
     fn build_unlit(&self) -> Kernel {
-        let VertexProgram::Unlit { per_vertex_colour } = *self else {
+        let VertexProgram::Unlit {
+            per_vertex_colour,
+            texcoords,
+        } = *self
+        else {
             unreachable!("unlit programs only");
         };
         let mut b = KernelBuilder::new(&self.name());
@@ -634,8 +730,13 @@ impl VertexProgram {
             Some(c) => c,
             None => std::array::from_fn(|_| b.read_f32(vertices)),
         };
+        let st: Vec<Value> = if texcoords {
+            vec![b.read_f32(vertices), b.read_f32(vertices)]
+        } else {
+            Vec::new()
+        };
         let clip = transform_point(&mut b, &mvp, position, None);
-        for v in clip.into_iter().chain(colour) {
+        for v in clip.into_iter().chain(colour).chain(st) {
             b.write(shaded, v);
         }
         b.end_loop();
@@ -674,6 +775,8 @@ struct LitVertex {
     e: Option<Vec3>,
     /// The general program's vertex colour.
     vertex_colour: Option<Vec3>,
+    /// Texture coordinates, passed through.
+    texcoords: Option<[Value; 2]>,
 }
 
 /// The clip position, eye-space position, unit normal and (`specular`) unit vector to the
@@ -711,6 +814,7 @@ fn transform_vertex(
         unit_n,
         e,
         vertex_colour: None,
+        texcoords: None,
     }
 }
 
@@ -819,11 +923,13 @@ mod tests {
             lights: 3,
             specular: true,
             shininess: 16,
+            texcoords: false,
         };
         assert_eq!(lit.name(), "vertex_lit3_s16");
         assert_eq!(lit.record_words(), 6);
         let flat = VertexProgram::Unlit {
             per_vertex_colour: false,
+            texcoords: false,
         };
         assert_eq!(flat.record_words(), 3);
         let desc = MachineDesc::resolve("gold8").unwrap();
@@ -832,6 +938,7 @@ mod tests {
             flat,
             VertexProgram::Unlit {
                 per_vertex_colour: true,
+                texcoords: false,
             },
         ] {
             let k = p.build(&desc);
@@ -856,6 +963,7 @@ mod tests {
                     lights,
                     specular,
                     shininess: 16,
+                    texcoords: false,
                 };
                 let passes = p.passes(&desc);
                 assert_eq!(passes.len(), p.pass_names().len());
@@ -912,6 +1020,7 @@ mod tests {
                 lights: 3,
                 specular,
                 shininess: 13,
+                texcoords: false,
             };
             // Matrices and light positions anywhere in (-3.5, 0.5); the colour products
             // in [0, 0.25), so that sums of a few stay below 1.

@@ -90,14 +90,14 @@ pub struct Light {
     pub specular: [f32; 3],
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Filter {
     Nearest,
     Linear,
     Trilinear,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Wrap {
     Repeat,
     Clamp,
@@ -123,7 +123,7 @@ pub enum Shader {
     Lit,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum TextureMode {
     Modulate,
     Replace,
