@@ -193,6 +193,10 @@ fn print_stats(f: &Frame, m: &Metrics) {
         100.0 * s.dram_row_hit_rate
     );
     println!(
+        "traffic            {:.0} B per vertex, {:.1} B per fragment ({:.1} B of texels)",
+        s.bytes_per_vertex, s.bytes_per_fragment, s.texel_bytes_per_fragment
+    );
+    println!(
         "SRF                {:.2} words/cycle",
         s.srf_words_per_cycle
     );

@@ -19,12 +19,14 @@
 //! | [`hash`] | the composite stamp test of the OpenGL pipeline (per-cluster 32×32 stamp) |
 //! | [`sort32`] | bitonic sort of 32-word chunks of u32 keys |
 //! | [`merge`] | bitonic merge of pairs of sorted 32-word chunks into 64-word chunks |
+//! | [`texture`] | texture sampling: `texaddr` (texel addresses), `filter8` (trilinear filter), `fragment` (texture environment) |
 
 pub mod compact;
 pub mod hash;
 pub mod merge;
 pub mod prefix_sum;
 pub mod sort32;
+pub mod texture;
 pub mod transform;
 pub mod turbulence;
 pub mod vertex;
@@ -89,6 +91,24 @@ static LIBRARY: &[LibraryKernel] = &[
         description: "bitonic sort of 32-word chunks of u32 keys",
         build: sort32::build,
         inputs: sort32::inputs,
+    },
+    LibraryKernel {
+        name: "texaddr",
+        description: "texel addresses of a nearest, a bilinear and a trilinear texture",
+        build: texture::texaddr_example,
+        inputs: texture::texaddr_inputs,
+    },
+    LibraryKernel {
+        name: "filter8",
+        description: "trilinear filter: 8 RGBA8 texels and 5 weights to one RGBA8 texel",
+        build: texture::filter8,
+        inputs: texture::filter8_inputs,
+    },
+    LibraryKernel {
+        name: "fragment",
+        description: "texture environment: vertex colour modulated by three textures",
+        build: texture::fragment_example,
+        inputs: texture::fragment_inputs,
     },
     LibraryKernel {
         name: "merge",

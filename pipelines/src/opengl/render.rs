@@ -48,7 +48,7 @@ use imagine_units::machine::{KernelStats, StreamBinding};
 use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
 
-use super::fragment_program::{self, FragmentProgram, TextureMemory};
+use super::fragment_program::{self, TextureMemory};
 use super::kernels::{
     self, CLIPPED_WORDS, FrameShape, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS, Varyings, WINDOW_WORDS,
 };
@@ -57,6 +57,7 @@ use super::stats::{BatchRow, Phases, Specialisation};
 use super::vertex_program::{self, VertexProgram};
 use crate::compile::CompileCache;
 use crate::kernel::MachineRequirementError;
+use crate::kernels::texture::{self, FragmentProgram};
 use crate::scene::MAX_WINDOW;
 use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene};
 use crate::stream::{
@@ -383,14 +384,8 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
                     .expect("a textured frame's fragments carry their varyings"),
                 addr: per_fragment("texel_addr", s.direct_fetches),
                 weights: per_fragment("texel_weights", s.direct_weights),
-                addr8: per_fragment(
-                    "mipmap_addr",
-                    fragment_program::FILTER8_TEXELS * s.mipmapped,
-                ),
-                weights5: per_fragment(
-                    "mipmap_weights",
-                    fragment_program::FILTER8_WEIGHTS * s.mipmapped,
-                ),
+                addr8: per_fragment("mipmap_addr", texture::FILTER8_TEXELS * s.mipmapped),
+                weights5: per_fragment("mipmap_weights", texture::FILTER8_WEIGHTS * s.mipmapped),
                 filtered: per_fragment("filtered", s.mipmapped),
             }
         }),
@@ -524,9 +519,15 @@ fn register_kernels(
                 let texaddr = if fp.units.is_empty() {
                     None
                 } else {
-                    Some(lib.register(&format!("texaddr:{name}"), fp.texaddr(varyings)?))
+                    Some(lib.register(
+                        &format!("texaddr:{name}"),
+                        fp.texaddr(varyings.fragment_words())?,
+                    ))
                 };
-                let colour = lib.register(&format!("fragment:{name}"), fp.fragment(varyings)?);
+                let colour = lib.register(
+                    &format!("fragment:{name}"),
+                    fp.fragment(varyings.fragment_words())?,
+                );
                 registered.push((fp, (texaddr, colour)));
                 (texaddr, colour)
             }
@@ -539,7 +540,7 @@ fn register_kernels(
         .flatten()
         .any(|f| f.mipmapped() > 0)
     {
-        Some(lib.register("filter8", fragment_program::filter8(desc)?))
+        Some(lib.register("filter8", texture::filter8(desc)?))
     } else {
         None
     };
@@ -849,10 +850,15 @@ impl PipelinePlan {
 
     /// Interpolated words per fragment, by name.
     pub fn interpolants(&self) -> Vec<String> {
-        self.programs
+        let mut names: Vec<String> = self
+            .programs
             .first()
             .map(|p| p.interpolants().into_iter().map(String::from).collect())
-            .unwrap_or_default()
+            .unwrap_or_default();
+        if self.varyings.derivatives {
+            names.extend(["ds/dx", "ds/dy", "dt/dx", "dt/dy"].map(String::from));
+        }
+        names
     }
 
     pub fn specialised(&self) -> bool {
@@ -883,7 +889,9 @@ pub fn plan_pipeline(
         .iter()
         .map(|o| {
             let m = &scene.materials[o.material];
-            textured.then(|| FragmentProgram::new(scene, &m.textures, m.texture_mode, &textures))
+            textured.then(|| {
+                fragment_program::for_material(scene, &m.textures, m.texture_mode, &textures)
+            })
         })
         .collect();
     let varyings = Varyings {
@@ -1512,6 +1520,9 @@ impl FrameRun<'_> {
         // of the nulls are not composited.
         let total = real.div_ceil(c) * c;
         self.stats.fragments += real as u64;
+        if let Some(fp) = &self.fragment_programs[self.current_object] {
+            self.stats.texel_fetches += (real * fp.texel_fetches()) as u64;
+        }
         if let Some(row) = self.stats.batch_rows.last_mut() {
             row.fragments += real as u64;
         }
@@ -1740,8 +1751,8 @@ impl FrameRun<'_> {
         let addr = per_fragment(t.addr, fp.direct_fetches());
         let weights = per_fragment(t.weights, fp.direct_weights());
         let mipmapped = fp.mipmapped();
-        let addr8 = per_fragment(t.addr8, fragment_program::FILTER8_TEXELS * mipmapped);
-        let weights5 = per_fragment(t.weights5, fragment_program::FILTER8_WEIGHTS * mipmapped);
+        let addr8 = per_fragment(t.addr8, texture::FILTER8_TEXELS * mipmapped);
+        let weights5 = per_fragment(t.weights5, texture::FILTER8_WEIGHTS * mipmapped);
         let filtered = per_fragment(t.filtered, mipmapped);
         if let Some(texaddr) = texaddr {
             let mut bindings = vec![("varyings", varyings)];
@@ -1752,7 +1763,7 @@ impl FrameRun<'_> {
             h.call(texaddr, &bindings)?;
             for (index, words) in [
                 (addr, fp.direct_fetches()),
-                (addr8, fragment_program::FILTER8_TEXELS * mipmapped),
+                (addr8, texture::FILTER8_TEXELS * mipmapped),
             ] {
                 if let Some(index) = index {
                     h.gather(
@@ -1763,6 +1774,7 @@ impl FrameRun<'_> {
                         len * words,
                         index,
                     );
+                    self.stats.texel_words += (len * words) as u64;
                 }
             }
         }
@@ -1878,7 +1890,8 @@ fn finish_stats(s: &mut FrameStats, host: &StreamHost, desc: &MachineDesc, pp: &
     // Table 5.1's counting: a vertex's input words; a fragment's framebuffer words read
     // and written.
     s.bytes_per_vertex = 4.0 * pp.words_per_vertex() as f64;
-    s.bytes_per_fragment = (4 * 2 * PIXEL_WORDS) as f64;
+    s.texel_bytes_per_fragment = 4.0 * s.texel_fetches as f64 / s.fragments.max(1) as f64;
+    s.bytes_per_fragment = (4 * 2 * PIXEL_WORDS) as f64 + s.texel_bytes_per_fragment;
     s.specialisation = Specialisation {
         specialised: pp.specialised(),
         kernels_built: host.kernels.built().into_iter().map(String::from).collect(),

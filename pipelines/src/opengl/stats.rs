@@ -97,6 +97,14 @@ pub struct FrameStats {
     /// words read and written).
     pub bytes_per_vertex: f64,
     pub bytes_per_fragment: f64,
+    /// Texel bytes the fragment programs fetch per fragment (4 per texel word; a
+    /// mipmapped lookup fetches 8), over the frame's fragments; included in
+    /// `bytes_per_fragment`.
+    pub texel_bytes_per_fragment: f64,
+    /// Texel words gathered in the frame, null fragments of a chunk's last row included.
+    pub texel_words: u64,
+    /// Texel words the frame's real fragments asked for.
+    pub texel_fetches: u64,
     /// Arithmetic ops per core cycle over the frame, all clusters.
     pub ops_per_cycle: f64,
     /// Share of the frame's cycles a kernel was running, and running without a stall.
