@@ -20,20 +20,25 @@
 //! lighting model. The buffer's row 0 is the bottom row, like [`Image`].
 //!
 //! [`render_model`] draws a scene file's scene ([`model::Scene`]) with GL's *own*
-//! fixed-function lighting, as the format's contract describes it (see its documentation).
+//! fixed-function lighting, texturing (multitexture) and blending, as the format's contract
+//! describes them (see its documentation).
 //!
 //! OSMesa keeps a current context per thread and Mesa has global state; renders are
 //! serialised by a lock.
 
 use crate::image::Image;
 use crate::reference;
-use imagine_pipelines::scene::model::{self, Cull, DepthTest, Shader, Space};
+use imagine_pipelines::scene::mipmap;
+use imagine_pipelines::scene::model::{
+    self, Blend, Cull, DepthTest, Filter, Shader, Space, TextureMode, Wrap,
+};
 use imagine_pipelines::scene::{IDENTITY, Scene, window_to_clip};
 use std::ffi::{CStr, c_char, c_void};
 use std::sync::Mutex;
 
 type GLenum = u32;
 type GLint = i32;
+type GLuint = u32;
 type GLsizei = i32;
 type GLfloat = f32;
 type GLclampd = f64;
@@ -75,6 +80,27 @@ const GL_POSITION: GLenum = 0x1203;
 const GL_EMISSION: GLenum = 0x1600;
 const GL_SHININESS: GLenum = 0x1601;
 const GL_LIGHT0: GLenum = 0x4000;
+const GL_TEXTURE_2D: GLenum = 0x0DE1;
+const GL_TEXTURE0: GLenum = 0x84C0;
+const GL_TEXTURE_ENV: GLenum = 0x2300;
+const GL_TEXTURE_ENV_MODE: GLenum = 0x2200;
+const GL_MODULATE: GLint = 0x2100;
+const GL_REPLACE: GLint = 0x1E01;
+const GL_TEXTURE_MAG_FILTER: GLenum = 0x2800;
+const GL_TEXTURE_MIN_FILTER: GLenum = 0x2801;
+const GL_TEXTURE_WRAP_S: GLenum = 0x2802;
+const GL_TEXTURE_WRAP_T: GLenum = 0x2803;
+const GL_NEAREST: GLint = 0x2600;
+const GL_LINEAR: GLint = 0x2601;
+const GL_LINEAR_MIPMAP_LINEAR: GLint = 0x2703;
+const GL_REPEAT: GLint = 0x2901;
+const GL_CLAMP_TO_EDGE: GLint = 0x812F;
+const GL_UNPACK_ALIGNMENT: GLenum = 0x0CF5;
+const GL_MAX_TEXTURE_UNITS: GLenum = 0x84E2;
+const GL_BLEND: GLenum = 0x0BE2;
+const GL_ONE: GLenum = 1;
+const GL_SRC_ALPHA: GLenum = 0x0302;
+const GL_ONE_MINUS_SRC_ALPHA: GLenum = 0x0303;
 const OSMESA_RGBA: GLenum = GL_RGBA;
 
 #[link(name = "OSMesa")]
@@ -121,6 +147,27 @@ unsafe extern "C" {
     fn glMaterialfv(face: GLenum, pname: GLenum, params: *const GLfloat);
     fn glMaterialf(face: GLenum, pname: GLenum, param: GLfloat);
     fn glVertex3f(x: GLfloat, y: GLfloat, z: GLfloat);
+    fn glGenTextures(n: GLsizei, textures: *mut GLuint);
+    fn glBindTexture(target: GLenum, texture: GLuint);
+    fn glTexImage2D(
+        target: GLenum,
+        level: GLint,
+        internal_format: GLint,
+        width: GLsizei,
+        height: GLsizei,
+        border: GLint,
+        format: GLenum,
+        kind: GLenum,
+        pixels: *const c_void,
+    );
+    fn glTexParameteri(target: GLenum, pname: GLenum, param: GLint);
+    fn glTexEnvi(target: GLenum, pname: GLenum, param: GLint);
+    fn glPixelStorei(pname: GLenum, param: GLint);
+    fn glActiveTexture(texture: GLenum);
+    fn glMultiTexCoord2f(target: GLenum, s: GLfloat, t: GLfloat);
+    fn glGetIntegerv(pname: GLenum, params: *mut GLint);
+    fn glBlendFunc(sfactor: GLenum, dfactor: GLenum);
+    fn glColorMask(r: GLboolean, g: GLboolean, b: GLboolean, a: GLboolean);
     fn glFinish();
     fn glGetError() -> GLenum;
     fn glGetString(name: GLenum) -> *const c_char;
@@ -274,6 +321,63 @@ fn rgba(c: [f32; 3]) -> [f32; 4] {
     [c[0], c[1], c[2], 1.0]
 }
 
+/// Creates and fills one texture object per scene texture (see [`render_model`]); returns
+/// their names. Must be called with a context current.
+fn upload_textures(scene: &model::Scene) -> Vec<GLuint> {
+    scene
+        .textures
+        .iter()
+        .map(|texture| {
+            let levels = match texture.filter {
+                Filter::Trilinear => mipmap::pyramid(texture),
+                Filter::Nearest | Filter::Linear => vec![mipmap::Level {
+                    width: texture.width,
+                    height: texture.height,
+                    texels: texture.texels.clone(),
+                }],
+            };
+            let (min, mag) = match texture.filter {
+                Filter::Nearest => (GL_NEAREST, GL_NEAREST),
+                Filter::Linear => (GL_LINEAR, GL_LINEAR),
+                Filter::Trilinear => (GL_LINEAR_MIPMAP_LINEAR, GL_LINEAR),
+            };
+            let wrap = match texture.wrap {
+                Wrap::Repeat => GL_REPEAT,
+                Wrap::Clamp => GL_CLAMP_TO_EDGE,
+            };
+            let mut name: GLuint = 0;
+            // SAFETY: a context is current (the caller holds the lock); each level's bytes
+            // are width × height RGBA8 pixels, read during the call.
+            unsafe {
+                glActiveTexture(GL_TEXTURE0);
+                glGenTextures(1, &mut name);
+                glBindTexture(GL_TEXTURE_2D, name);
+                glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
+                for (k, level) in levels.iter().enumerate() {
+                    let bytes: Vec<u8> =
+                        level.texels.iter().flat_map(|w| w.to_le_bytes()).collect();
+                    glTexImage2D(
+                        GL_TEXTURE_2D,
+                        k as GLint,
+                        GL_RGBA as GLint,
+                        level.width as GLsizei,
+                        level.height as GLsizei,
+                        0,
+                        GL_RGBA,
+                        GL_UNSIGNED_BYTE,
+                        bytes.as_ptr().cast(),
+                    );
+                }
+                glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, min);
+                glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, mag);
+                glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, wrap);
+                glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, wrap);
+            }
+            name
+        })
+        .collect()
+}
+
 /// Renders a scene file's scene with OSMesa and GL's own fixed-function pipeline:
 ///
 /// * `glViewport` = window; `GL_PROJECTION` = the camera's projection and `GL_MODELVIEW`
@@ -292,10 +396,22 @@ fn rgba(c: [f32; 3]) -> [f32; 4] {
 ///   `glColor3f` (the mesh's colour or the object's);
 /// * depth test per the scene (`GL_LESS`, `GL_LEQUAL`, `GL_ALWAYS`), cull face per the
 ///   scene (counter-clockwise front faces), smooth shading, dithering off, colour cleared
-///   to the background and depth to 1.0.
+///   to the background and depth to 1.0;
+/// * one texture object per scene texture, RGBA8 (`glTexImage2D`, `GL_RGBA`,
+///   `GL_UNSIGNED_BYTE`, unpack alignment 1, row 0 at the bottom as GL has it): level 0,
+///   and for `trilinear` every level of [`mipmap::pyramid`] (so Mesa samples the same
+///   levels as the reference); `GL_TEXTURE_MIN_FILTER` `GL_NEAREST`, `GL_LINEAR` or
+///   `GL_LINEAR_MIPMAP_LINEAR`, `GL_TEXTURE_MAG_FILTER` `GL_NEAREST` for `nearest` and
+///   `GL_LINEAR` otherwise, `GL_TEXTURE_WRAP_S`/`_T` `GL_REPEAT` or `GL_CLAMP_TO_EDGE`;
+/// * a textured material binds its textures to units 0, 1, … in order (multitexture,
+///   GL 1.3: `glActiveTexture`), each enabled with `glTexEnvi(GL_TEXTURE_ENV_MODE)`
+///   `GL_MODULATE` or `GL_REPLACE`, the units beyond disabled, and each corner gets
+///   `glMultiTexCoord2f` for every unit (the mesh's one set of texcoords);
+/// * `blend`: `glEnable(GL_BLEND)` with `glBlendFunc(GL_SRC_ALPHA,
+///   GL_ONE_MINUS_SRC_ALPHA)` (`alpha`) or `(GL_ONE, GL_ONE)` (`add`); alpha is masked
+///   off (`glColorMask`), the buffer's alpha stays 1 — the contract's framebuffer is RGB.
 ///
-/// Textures and blending are refused, as by the reference
-/// ([`crate::reference_model::check`]).
+/// Scenes the reference refuses ([`crate::reference_model::check`]) are refused.
 pub fn render_model(scene: &model::Scene) -> Result<Image, String> {
     crate::reference_model::check(scene).map_err(|e| e.to_string())?;
     let (width, height) = (scene.width, scene.height);
@@ -356,6 +472,33 @@ pub fn render_model(scene: &model::Scene) -> Result<Image, String> {
         glClearColor(br, bg, bb, 1.0);
         glClearDepth(1.0);
         glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+        glColorMask(1, 1, 1, 0);
+        match scene.pipeline.blend {
+            Blend::None => glDisable(GL_BLEND),
+            Blend::Alpha => {
+                glEnable(GL_BLEND);
+                glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+            }
+            Blend::Add => {
+                glEnable(GL_BLEND);
+                glBlendFunc(GL_ONE, GL_ONE);
+            }
+        }
+        let names = upload_textures(scene);
+        let most_units = scene
+            .materials
+            .iter()
+            .map(|m| m.textures.len())
+            .max()
+            .unwrap_or(0);
+        let mut max_units: GLint = 0;
+        glGetIntegerv(GL_MAX_TEXTURE_UNITS, &mut max_units);
+        if most_units > max_units.max(0) as usize {
+            return Err(format!(
+                "`{}` has a material with {most_units} textures: OSMesa has {max_units} units",
+                scene.name
+            ));
+        }
 
         for object in &scene.objects {
             let window = object.space == Space::Window;
@@ -391,6 +534,25 @@ pub fn render_model(scene: &model::Scene) -> Result<Image, String> {
             } else {
                 glDisable(GL_LIGHTING);
             }
+            let units = material.textures.len();
+            for unit in 0..most_units {
+                glActiveTexture(GL_TEXTURE0 + unit as GLenum);
+                match material.textures.get(unit) {
+                    Some(&t) => {
+                        glEnable(GL_TEXTURE_2D);
+                        glBindTexture(GL_TEXTURE_2D, names[t]);
+                        glTexEnvi(
+                            GL_TEXTURE_ENV,
+                            GL_TEXTURE_ENV_MODE,
+                            match material.texture_mode {
+                                TextureMode::Modulate => GL_MODULATE,
+                                TextureMode::Replace => GL_REPLACE,
+                            },
+                        );
+                    }
+                    None => glDisable(GL_TEXTURE_2D),
+                }
+            }
             let mesh = &object.mesh;
             glBegin(GL_TRIANGLES);
             for &t in &mesh.triangles {
@@ -402,6 +564,12 @@ pub fn render_model(scene: &model::Scene) -> Result<Image, String> {
                     } else {
                         let [r, g, b] = *mesh.colours.get(i).unwrap_or(&object.colour);
                         glColor3f(r, g, b);
+                    }
+                    if units > 0 {
+                        let [s, t] = mesh.texcoords[i];
+                        for unit in 0..units {
+                            glMultiTexCoord2f(GL_TEXTURE0 + unit as GLenum, s, t);
+                        }
                     }
                     let [x, y, z] = mesh.positions[i];
                     glVertex3f(x, y, z);

@@ -210,16 +210,50 @@ fn pixel_range(min: f64, max: f64, size: u32) -> Option<(u32, u32)> {
 /// `cull` names are dropped (counter-clockwise in the window, `det > 0`, is front;
 /// zero-area ones always are). Calls `f(x, y, depth, colour)` for every covered sample
 /// with `0 ≤ depth ≤ 1`, bottom row up, left to right; no depth test. Both the old scene's
-/// renderer and [`crate::reference_model`] draw through this.
+/// renderer and [`crate::reference_model`] draw through this ([`rasterize_samples`]).
 pub fn rasterize_triangle(
     clip: &[[f64; 4]; 3],
     colours: &[[f64; 3]; 3],
-    (width, height): (u32, u32),
+    size: (u32, u32),
     cull: Cull,
     rule: TieRule,
     mut f: impl FnMut(u32, u32, f64, [f64; 3]),
 ) {
-    let (c, col) = (clip, colours);
+    rasterize_samples(clip, size, cull, rule, |s| {
+        let l = s.barycentrics;
+        let col = colours;
+        let colour =
+            std::array::from_fn(|k| l[0] * col[0][k] + l[1] * col[1][k] + l[2] * col[2][k]);
+        f(s.x, s.y, s.depth, colour);
+    });
+}
+
+/// A covered sample of one triangle ([`rasterize_samples`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub x: u32,
+    pub y: u32,
+    /// Window depth in [0, 1].
+    pub depth: f64,
+    /// The perspective-correct `λ_i = E_i / (E_0 + E_1 + E_2)`.
+    pub barycentrics: [f64; 3],
+    /// The sign-normalised edge functions' `(A_i, B_i, C_i)`: `E_i = A_i·X + B_i·Y + C_i`
+    /// in window pixels, so that attributes' screen-space derivatives are exact.
+    pub edges: [V3; 3],
+    /// `E_0 + E_1 + E_2` at the sample (positive).
+    pub sum: f64,
+}
+
+/// Steps 1–6 of the module comment for one triangle, as [`rasterize_triangle`], giving each
+/// covered sample's barycentrics and edge functions instead of an interpolated colour.
+pub fn rasterize_samples(
+    clip: &[[f64; 4]; 3],
+    (width, height): (u32, u32),
+    cull: Cull,
+    rule: TieRule,
+    mut f: impl FnMut(&Sample),
+) {
+    let c = clip;
     if width == 0 || height == 0 || trivially_rejected(c) {
         return;
     }
@@ -279,9 +313,14 @@ pub fn rasterize_triangle(
             if !(0.0..=1.0).contains(&depth) {
                 continue;
             }
-            let colour =
-                std::array::from_fn(|k| l[0] * col[0][k] + l[1] * col[1][k] + l[2] * col[2][k]);
-            f(px, py, depth, colour);
+            f(&Sample {
+                x: px,
+                y: py,
+                depth,
+                barycentrics: l,
+                edges,
+                sum,
+            });
         }
     }
 }

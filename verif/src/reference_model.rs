@@ -34,13 +34,60 @@
 //! Culling follows `scene.pipeline.cull` (counter-clockwise in the window is front), the
 //! depth test `scene.pipeline.depth_test` (`Less`, `Lequal`, `Always`; a passing fragment
 //! writes its depth) against an f64 buffer cleared to 1.0, and the colour buffer clears
-//! to the quantised background. Textures and blending are not supported yet: a scene
-//! with a textured material or `blend ≠ None` is an error.
+//! to the quantised background.
+//!
+//! A fragment's colour starts as its interpolated vertex colour with alpha 1. A textured
+//! material then applies its textures, texture units in order (see below), and the result
+//! goes through blending. The colour buffer is RGB8, as the framebuffers compared with:
+//! every write is `quantise` (round half up of `clamp(c, 0, 1)·255`), and blending reads
+//! the destination back as `byte / 255`.
+//!
+//! # Textures (OpenGL 1.2)
+//!
+//! **Coordinates**: `(s, t) = Σ λ_k (s_k, t_k)`, the mesh's one set of texcoords
+//! interpolated perspective-correctly with the barycentrics of the colour
+//! ([`reference::Sample`]). A textured material on a mesh without texcoords is an error.
+//! Their exact screen-space derivatives follow from the edge functions: with
+//! `E_k = A_k·X + B_k·Y + C_k` and `λ_k = E_k / ΣE`,
+//! `∂s/∂X = (Σ s_k A_k − s·Σ A_k) / ΣE` and `∂s/∂Y = (Σ s_k B_k − s·Σ B_k) / ΣE`, the same
+//! for `t` ([`texcoord_derivatives`]).
+//!
+//! **Texels**: level 0 is the texture, `W × H`; texel `(i, j)` of a level is
+//! `texels[j·W + i]`, row 0 at the bottom (t = 0), RGBA8 with red in the low byte, each
+//! channel `byte / 255`. Wrap `repeat` takes `i mod W` (the non-negative remainder), `clamp`
+//! (`GL_CLAMP_TO_EDGE`) `clamp(i, 0, W − 1)`; the same for `j` with `H`. With `u = s·W`
+//! and `v = t·H` ([`sample`]):
+//!
+//! * `nearest`: texel `(⌊u⌋, ⌊v⌋)` of level 0 ([`nearest`]);
+//! * `linear` (bilinear, [`bilinear`]): `i0 = ⌊u − ½⌋`, `α = (u − ½) − i0`, likewise `j0`
+//!   and `β`; `(1−α)(1−β)·T(i0, j0) + α(1−β)·T(i0+1, j0) + (1−α)β·T(i0, j0+1) +
+//!   αβ·T(i0+1, j0+1)`, each index wrapped;
+//! * `trilinear` (`GL_LINEAR_MIPMAP_LINEAR` over [`mipmap::pyramid`]'s levels): the scale
+//!   factor `ρ = max(√(u_x² + v_x²), √(u_y² + v_y²))` with `u_x = W·∂s/∂X` etc. at the
+//!   pixel centre, and `λ = log2 ρ`. When `λ ≤ 0` (magnification) the result is bilinear
+//!   on level 0. Otherwise, with `q` the last level's index, `d = min(λ, q)`,
+//!   `d1 = ⌊d⌋`, `d2 = min(d1 + 1, q)`, `f = d − d1`:
+//!   `(1 − f)·bilinear(level d1) + f·bilinear(level d2)`, level `k` sampled at
+//!   `(s·W_k, t·H_k)`.
+//!
+//! **Environment**: each texture of the material, in unit order, turns the fragment's
+//! `rgba` into `rgba ⊙ texel` (`modulate`, alpha too) or `texel` (`replace`).
+//!
+//! # Blending
+//!
+//! A fragment that passes the depth test (and writes its depth) is blended with the colour
+//! buffer as it stands, in drawing order, per RGB channel, its `rgba` clamped to [0, 1]:
+//! `none` writes `src`; `alpha` (`GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA`) writes
+//! `src·a + dst·(1 − a)`; `add` (`GL_ONE, GL_ONE`) writes `min(1, src + dst)`. Alpha is
+//! never stored: the framebuffer is RGB.
 
 use crate::image::{Image, quantise};
-use crate::reference::{self, Fragment, TieRule, V3, cross, dot, normalize, widen};
+use crate::reference::{self, Fragment, Sample, TieRule, V3, cross, dot, normalize, widen};
 use imagine_pipelines::scene::SceneError;
-use imagine_pipelines::scene::model::{self, Blend, Material, Object, Shader};
+use imagine_pipelines::scene::mipmap::{self, Level};
+use imagine_pipelines::scene::model::{
+    self, Blend, Filter, Material, Object, Shader, Texture, TextureMode, Wrap,
+};
 
 /// A row-major 4 × 4 matrix in f64.
 pub type Matrix = [f64; 16];
@@ -155,7 +202,7 @@ fn error(scene: &model::Scene, message: String) -> SceneError {
 
 /// Checks that the reference can draw `scene`: a window of 1..=4096 pixels a side, at
 /// most 8 lights, valid material and vertex indices, per-vertex arrays of the right
-/// length, and no textures or blending (not supported yet).
+/// length, texture indices in range and texcoords on every textured object.
 pub fn check(scene: &model::Scene) -> Result<(), SceneError> {
     let max = imagine_pipelines::scene::MAX_WINDOW;
     if !(1..=max).contains(&scene.width) || !(1..=max).contains(&scene.height) {
@@ -177,21 +224,18 @@ pub fn check(scene: &model::Scene) -> Result<(), SceneError> {
             ),
         ));
     }
-    if scene.pipeline.blend != Blend::None {
+    if let Some(m) = scene
+        .materials
+        .iter()
+        .find(|m| m.textures.iter().any(|&t| t >= scene.textures.len()))
+    {
         return Err(error(
             scene,
             format!(
-                "blend {:?}: blending is not supported yet by the reference renderer",
-                scene.pipeline.blend
-            ),
-        ));
-    }
-    if let Some(m) = scene.materials.iter().find(|m| !m.textures.is_empty()) {
-        return Err(error(
-            scene,
-            format!(
-                "material `{}` has textures: textures are not supported yet by the reference renderer",
-                m.name
+                "material `{}` names texture {:?} but the scene has {} textures",
+                m.name,
+                m.textures,
+                scene.textures.len()
             ),
         ));
     }
@@ -214,6 +258,16 @@ pub fn check(scene: &model::Scene) -> Result<(), SceneError> {
             if len != 0 && len != n {
                 return bad(format!("{len} {what} for {n} positions"));
             }
+        }
+        let textured = scene
+            .materials
+            .get(object.material)
+            .is_some_and(|m| !m.textures.is_empty());
+        if textured && mesh.texcoords.is_empty() {
+            return bad(format!(
+                "material `{}` has textures but the mesh has no texture coordinates",
+                scene.materials[object.material].name
+            ));
         }
         if let Some(t) = mesh
             .triangles
@@ -374,17 +428,179 @@ pub fn vertex_colours(scene: &model::Scene, index: usize) -> Result<Vec<[f64; 3]
     }
 }
 
+/// A texture ready to sample: its filter and wrap, and its levels (level 0 alone unless
+/// trilinear, then [`mipmap::pyramid`]'s).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sampler {
+    pub filter: Filter,
+    pub wrap: Wrap,
+    pub levels: Vec<Level>,
+}
+
+impl Sampler {
+    pub fn new(texture: &Texture) -> Sampler {
+        let levels = match texture.filter {
+            Filter::Trilinear => mipmap::pyramid(texture),
+            Filter::Nearest | Filter::Linear => vec![Level {
+                width: texture.width,
+                height: texture.height,
+                texels: texture.texels.clone(),
+            }],
+        };
+        Sampler {
+            filter: texture.filter,
+            wrap: texture.wrap,
+            levels,
+        }
+    }
+}
+
+fn wrap_index(wrap: Wrap, i: i64, size: u32) -> i64 {
+    let size = i64::from(size);
+    match wrap {
+        Wrap::Repeat => i.rem_euclid(size),
+        Wrap::Clamp => i.clamp(0, size - 1),
+    }
+}
+
+/// Texel `(i, j)` of `level`, each index wrapped, as RGBA in [0, 1].
+pub fn texel(level: &Level, wrap: Wrap, i: i64, j: i64) -> [f64; 4] {
+    let (i, j) = (
+        wrap_index(wrap, i, level.width),
+        wrap_index(wrap, j, level.height),
+    );
+    let word = level.texels[(j * i64::from(level.width) + i) as usize];
+    word.to_le_bytes().map(|b| f64::from(b) / 255.0)
+}
+
+/// `floor` to an index, saturating (texture coordinates far outside [0, 1] stay finite
+/// indices; repeat then wraps them).
+fn index(x: f64) -> i64 {
+    x.floor() as i64
+}
+
+/// The texel of `level` that contains `(u, v)` (in texels).
+pub fn nearest(level: &Level, wrap: Wrap, u: f64, v: f64) -> [f64; 4] {
+    texel(level, wrap, index(u), index(v))
+}
+
+/// The bilinear blend of the 2 × 2 texels of `level` around `(u, v)` (in texels).
+pub fn bilinear(level: &Level, wrap: Wrap, u: f64, v: f64) -> [f64; 4] {
+    let (i0, j0) = (index(u - 0.5), index(v - 0.5));
+    let (a, b) = ((u - 0.5) - i0 as f64, (v - 0.5) - j0 as f64);
+    let t = |di: i64, dj: i64| texel(level, wrap, i0.saturating_add(di), j0.saturating_add(dj));
+    let (t00, t10, t01, t11) = (t(0, 0), t(1, 0), t(0, 1), t(1, 1));
+    std::array::from_fn(|k| {
+        (1.0 - a) * (1.0 - b) * t00[k]
+            + a * (1.0 - b) * t10[k]
+            + (1.0 - a) * b * t01[k]
+            + a * b * t11[k]
+    })
+}
+
+/// The level of detail `λ = log2 ρ` at texture coordinates whose screen-space derivatives
+/// are `ds = (∂s/∂X, ∂s/∂Y)` and `dt`, for a `width × height` level 0.
+pub fn level_of_detail(width: u32, height: u32, ds: [f64; 2], dt: [f64; 2]) -> f64 {
+    let (w, h) = (f64::from(width), f64::from(height));
+    let x = (w * ds[0]).hypot(h * dt[0]);
+    let y = (w * ds[1]).hypot(h * dt[1]);
+    x.max(y).log2()
+}
+
+/// The filtered texel at `(s, t)` (see the module comment); `ds` and `dt` are the
+/// screen-space derivatives (used by trilinear filtering only).
+pub fn sample(sampler: &Sampler, s: f64, t: f64, ds: [f64; 2], dt: [f64; 2]) -> [f64; 4] {
+    let at = |k: usize| {
+        let level = &sampler.levels[k];
+        (
+            level,
+            s * f64::from(level.width),
+            t * f64::from(level.height),
+        )
+    };
+    let wrap = sampler.wrap;
+    match sampler.filter {
+        Filter::Nearest => {
+            let (level, u, v) = at(0);
+            nearest(level, wrap, u, v)
+        }
+        Filter::Linear => {
+            let (level, u, v) = at(0);
+            bilinear(level, wrap, u, v)
+        }
+        Filter::Trilinear => {
+            let base = &sampler.levels[0];
+            let lambda = level_of_detail(base.width, base.height, ds, dt);
+            if lambda.is_nan() || lambda <= 0.0 {
+                let (level, u, v) = at(0);
+                return bilinear(level, wrap, u, v);
+            }
+            let q = sampler.levels.len() - 1;
+            let d = lambda.min(q as f64);
+            let d1 = d.floor() as usize;
+            let d2 = (d1 + 1).min(q);
+            let f = d - d1 as f64;
+            let (l1, u1, v1) = at(d1);
+            let (l2, u2, v2) = at(d2);
+            let (c1, c2) = (bilinear(l1, wrap, u1, v1), bilinear(l2, wrap, u2, v2));
+            std::array::from_fn(|k| (1.0 - f) * c1[k] + f * c2[k])
+        }
+    }
+}
+
+/// The interpolated value of a per-corner attribute `a` at a sample and its exact
+/// screen-space derivatives `(∂a/∂X, ∂a/∂Y)` (see the module comment).
+pub fn texcoord_derivatives(sample: &Sample, a: [f64; 3]) -> (f64, [f64; 2]) {
+    let l = sample.barycentrics;
+    let value = l[0] * a[0] + l[1] * a[1] + l[2] * a[2];
+    let d = |axis: usize| {
+        let weighted: f64 = (0..3).map(|k| a[k] * sample.edges[k][axis]).sum();
+        let total: f64 = (0..3).map(|k| sample.edges[k][axis]).sum();
+        (weighted - value * total) / sample.sum
+    };
+    (value, [d(0), d(1)])
+}
+
+/// The texture environment (see the module comment): `colour` (alpha 1) through each of
+/// `samplers` in order, sampled at the sample's texcoords `(s_k, t_k)` per corner.
+fn textured_colour(
+    colour: [f64; 3],
+    samplers: &[&Sampler],
+    mode: TextureMode,
+    sample: &Sample,
+    texcoords: &[[f64; 2]; 3],
+) -> [f64; 4] {
+    let mut rgba = [colour[0], colour[1], colour[2], 1.0];
+    if samplers.is_empty() {
+        return rgba;
+    }
+    let (s, ds) = texcoord_derivatives(sample, texcoords.map(|c| c[0]));
+    let (t, dt) = texcoord_derivatives(sample, texcoords.map(|c| c[1]));
+    for sampler in samplers {
+        let texel = self::sample(sampler, s, t, ds, dt);
+        rgba = match mode {
+            TextureMode::Modulate => std::array::from_fn(|k| rgba[k] * texel[k]),
+            TextureMode::Replace => texel,
+        };
+    }
+    rgba
+}
+
 /// One fragment of a scene file's object.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ObjectFragment {
     /// Index of the object in the scene.
     pub object: usize,
-    /// The fragment; its `triangle` is the index within the object's mesh.
+    /// The fragment; its `triangle` is the index within the object's mesh, its `colour`
+    /// the RGB after the texture environment.
     pub fragment: Fragment,
+    /// Its alpha after the texture environment (1 without textures).
+    pub alpha: f64,
 }
 
 /// Every fragment of the scene in drawing order (object by object, triangle by triangle,
-/// bottom row up, left to right), culled and clipped but without the depth test.
+/// bottom row up, left to right), culled, clipped and textured but without the depth
+/// test.
 pub fn for_each_fragment(
     scene: &model::Scene,
     rule: TieRule,
@@ -392,33 +608,72 @@ pub fn for_each_fragment(
 ) -> Result<(), SceneError> {
     check(scene)?;
     let lights = eye_lights(scene);
+    let mut samplers: Vec<Option<Sampler>> = vec![None; scene.textures.len()];
+    for m in &scene.materials {
+        for &t in &m.textures {
+            samplers[t].get_or_insert_with(|| Sampler::new(&scene.textures[t]));
+        }
+    }
     for (index, object) in scene.objects.iter().enumerate() {
         let clip = clip_positions(scene, object);
         let colours = object_corner_colours(scene, object, &lights);
-        for (triangle, (t, col)) in object.mesh.triangles.iter().zip(&colours).enumerate() {
+        let material = &scene.materials[object.material];
+        let units: Vec<&Sampler> = material
+            .textures
+            .iter()
+            .filter_map(|&t| samplers[t].as_ref())
+            .collect();
+        let mesh = &object.mesh;
+        for (triangle, (t, col)) in mesh.triangles.iter().zip(&colours).enumerate() {
             let c = t.map(|i| clip[i as usize]);
-            reference::rasterize_triangle(
+            let texcoords = if units.is_empty() {
+                [[0.0; 2]; 3]
+            } else {
+                t.map(|i| mesh.texcoords[i as usize].map(f64::from))
+            };
+            reference::rasterize_samples(
                 &c,
-                col,
                 (scene.width, scene.height),
                 scene.pipeline.cull,
                 rule,
-                |x, y, depth, colour| {
+                |sample| {
+                    let l = sample.barycentrics;
+                    let colour = std::array::from_fn(|k| {
+                        l[0] * col[0][k] + l[1] * col[1][k] + l[2] * col[2][k]
+                    });
+                    let [r, g, b, a] =
+                        textured_colour(colour, &units, material.texture_mode, sample, &texcoords);
                     f(&ObjectFragment {
                         object: index,
                         fragment: Fragment {
                             triangle,
-                            x,
-                            y,
-                            depth,
-                            colour,
+                            x: sample.x,
+                            y: sample.y,
+                            depth: sample.depth,
+                            colour: [r, g, b],
                         },
+                        alpha: a,
                     })
                 },
             );
         }
     }
     Ok(())
+}
+
+/// The colour written for a fragment `src` with alpha `alpha` over the stored `dst`
+/// under `blend` (see the module comment).
+pub fn blend(blend: Blend, src: [f64; 3], alpha: f64, dst: [u8; 4]) -> [u8; 4] {
+    let src = src.map(|c| c.clamp(0.0, 1.0));
+    let a = alpha.clamp(0.0, 1.0);
+    let dst = [dst[0], dst[1], dst[2]].map(|b| f64::from(b) / 255.0);
+    let out: [f64; 3] = match blend {
+        Blend::None => src,
+        Blend::Alpha => std::array::from_fn(|k| src[k] * a + dst[k] * (1.0 - a)),
+        Blend::Add => std::array::from_fn(|k| (src[k] + dst[k]).min(1.0)),
+    };
+    let [r, g, b] = out.map(quantise);
+    [r, g, b, 255]
 }
 
 /// Renders a scene file's scene (see the module comment) with the default tie rule.
@@ -435,13 +690,13 @@ pub fn render_with(scene: &model::Scene, rule: TieRule) -> Result<Image, SceneEr
     let mut depth = vec![1.0f64; image.pixels.len()];
     let width = scene.width as usize;
     let test = scene.pipeline.depth_test;
+    let mode = scene.pipeline.blend;
     for_each_fragment(scene, rule, |of| {
         let f = &of.fragment;
         let i = f.y as usize * width + f.x as usize;
         if reference::depth_passes(test, f.depth, depth[i]) {
             depth[i] = f.depth;
-            let [r, g, b] = f.colour.map(quantise);
-            image.pixels[i] = [r, g, b, 255];
+            image.pixels[i] = blend(mode, f.colour, of.alpha, image.pixels[i]);
         }
     })?;
     Ok(image)
@@ -451,7 +706,7 @@ pub fn render_with(scene: &model::Scene, rule: TieRule) -> Result<Image, SceneEr
 mod tests {
     use super::*;
     use imagine_pipelines::scene::model::{
-        Camera, Cull, DepthTest, Light, Mesh, PipelineKind, PipelineSettings, Space, TextureMode,
+        Camera, Cull, DepthTest, Light, Mesh, PipelineKind, PipelineSettings, Space,
     };
     use imagine_pipelines::scene::{IDENTITY, parse_tri};
 
@@ -742,21 +997,29 @@ mod tests {
     }
 
     #[test]
-    fn textures_blending_and_bad_indices_are_errors() {
+    fn bad_indices_and_textures_without_texcoords_are_errors() {
         let mut scene = empty_scene(4, 4);
         scene.objects.push(window_object(
             &[[[0.0, 0.0, 0.5], [4.0, 0.0, 0.5], [0.0, 4.0, 0.5]]],
             RED,
         ));
         assert!(render(&scene).is_ok());
-        let mut blended = scene.clone();
-        blended.pipeline.blend = Blend::Alpha;
-        let e = render(&blended).unwrap_err().to_string();
-        assert!(e.contains("not supported yet"), "{e}");
         let mut textured = scene.clone();
         textured.materials[0].textures.push(0);
         let e = render(&textured).unwrap_err().to_string();
-        assert!(e.contains("not supported yet"), "{e}");
+        assert!(e.contains("scene has 0 textures"), "{e}");
+        textured.textures.push(texture(
+            1,
+            1,
+            vec![0xFFFF_FFFF],
+            Filter::Nearest,
+            Wrap::Repeat,
+        ));
+        let e = render(&textured).unwrap_err().to_string();
+        assert!(
+            e.contains("object `window`") && e.contains("no texture coordinates"),
+            "{e}"
+        );
         let mut bad = scene.clone();
         bad.objects[0].mesh.triangles[0][2] = 3;
         let e = render(&bad).unwrap_err().to_string();
@@ -764,5 +1027,294 @@ mod tests {
         let mut bad = scene;
         bad.objects[0].material = 2;
         assert!(render(&bad).is_err());
+    }
+
+    fn texture(width: u32, height: u32, texels: Vec<u32>, filter: Filter, wrap: Wrap) -> Texture {
+        Texture {
+            name: "t".into(),
+            width,
+            height,
+            texels,
+            filter,
+            wrap,
+        }
+    }
+
+    fn rgba(r: u8, g: u8, b: u8, a: u8) -> u32 {
+        u32::from_le_bytes([r, g, b, a])
+    }
+
+    /// A window-filling square of two triangles with texcoords (0, 0) at the bottom left
+    /// to (1, 1) at the top right, white, drawn with material 0 and texture 0.
+    fn textured_scene(size: u32, texture: Texture, mode: TextureMode) -> model::Scene {
+        let mut scene = empty_scene(size, size);
+        let n = size as f32;
+        let mut square = window_object(
+            &[
+                [[0.0, 0.0, 0.5], [n, 0.0, 0.5], [n, n, 0.5]],
+                [[0.0, 0.0, 0.5], [n, n, 0.5], [0.0, n, 0.5]],
+            ],
+            [1.0; 3],
+        );
+        square.mesh.texcoords = square
+            .mesh
+            .positions
+            .iter()
+            .map(|p| [p[0] / n, p[1] / n])
+            .collect();
+        scene.objects.push(square);
+        scene.textures.push(texture);
+        scene.materials[0].textures = vec![0];
+        scene.materials[0].texture_mode = mode;
+        scene
+    }
+
+    /// Red, green (bottom row), blue, white (top row).
+    fn two_by_two(filter: Filter, wrap: Wrap) -> Texture {
+        let texels = vec![
+            rgba(255, 0, 0, 255),
+            rgba(0, 255, 0, 255),
+            rgba(0, 0, 255, 255),
+            rgba(255, 255, 255, 255),
+        ];
+        texture(2, 2, texels, filter, wrap)
+    }
+
+    #[test]
+    fn nearest_picks_exact_texels() {
+        let scene = textured_scene(
+            4,
+            two_by_two(Filter::Nearest, Wrap::Repeat),
+            TextureMode::Modulate,
+        );
+        let image = render(&scene).unwrap();
+        let texels = [
+            [255, 0, 0, 255],
+            [0, 255, 0, 255],
+            [0, 0, 255, 255],
+            [255; 4],
+        ];
+        for y in 0..4 {
+            for x in 0..4 {
+                assert_eq!(
+                    image.pixel(x, y),
+                    texels[(y / 2 * 2 + x / 2) as usize],
+                    "({x}, {y})"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn bilinear_blends_and_wraps_at_the_edges() {
+        // Pixel centres at u = (x + ½)/2 texels: 0.25, 0.75, 1.25, 1.75. Pixel 1 has
+        // i0 = 0, α = ¼; pixel 0 has i0 = −1, α = ¾, which repeat takes from texel 1 and
+        // clamp from texel 0.
+        let red_at = |wrap: Wrap, x: u32| {
+            let scene = textured_scene(4, two_by_two(Filter::Linear, wrap), TextureMode::Replace);
+            render(&scene).unwrap().pixel(x, 0)
+        };
+        // Row 0: v = 0.25, j0 = −1, β = ¾: repeat mixes in row 1 (blue, white) by ¼.
+        // Pixel (1, 0), repeat: red ¾·(¾·255 + ¼·0) + ¼·(¾·0 + ¼·255) = 159.375 → 159,
+        // green ¾·¼·255 + ¼·¼·255 = 63.75 → 64, blue ¼·(¾ + ¼)·255 → 64.
+        assert_eq!(red_at(Wrap::Repeat, 1), [159, 64, 64, 255]);
+        // Clamp: row 0 twice; red ¾·255 = 191.25 → 191, green ¼·255 = 63.75 → 64.
+        assert_eq!(red_at(Wrap::Clamp, 1), [191, 64, 0, 255]);
+        // Pixel (0, 0), clamp: texel (0, 0) alone.
+        assert_eq!(red_at(Wrap::Clamp, 0), [255, 0, 0, 255]);
+        // Repeat: texel −1 is texel 1, weighing ¼ against texel 0's ¾: the same as pixel 1.
+        assert_eq!(red_at(Wrap::Repeat, 0), [159, 64, 64, 255]);
+        // At a midpoint between texel centres each of the four weighs ¼.
+        let level = Sampler::new(&two_by_two(Filter::Linear, Wrap::Clamp))
+            .levels
+            .remove(0);
+        assert_eq!(
+            bilinear(&level, Wrap::Clamp, 1.0, 1.0),
+            [0.5, 0.5, 0.5, 1.0]
+        );
+        assert_eq!(
+            nearest(&level, Wrap::Repeat, -0.5, 2.5),
+            texel(&level, Wrap::Clamp, 1, 0)
+        );
+    }
+
+    /// A 4 × 4 texture, texel (i, j) = (64·i, 64·j, 0, 255).
+    fn ramp(filter: Filter) -> Texture {
+        let texels = (0..16)
+            .map(|k| rgba(64 * (k % 4) as u8, 64 * (k / 4) as u8, 0, 255))
+            .collect();
+        texture(4, 4, texels, filter, Wrap::Clamp)
+    }
+
+    #[test]
+    fn trilinear_picks_and_blends_levels_by_the_derivatives() {
+        let sampler = Sampler::new(&ramp(Filter::Trilinear));
+        assert_eq!(sampler.levels.len(), 3);
+        let (l0, l1, l2) = (&sampler.levels[0], &sampler.levels[1], &sampler.levels[2]);
+        let (s, t) = (0.3, 0.6);
+        let at = |l: &Level| {
+            bilinear(
+                l,
+                Wrap::Clamp,
+                s * f64::from(l.width),
+                t * f64::from(l.height),
+            )
+        };
+        let mix = |a: [f64; 4], b: [f64; 4], f: f64| -> [f64; 4] {
+            std::array::from_fn(|k| (1.0 - f) * a[k] + f * b[k])
+        };
+        let close = |a: [f64; 4], b: [f64; 4]| a.iter().zip(&b).all(|(x, y)| (x - y).abs() < 1e-12);
+        // ρ = |(u_x, v_x)| = 4·(ds, dt) per pixel, the larger of the two axes.
+        let lod = |rho: f64| sample(&sampler, s, t, [rho / 4.0, 0.0], [0.0, rho / 8.0]);
+        // Magnification and λ = 0: level 0, bilinear.
+        assert_eq!(lod(0.5), at(l0));
+        assert_eq!(lod(1.0), at(l0));
+        // λ = 1 and 2: exactly levels 1 and 2.
+        assert!(close(lod(2.0), at(l1)));
+        assert!(close(lod(4.0), at(l2)));
+        // λ = 1.5 (ρ = 2√2): half of each.
+        assert!(
+            close(lod(8f64.sqrt()), mix(at(l1), at(l2), 0.5)),
+            "{:?}",
+            lod(8f64.sqrt())
+        );
+        // λ = 0.5: levels 0 and 1.
+        assert!(close(lod(2f64.sqrt()), mix(at(l0), at(l1), 0.5)));
+        // Past the last level: the 1 × 1 level.
+        assert!(close(lod(100.0), at(l2)));
+        // The y axis counts when it is the larger.
+        assert!(close(
+            sample(&sampler, s, t, [0.0, 0.5], [0.0, 0.0]),
+            at(l1)
+        ));
+    }
+
+    #[test]
+    fn trilinear_renders_a_minified_texture_from_the_next_level() {
+        // The 4 × 4 ramp on a 2 × 2 window: ∂s/∂X = ½, u_x = 2, λ = 1: level 1 exactly,
+        // each pixel centre on a texel centre of it.
+        let scene = textured_scene(2, ramp(Filter::Trilinear), TextureMode::Replace);
+        let image = render(&scene).unwrap();
+        let level = &mipmap::pyramid(&scene.textures[0])[1];
+        for y in 0..2 {
+            for x in 0..2 {
+                let want = level.texels[(y * 2 + x) as usize].to_le_bytes();
+                assert_eq!(image.pixel(x, y), [want[0], want[1], want[2], 255]);
+            }
+        }
+    }
+
+    #[test]
+    fn texcoord_derivatives_are_exact_under_perspective() {
+        // A triangle at varying depth through a perspective projection (rows of
+        // glFrustum(−1, 1, −1, 1, 1, 10)), its edge functions differenced numerically.
+        let projection = [
+            1.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            1.0,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            -11.0 / 9.0,
+            -20.0 / 9.0,
+            0.0,
+            0.0,
+            -1.0,
+            0.0,
+        ];
+        let corner = |p: [f64; 3]| transform(&projection, [p[0], p[1], p[2], 1.0]);
+        let clip = [
+            corner([-1.0, -1.0, -2.0]),
+            corner([2.0, -1.0, -6.0]),
+            corner([0.0, 2.0, -3.0]),
+        ];
+        let s = [0.1, 0.9, 0.3];
+        let mut samples = Vec::new();
+        reference::rasterize_samples(&clip, (64, 64), Cull::None, TieRule::TopLeft, |x| {
+            samples.push(*x)
+        });
+        assert!(samples.len() > 100);
+        let at = |sample: &Sample, x: f64, y: f64| {
+            let e: [f64; 3] = sample.edges.map(|[a, b, c]| a * x + b * y + c);
+            (0..3).map(|k| s[k] * e[k]).sum::<f64>() / e.iter().sum::<f64>()
+        };
+        for sample in samples.iter().step_by(37) {
+            let (value, d) = texcoord_derivatives(sample, s);
+            let (x, y) = (f64::from(sample.x) + 0.5, f64::from(sample.y) + 0.5);
+            assert!((value - at(sample, x, y)).abs() < 1e-12);
+            let h = 1e-5;
+            let dx = (at(sample, x + h, y) - at(sample, x - h, y)) / (2.0 * h);
+            let dy = (at(sample, x, y + h) - at(sample, x, y - h)) / (2.0 * h);
+            assert!(
+                (d[0] - dx).abs() < 1e-7 && (d[1] - dy).abs() < 1e-7,
+                "{d:?} vs {dx} {dy}"
+            );
+            assert!(
+                d[0].abs() > 1e-4,
+                "perspective: the derivative is not constant"
+            );
+        }
+    }
+
+    #[test]
+    fn modulate_multiplies_the_vertex_colour_and_replace_ignores_it() {
+        let texels = vec![rgba(255, 128, 0, 255)];
+        let one = || texture(1, 1, texels.clone(), Filter::Nearest, Wrap::Repeat);
+        let mut scene = textured_scene(2, one(), TextureMode::Modulate);
+        scene.objects[0].colour = [0.5, 1.0, 1.0];
+        // 0.5·1 → 127.5 → 128; 1·128/255 → 128.
+        assert_eq!(render(&scene).unwrap().pixel(0, 0), [128, 128, 0, 255]);
+        scene.materials[0].texture_mode = TextureMode::Replace;
+        assert_eq!(render(&scene).unwrap().pixel(0, 0), [255, 128, 0, 255]);
+        // Two units in order: modulate by the second texture too.
+        scene.materials[0].texture_mode = TextureMode::Modulate;
+        scene.textures.push(texture(
+            1,
+            1,
+            vec![rgba(255, 255, 51, 255)],
+            Filter::Nearest,
+            Wrap::Clamp,
+        ));
+        scene.materials[0].textures = vec![0, 1, 1];
+        assert_eq!(render(&scene).unwrap().pixel(1, 1), [128, 128, 0, 255]);
+    }
+
+    #[test]
+    fn alpha_and_add_blending_over_the_background() {
+        // A texture of alpha 0x40 (≈ ¼) replaced onto a quad over a grey background.
+        let texels = vec![rgba(255, 0, 200, 64)];
+        let mut scene = textured_scene(
+            2,
+            texture(1, 1, texels, Filter::Nearest, Wrap::Repeat),
+            TextureMode::Replace,
+        );
+        scene.background = [0.4, 0.4, 0.4];
+        let dst = quantise(0.4); // 102
+        let a = 64.0 / 255.0;
+        let want = |src: f64| quantise(src * a + f64::from(dst) / 255.0 * (1.0 - a));
+        scene.pipeline.blend = Blend::Alpha;
+        let p = render(&scene).unwrap().pixel(0, 0);
+        assert_eq!(p, [want(1.0), want(0.0), want(200.0 / 255.0), 255]);
+        assert_eq!(p, [140, 76, 127, 255]);
+        scene.pipeline.blend = Blend::Add;
+        // 1 + 0.4 clamps to 1; 0 + 0.4; 200/255 + 102/255 = 302/255 clamps.
+        assert_eq!(render(&scene).unwrap().pixel(1, 0), [255, 102, 255, 255]);
+        // Drawn twice with LEQUAL: the second blends over the first (quantised) result.
+        scene.pipeline.depth_test = DepthTest::Lequal;
+        scene.pipeline.blend = Blend::Alpha;
+        let first = scene.objects[0].clone();
+        scene.objects.push(first);
+        let q = |src: f64, d: u8| quantise(src * a + f64::from(d) / 255.0 * (1.0 - a));
+        assert_eq!(
+            render(&scene).unwrap().pixel(1, 1),
+            [q(1.0, 140), q(0.0, 76), q(200.0 / 255.0, 127), 255]
+        );
+        // The depth test still applies: LESS keeps the first layer only.
+        scene.pipeline.depth_test = DepthTest::Less;
+        assert_eq!(render(&scene).unwrap().pixel(1, 1), [140, 76, 127, 255]);
     }
 }

@@ -9,7 +9,8 @@
 //!   initial state), `blend = "none"`, `stop_length = 1.5`.
 //! * `[window] background` defaults to black; a material's `shader` is required.
 //! * A texture's `filter` defaults to `"nearest"` and `wrap` to `"repeat"`; a procedural
-//!   checker defaults to `size = 256`, `cells = 8`, `colours = [[1,1,1], [0,0,0]]`.
+//!   checker defaults to `size = 256`, `cells = 8`, `colours = [[1,1,1], [0,0,0]]`. A
+//!   texture's sides (image or `procedural.size`) must be powers of two, as OpenGL 1.2's are.
 //! * An object may have a `name` (default: its mesh or patch file's name, or its primitive's
 //!   kind) and `triangles = "shared" | "separate"` (default shared; separate gives every
 //!   triangle three vertices of its own, as SPHERE's published vertex count has it).
@@ -819,6 +820,15 @@ impl Cx {
                         ),
                     ));
                 }
+                if !(w.is_power_of_two() && h.is_power_of_two()) {
+                    return Err(self.err(
+                        &key("image"),
+                        format!(
+                            "`{}` is {w}x{h}: OpenGL 1.2 textures have power-of-two sides",
+                            path.display()
+                        ),
+                    ));
+                }
                 // Row 0 of the file is the top; row 0 of the texture is the bottom.
                 let texels = (0..h)
                     .rev()
@@ -835,6 +845,12 @@ impl Cx {
                     return Err(self.err(
                         &key("procedural.size"),
                         format!("{size} is outside 1..={MAX_WINDOW} texels"),
+                    ));
+                }
+                if !size.is_power_of_two() {
+                    return Err(self.err(
+                        &key("procedural.size"),
+                        format!("{size} is not a power of two (OpenGL 1.2 textures need one)"),
                     ));
                 }
                 if !(1..=size).contains(&cells) {
@@ -1439,6 +1455,21 @@ mod tests {
                 &format!("{WINDOW}[[texture]]\nname = \"t\"\nimage = \"bad.png\"\n{BALL}"),
             ),
             &["`texture[0].image`", "bad.png` is not a PNG image"],
+        );
+        image::RgbImage::new(4, 3).save(d.join("odd.png")).unwrap();
+        assert_error(
+            parse_in(
+                &d,
+                &format!("{WINDOW}[[texture]]\nname = \"t\"\nimage = \"odd.png\"\n{BALL}"),
+            ),
+            &["`texture[0].image`", "odd.png` is 4x3", "power-of-two"],
+        );
+        assert_error(
+            text(&format!(
+                "{WINDOW}[[texture]]\nname = \"t\"\n\
+                 procedural = {{ kind = \"checker\", size = 96 }}\n{BALL}"
+            )),
+            &["`texture[0].procedural.size`", "96 is not a power of two"],
         );
         assert_error(
             parse_in(&d, &format!("{WINDOW}[[object]]\npatches = \"gone.bpt\"\n")),
