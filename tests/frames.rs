@@ -258,3 +258,90 @@ fn tri_scenes_match_osmesa() {
         );
     }
 }
+
+/// Three balls, one per filter (nearest with repeat, bilinear with clamp, trilinear
+/// modulating a lit colour), the third far enough away to reach the small mipmap levels.
+const TEXTURED_BALLS: &str = r#"
+[window]
+width = 64
+height = 48
+[camera]
+eye = [0.0, 0.0, 6.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 40.0
+near = 1.0
+far = 40.0
+[[light]]
+position = [5.0, 5.0, 5.0]
+[[texture]]
+name = "checker"
+procedural = { kind = "checker", size = 64, cells = 8, colours = [[1.0, 0.9, 0.2], [0.1, 0.2, 0.8]] }
+filter = "nearest"
+[[texture]]
+name = "smooth"
+procedural = { kind = "checker", size = 16, cells = 4, colours = [[0.9, 0.3, 0.3], [0.2, 0.9, 0.4]] }
+filter = "linear"
+wrap = "clamp"
+[[texture]]
+name = "mipmapped"
+procedural = { kind = "checker", size = 128, cells = 32, colours = [[1.0, 1.0, 1.0], [0.0, 0.0, 0.0]] }
+filter = "trilinear"
+[[material]]
+name = "point"
+shader = "unlit"
+textures = ["checker"]
+[[material]]
+name = "bilinear"
+shader = "unlit"
+textures = ["smooth"]
+texture_mode = "replace"
+[[material]]
+name = "mipmap"
+shader = "lit"
+diffuse = [1.0, 1.0, 1.0]
+textures = ["mipmapped"]
+[[object]]
+primitive = { kind = "uv_sphere", rings = 12, segments = 16 }
+material = "point"
+translate = [-1.6, 0.0, 0.0]
+[[object]]
+primitive = { kind = "uv_sphere", rings = 12, segments = 16 }
+material = "bilinear"
+translate = [1.6, 0.0, 0.0]
+[[object]]
+primitive = { kind = "uv_sphere", rings = 12, segments = 16 }
+material = "mipmap"
+translate = [0.0, 0.5, -12.0]
+scale = [2.0, 2.0, 2.0]
+"#;
+
+/// Textures on the machine (fragment programs split at their lookups, texels gathered
+/// through the memory system) against the f64 reference: point sampling exact, bilinear
+/// and trilinear within the f32 datapath's rounding (and the level of detail's `log2`
+/// approximation); every texel fetch counted.
+#[test]
+fn textured_frames_match_the_reference() {
+    let scene = scene::file::parse(
+        TEXTURED_BALLS,
+        std::path::Path::new("textured-balls.toml"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let (frame, m) = draw(&scene, "gold8");
+    assert_eq!(m.coverage_mismatch_share, 0.0, "{m:?}");
+    assert!(m.psnr_db > 45.0, "{m:?}");
+    assert!(frame.stats.texel_fetches > 0);
+    // Per fragment 1 (nearest), 4 (bilinear) or 8 (trilinear) texels: between the two.
+    let per_fragment = frame.stats.texel_fetches as f64 / frame.stats.fragments as f64;
+    assert!((1.0..=8.0).contains(&per_fragment), "{per_fragment}");
+    let names = &frame.stats.specialisation.kernels_built;
+    for k in ["filter8", "irast"] {
+        assert!(names.iter().any(|n| n == k), "{k} not in {names:?}");
+    }
+    assert_eq!(
+        names.iter().filter(|n| n.starts_with("texaddr:")).count(),
+        3,
+        "one texaddr per textured material: {names:?}"
+    );
+}
