@@ -15,6 +15,23 @@
 //!   triangle three vertices of its own, as SPHERE's published vertex count has it).
 //! * `tessellate` defaults to 20 (TEAPOT's OpenGL dicing), `basis` to `"bezier"`.
 //! * `cage` is refused: Catmull-Clark limit surfaces are not supported yet.
+//!
+//! Keys beyond the contract, for the analogs of the thesis's published scenes (Table 5.1;
+//! the geometry is [`primitives`]'s, where each is documented):
+//! * `primitive = { kind = "pin", rings, segments }`: a bowling pin of `rings` bands, each
+//!   a closed strip of `segments` quads with its own two rows of vertices (V = T =
+//!   2·rings·segments; PIN, PIN-8 and MARBLE's 200 × 200 is 80,000), base at y = 0, tip at
+//!   y = 1, normals, s round and t up;
+//! * `{ kind = "banded_sphere", rings, segments }`: the unit sphere in the same banded form
+//!   (VERONA's geometry);
+//! * `{ kind = "boxes", count, seed }` (`seed` defaults to 0): boxes on [−1, 1]² of y = 0,
+//!   every face a quad of four vertices of its own with the whole texture (24 vertices, 12
+//!   triangles a box); `{ kind = "tiles", columns, rows }`: a floor of such quads;
+//!   `{ kind = "torus", rings, segments, minor }` (`minor`, the tube's radius against a
+//!   major radius of 1, defaults to 0.25, in (0, 1)) — ADVS's parts;
+//! * a texture's `procedural = { kind = "rectangles", size, rectangles = [[s0, t0, s1, t1],
+//!   ...], colours = [background, fill] }`: the texels whose centres lie in a rectangle
+//!   take the fill colour (`size` defaults to 256, `colours` to white and black).
 
 use std::path::{Path, PathBuf};
 
