@@ -756,8 +756,20 @@ fn scene_list_names_every_builtin() {
     assert!(o.status.success(), "{}", stderr(&o));
     let list = stdout(&o);
     for name in [
-        "SPHERE", "RATE-1", "RATE-2", "RATE-4", "RATE-8", "RATE-16", "RATE-32", "RATE-64",
+        "SPHERE",
+        "RATE-1",
+        "RATE-2",
+        "RATE-4",
+        "RATE-8",
+        "RATE-16",
+        "RATE-32",
+        "RATE-64",
         "RATE-128",
+        "SPHERE-FULL",
+        "ADVS-1",
+        "ADVS-8",
+        "PIN",
+        "PIN-8",
     ] {
         let line = list
             .lines()

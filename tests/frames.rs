@@ -60,7 +60,7 @@ fn hash(pixels: &[u32]) -> u64 {
 
 #[test]
 fn small_sphere_matches_the_reference_and_its_stored_hash() {
-    let scene = builtin("SPHERE", 96, Some(3));
+    let scene = builtin("SPHERE-FULL", 96, Some(3));
     let (frame, m) = draw(&scene, "gold8");
     assert!(m.psnr_db > 60.0, "PSNR {}", m.psnr_db);
     assert!(m.max_abs_error <= 1, "max error {}", m.max_abs_error);
@@ -75,7 +75,7 @@ fn small_sphere_matches_the_reference_and_its_stored_hash() {
 
 #[test]
 fn the_frame_is_the_same_on_every_cluster_count_and_run() {
-    let scene = builtin("SPHERE", 48, Some(2));
+    let scene = builtin("SPHERE-FULL", 48, Some(2));
     let (a, _) = draw(&scene, "gold8");
     let (b, _) = draw(&scene, "gold8");
     assert_eq!(a.pixels, b.pixels);
@@ -211,9 +211,9 @@ fn the_stacked_scene_matches_the_reference() {
 }
 
 #[test]
-#[ignore = "a full 720x720 SPHERE frame: run with --release -- --ignored"]
+#[ignore = "a full 720x720 SPHERE-FULL frame: run with --release -- --ignored"]
 fn sphere_720() {
-    let scene = builtin("SPHERE", 720, None);
+    let scene = builtin("SPHERE-FULL", 720, None);
     let (frame, m) = draw(&scene, "gold8");
     println!("{:#?}", frame.stats);
     assert!(m.psnr_db > 50.0 && m.coverage_mismatch_share < 0.001);

@@ -422,7 +422,7 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
     use imagine_pipelines::scene::{LoadOptions, load, mat_mul};
     use imagine_units::arith::fp32::testgen::SplitMix64;
     let mut sphere = load(
-        "SPHERE",
+        "SPHERE-FULL",
         &LoadOptions {
             size: Some(64),
             subdivisions: Some(1),

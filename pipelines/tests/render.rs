@@ -215,7 +215,7 @@ fn unsupported_scenes_and_shapes_are_refused_by_name() {
         .to_string();
     assert!(e.contains("blend"), "{e}");
     let mut lit = scene::load(
-        "SPHERE",
+        "SPHERE-FULL",
         &LoadOptions {
             size: Some(16),
             subdivisions: Some(0),
@@ -233,7 +233,7 @@ fn unsupported_scenes_and_shapes_are_refused_by_name() {
 fn the_general_pipeline_lights_a_lit_scene_to_the_same_bits() {
     let desc = MachineDesc::gold8();
     let scene = scene::load(
-        "SPHERE",
+        "SPHERE-FULL",
         &LoadOptions {
             size: Some(24),
             subdivisions: Some(1),
@@ -270,7 +270,7 @@ fn five_lights_are_shaded_in_two_passes_and_add_light() {
     use imagine_pipelines::scene::model::Light;
     let desc = MachineDesc::gold8();
     let mut three = scene::load(
-        "SPHERE",
+        "SPHERE-FULL",
         &LoadOptions {
             size: Some(24),
             subdivisions: Some(1),

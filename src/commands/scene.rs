@@ -42,10 +42,11 @@ pub enum SceneCommand {
 pub fn run(c: SceneCommand) -> Result<ExitCode> {
     match c {
         SceneCommand::List => {
+            let width = BUILTIN.iter().map(|(n, _)| n.len()).max().unwrap_or(0);
             for (name, text) in BUILTIN {
                 let about = builtin_description(text);
                 let about = about.strip_prefix(&format!("{name}: ")).unwrap_or(about);
-                println!("{name:<10} {about}");
+                println!("{name:<width$} {about}");
             }
         }
         SceneCommand::Show {

@@ -1,4 +1,4 @@
-//! Times the reference renderer on SPHERE (81,920 triangles) at 720×720 and optionally
+//! Times the reference renderer on SPHERE-FULL (81,920 triangles) at 720×720 and optionally
 //! writes the image: `cargo run --release -p imagine-verif --example reference_sphere
 //! [-- out.png]`.
 
@@ -7,7 +7,7 @@ use imagine_verif::reference;
 use std::time::Instant;
 
 fn main() -> Result<(), String> {
-    let scene = builtin("SPHERE", DEFAULT_SIZE).map_err(|e| e.to_string())?;
+    let scene = builtin("SPHERE-FULL", DEFAULT_SIZE).map_err(|e| e.to_string())?;
     let mut best = f64::INFINITY;
     let mut image = None;
     for _ in 0..3 {
@@ -18,7 +18,7 @@ fn main() -> Result<(), String> {
     let image = image.expect("rendered");
     let covered = image.pixels.iter().filter(|p| p[..3] != [0, 0, 0]).count();
     println!(
-        "reference::render SPHERE {}x{}: {} triangles, {covered} pixels covered, best of 3: {:.3} s",
+        "reference::render SPHERE-FULL {}x{}: {} triangles, {covered} pixels covered, best of 3: {:.3} s",
         scene.width,
         scene.height,
         scene.triangles(),

@@ -3,10 +3,11 @@
 //! A [`Scene`] is a list of separate triangles (three vertices each, no sharing, drawn in
 //! order), a model-view-projection matrix, a window and a shading mode:
 //!
-//! * **SPHERE** ([`sphere`]): a unit icosphere subdivided six times (20·4⁶ = 81,920
+//! * **SPHERE-FULL** ([`sphere`]): a unit icosphere subdivided six times (20·4⁶ = 81,920
 //!   triangles) seen in perspective, lit per vertex by three positional lights (diffuse and
 //!   specular), back faces culled — the scene of Owens et al., "Polygon Rendering on a
-//!   Stream Architecture" (Graphics Hardware 2000).
+//!   Stream Architecture" (Graphics Hardware 2000), filling the window (the scene file
+//!   SPHERE is it smaller, at the thesis's fragment count).
 //! * **RATE-n** ([`rate`]): long horizontal strips of identical unlit Gouraud triangles,
 //!   each covering `n` pixels (half of a `w × h` cell with `w·h = 2n`), tiling the window
 //!   once (depth complexity 1). It measures vertex and fragment rates against triangle
@@ -171,11 +172,12 @@ pub const DEFAULT_SIZE: u32 = 720;
 /// Subdivisions of SPHERE's icosahedron: 20·4⁶ = 81,920 triangles.
 pub const SPHERE_SUBDIVISIONS: u32 = 6;
 
-/// A built-in scene by name: `SPHERE` or `RATE-n` (n in 1..=128), in a `size × size`
-/// window.
+/// A built-in scene by name: `SPHERE-FULL` (the framing of [`sphere`], as
+/// `scenes/SPHERE-FULL.toml`; `scenes/SPHERE.toml` is smaller on screen) or `RATE-n` (n in
+/// 1..=128), in a `size × size` window.
 pub fn builtin(name: &str, size: u32) -> Result<Scene, SceneError> {
     let upper = name.to_ascii_uppercase();
-    if upper == "SPHERE" {
+    if upper == "SPHERE-FULL" {
         return Ok(sphere(SPHERE_SUBDIVISIONS, size));
     }
     if upper.starts_with("RATE-") {
@@ -192,7 +194,7 @@ pub fn builtin(name: &str, size: u32) -> Result<Scene, SceneError> {
     Err(SceneError::new(
         name,
         None,
-        "unknown scene: built-in scenes are SPHERE and RATE-n (n = 1..128); files end in .tri"
+        "unknown scene: built-in scenes are SPHERE-FULL and RATE-n (n = 1..128); files end in .tri"
             .into(),
     ))
 }
@@ -337,16 +339,17 @@ pub fn icosphere(subdivisions: u32) -> Vec<[[f32; 3]; 3]> {
         .collect()
 }
 
-/// SPHERE with `subdivisions` levels in a `size × size` window: the unit sphere seen from
-/// (0, 0, 3) with a 45° field of view (it fills most of the window), three white-ish
-/// lights around the eye, a blue-grey diffuse and white specular material.
+/// SPHERE-FULL with `subdivisions` levels in a `size × size` window: the unit sphere seen
+/// from (0, 0, 3) with a 45° field of view (it fills most of the window; SPHERE's 55.9°
+/// gives the published fragment count), three white-ish lights around the eye, a
+/// blue-grey diffuse and white specular material.
 pub fn sphere(subdivisions: u32, size: u32) -> Scene {
     let tris = icosphere(subdivisions);
     let positions: Vec<[f32; 3]> = tris.iter().flatten().copied().collect();
     let eye_z = 3.0;
     Scene {
         name: if subdivisions == SPHERE_SUBDIVISIONS {
-            "SPHERE".into()
+            "SPHERE-FULL".into()
         } else {
             format!("SPHERE-{subdivisions}")
         },
@@ -611,7 +614,7 @@ mod tests {
 
     #[test]
     fn builtin_names() {
-        assert_eq!(builtin("sphere", 64).unwrap().triangles(), 81_920);
+        assert_eq!(builtin("sphere-full", 64).unwrap().triangles(), 81_920);
         assert_eq!(builtin("RATE-8", 64).unwrap().triangles(), 512);
         assert!(
             builtin("RATE-x", 64)
