@@ -15,6 +15,8 @@
 //!
 //! * [`Shader::Unlit`]: the mesh's vertex colour, or the object's colour when the mesh has
 //!   none.
+//! * [`Shader::Marble`]: white at the vertices; the fragment's colour is the marble shader
+//!   ([`crate::marble`]) at its perspective-correct object-space position and normal.
 //! * [`Shader::Lit`]: OpenGL 1.x fixed-function lighting in eye space ([`lit_colour`]),
 //!   as `glLightfv(GL_POSITION)` with the camera's view loaded leaves the lights: each
 //!   light's eye position is `view · (position, 1)` with the *camera's* view (also for
@@ -38,6 +40,7 @@
 //! with a textured material or `blend ≠ None` is an error.
 
 use crate::image::{Image, quantise};
+use crate::marble::MarbleShading;
 use crate::reference::{self, Fragment, TieRule, V3, cross, dot, normalize, widen};
 use imagine_pipelines::scene::SceneError;
 use imagine_pipelines::scene::model::{self, Blend, Material, Object, Shader};
@@ -215,6 +218,13 @@ pub fn check(scene: &model::Scene) -> Result<(), SceneError> {
                 return bad(format!("{len} {what} for {n} positions"));
             }
         }
+        let marble = matches!(scene.materials[object.material].shader, Shader::Marble(_));
+        if marble && mesh.normals.len() != n {
+            return bad(format!(
+                "marble needs normals: {} for {n} positions",
+                mesh.normals.len()
+            ));
+        }
         if let Some(t) = mesh
             .triangles
             .iter()
@@ -297,6 +307,7 @@ fn object_corner_colours(
             let colour = |i: u32| widen(*mesh.colours.get(i as usize).unwrap_or(&object.colour));
             mesh.triangles.iter().map(|t| t.map(colour)).collect()
         }
+        Shader::Marble(_) => vec![[[1.0; 3]; 3]; mesh.triangles.len()],
         Shader::Lit => {
             let mv = modelview(scene, object);
             let nm = normal_matrix(&mv);
@@ -345,6 +356,7 @@ pub fn vertex_colours(scene: &model::Scene, index: usize) -> Result<Vec<[f64; 3]
         Shader::Unlit => Ok((0..mesh.positions.len())
             .map(|i| widen(*mesh.colours.get(i).unwrap_or(&object.colour)))
             .collect()),
+        Shader::Marble(_) => Ok(vec![[1.0; 3]; mesh.positions.len()]),
         Shader::Lit if mesh.normals.is_empty() => Err(error(
             scene,
             format!(
@@ -395,11 +407,28 @@ pub fn for_each_fragment(
     for (index, object) in scene.objects.iter().enumerate() {
         let clip = clip_positions(scene, object);
         let colours = object_corner_colours(scene, object, &lights);
+        // Marble: the rasterizer interpolates the unit vectors, that is, gives the
+        // perspective-correct barycentrics, and the shader runs on them.
+        let marble = MarbleShading::of(scene, object);
+        const BARYCENTRIC: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
         for (triangle, (t, col)) in object.mesh.triangles.iter().zip(&colours).enumerate() {
             let c = t.map(|i| clip[i as usize]);
+            let shade = |colour: [f64; 3]| match &marble {
+                Some(m) => {
+                    let at = |v: &[[f32; 3]]| -> V3 {
+                        std::array::from_fn(|k| {
+                            (0..3)
+                                .map(|corner| colour[corner] * f64::from(v[t[corner] as usize][k]))
+                                .sum()
+                        })
+                    };
+                    m.colour(at(&object.mesh.positions), at(&object.mesh.normals))
+                }
+                None => colour,
+            };
             reference::rasterize_triangle(
                 &c,
-                col,
+                if marble.is_some() { &BARYCENTRIC } else { col },
                 (scene.width, scene.height),
                 scene.pipeline.cull,
                 rule,
@@ -411,7 +440,7 @@ pub fn for_each_fragment(
                             x,
                             y,
                             depth,
-                            colour,
+                            colour: shade(colour),
                         },
                     })
                 },

@@ -25,6 +25,27 @@
 //! the levels do not overlap, the texture takes at most `2·A_0` words, and the kernel
 //! finds a level's start from its size alone (shifts and a multiply, no table).
 //!
+//! **Marble** (`shader = "marble"`, MARBLE's procedural shader, Owens 2002 §5.1.1) is a
+//! depth-0 program without lookups: one kernel, `marble`
+//! ([`crate::kernels::turbulence::build_fragment`]), the project's `turbulence` shader
+//! reading `irast`'s varyings (the object-space shading position and normal) and writing
+//! the packed colour. Its permutation table is Perlin's
+//! ([`crate::kernels::turbulence::PERLIN_PERMUTATION`]), written by the host into DRAM
+//! when the scene loads (each word once per cluster, the layout the kernel reads) and
+//! loaded from there into the SRF once per frame. Its parameters ([`marble_params`]) are
+//! the material's `frequency` and `turbulence_scale`, lighting in object space from the
+//! scene's first light and the camera, treated as the shader's directional light and
+//! viewer at infinity: with `o` the object's origin in the world, `l` the light's
+//! position, `e` the eye (the view's inverse applied to the origin) and `A` the model
+//! matrix's upper 3 × 3, the light direction is `L = normalize(A⁻¹·(l − o))`, the
+//! direction to the viewer `V = normalize(A⁻¹·(e − o))`, the half vector
+//! `H = normalize(L + V)` (`n·(A⁻¹·d)` is `(A⁻ᵀ·n)·d`: the cosines are the world's, up to
+//! the normalisations, exact for rotations and uniform scales). Without a light
+//! `L = H = 0`. The ambient and specular intensities are the means of the material's
+//! `ambient` and `specular` colours; the diffuse weight is 1 and the exponent 16 (the
+//! material's `diffuse` and `shininess` and the lights' colours are not used). All of
+//! these are computed in f64 on the host and rounded to f32.
+//!
 //! **Environment**: the colour starts as the interpolated vertex colour with alpha 1; each
 //! texture in order multiplies it (`modulate`, alpha too) or replaces it (`replace`). The
 //! result is packed to RGBA8 with rounding, as `irast` packs an untextured colour.
@@ -34,7 +55,7 @@ use imagine_units::desc::MachineDesc;
 use super::kernels::{Varyings, finish};
 use crate::kernel::{Kernel, KernelBuilder, LoopSpec, MachineRequirementError, Ty, Value};
 use crate::scene::mipmap;
-use crate::scene::model::{Filter, Scene, Texture, TextureMode, Wrap};
+use crate::scene::model::{Filter, Marble, Object, Scene, Texture, TextureMode, Wrap};
 
 /// Words `filter8` reads per mipmapped access: 8 texels, then the weights
 /// `α_1, β_1, α_2, β_2, f` (the two levels' bilinear fractions and the level fraction).
@@ -99,11 +120,12 @@ impl Unit {
     }
 }
 
-/// A textured material's fragment program.
+/// A textured material's fragment program, or (`marble`) the marble shader.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct FragmentProgram {
     pub units: Vec<Unit>,
     pub mode: TextureMode,
+    pub marble: bool,
 }
 
 impl FragmentProgram {
@@ -127,7 +149,20 @@ impl FragmentProgram {
                 }
             })
             .collect();
-        FragmentProgram { units, mode }
+        FragmentProgram {
+            units,
+            mode,
+            marble: false,
+        }
+    }
+
+    /// The marble shader's program.
+    pub fn marble() -> FragmentProgram {
+        FragmentProgram {
+            units: Vec::new(),
+            mode: TextureMode::Modulate,
+            marble: true,
+        }
     }
 
     /// Texel words `texaddr` asks for per fragment outside mipmapped units (1 per
@@ -167,6 +202,9 @@ impl FragmentProgram {
 
     /// A name unique to the program (its kernels are `texaddr_…` and `fragment_…`).
     pub fn name(&self) -> String {
+        if self.marble {
+            return "marble".into();
+        }
         let mut name = String::new();
         for u in &self.units {
             let f = match u.filter {
@@ -187,8 +225,8 @@ impl FragmentProgram {
         name
     }
 
-    /// The depth-1 kernel: per fragment (`varyings`: r, g, b, s, t and, when mipmapped, the
-    /// derivatives), the texel addresses of every unit — `addr` for point-sampled and
+    /// The depth-1 kernel: per fragment (`varyings`: r, g, b, s, t, any further extras
+    /// and, when mipmapped, the derivatives), the texel addresses of every unit — `addr` for point-sampled and
     /// bilinear units (with the bilinear fractions on `weights`), `addr8` for mipmapped
     /// ones (with `filter8`'s weights on `weights5`).
     pub fn texaddr(&self, varyings: Varyings) -> Result<Kernel, MachineRequirementError> {
@@ -224,7 +262,8 @@ impl FragmentProgram {
                     b.write(w, beta);
                 }
                 Filter::Trilinear => {
-                    let (d1, d2, f) = level_of_detail(&mut b, u, &v[5..9]);
+                    let at = varyings.derivatives_at();
+                    let (d1, d2, f) = level_of_detail(&mut b, u, &v[at..at + 4]);
                     let mut fractions = Vec::new();
                     for d in [d1, d2] {
                         let level = Level::at(&mut b, u, d);
@@ -555,4 +594,72 @@ fn pack(b: &mut KernelBuilder, channels: [Value; 4]) -> Value {
         word = b.or(word, byte);
     }
     word
+}
+
+/// The marble shader's parameters for `object` of `scene` (see the module notes), in the
+/// kernel's order: frequency, turbulence scale, L, H, ambient, specular.
+pub fn marble_params(scene: &Scene, object: &Object, marble: &Marble) -> Vec<u32> {
+    let m = &scene.materials[object.material];
+    let model = object.model.map(f64::from);
+    let view = scene.camera_for(object).view.map(f64::from);
+    let upper = |m: &[f64; 16]| -> [[f64; 3]; 3] {
+        std::array::from_fn(|i| std::array::from_fn(|j| m[4 * i + j]))
+    };
+    let column = |m: &[f64; 16]| [m[3], m[7], m[11]];
+    let origin = column(&model);
+    // The eye: V⁻¹·(0, 0, 0, 1) = −A_V⁻¹·t_V.
+    let eye = apply(&inverse3(&upper(&view)), column(&view)).map(|c| -c);
+    let to_object = inverse3(&upper(&model));
+    let direction = |to: [f64; 3]| {
+        let d = apply(&to_object, std::array::from_fn(|k| to[k] - origin[k]));
+        normalized(d)
+    };
+    let (light, half) = match scene.lights.first() {
+        Some(l) => {
+            let light = direction(l.position.map(f64::from));
+            let viewer = direction(eye);
+            (
+                light,
+                normalized(std::array::from_fn(|k| light[k] + viewer[k])),
+            )
+        }
+        None => ([0.0; 3], [0.0; 3]),
+    };
+    let mean = |c: [f32; 3]| c.iter().map(|&x| f64::from(x)).sum::<f64>() / 3.0;
+    [
+        f64::from(marble.frequency),
+        f64::from(marble.turbulence_scale),
+    ]
+    .into_iter()
+    .chain(light)
+    .chain(half)
+    .chain([mean(m.ambient), mean(m.specular)])
+    .map(|x| (x as f32).to_bits())
+    .collect()
+}
+
+/// The inverse of a 3 × 3 matrix (its adjugate over its determinant).
+fn inverse3(a: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let cof = |i: usize, j: usize| {
+        let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
+        let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
+        a[r0][c0] * a[r1][c1] - a[r0][c1] * a[r1][c0]
+    };
+    let det = a[0][0] * cof(0, 0) + a[0][1] * cof(0, 1) + a[0][2] * cof(0, 2);
+    // The inverse is the transposed cofactor matrix over the determinant.
+    std::array::from_fn(|i| std::array::from_fn(|j| cof(j, i) / det))
+}
+
+fn apply(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
+}
+
+/// `v / |v|`, or zero for a zero vector.
+fn normalized(v: [f64; 3]) -> [f64; 3] {
+    let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if length > 0.0 {
+        v.map(|c| c / length)
+    } else {
+        [0.0; 3]
+    }
 }
