@@ -44,6 +44,14 @@
 //! every cluster the same word, which it writes to its scratchpad (one read and one write
 //! per cycle; no word waits in an LRF).
 //!
+//! [`build_fragment`] is the same shader as the OpenGL pipeline's fragment program for
+//! `shader = "marble"` (library name `marble`): it reads `irast`'s varyings records
+//! (r, g, b, dropped; the object-space position and normal; any further words of the
+//! frame, dropped) and writes the packed RGBA8 colour. The pipeline feeds it Perlin's own
+//! permutation ([`PERLIN_PERMUTATION`]) from DRAM, and its parameters as
+//! [`crate::opengl::fragment_program`] describes. Its loop is 1031 arithmetic ops (663 on
+//! the adders, 368 on the multipliers) and 120 scratchpad reads per fragment.
+//!
 //! `floor` is `ftoi32_trunc`, back to fp32 and one less where that rounded up (negative
 //! non-integers); it holds for |x| < 2^31. The loop body has no divide or square root.
 
