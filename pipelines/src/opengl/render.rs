@@ -36,7 +36,11 @@
 //! kernel holds, light passes after it, deferred with it, that hand partial records on in
 //! the SRF), `viewport_cull` for the scene's cull mode, `zcompare` for its depth test;
 //! `sort32` and `mergefrag` are compiled only if a round needs them (and never for depth
-//! tests other than LESS, whose minimum they implement). `--no-specialize` builds the
+//! tests other than LESS, whose minimum they implement); fragment programs only when an
+//! object is textured or marble (then every object has one: see
+//! [`super::fragment_program`]; a marble frame loads Perlin's permutation table into the
+//! SRF once, before its first batch, and writes the marble parameters at each batch of a
+//! marble object). `--no-specialize` builds the
 //! general pipeline instead: every vertex carries position, normal or colour, specular
 //! lighting always, and every kernel compiled up front.
 
@@ -207,14 +211,15 @@ struct Streams {
     newaddr: StreamId,
     conflict: StreamId,
     conflicts: StreamId,
-    /// The fragment program's streams (textured frames).
+    /// The fragment program's streams (frames with textures or marble).
     texturing: Option<TexturingStreams>,
     chunk: usize,
 }
 
-/// A chunk's streams between `irast` and the composite in a textured frame: the
-/// interpolated values, then the fragment program's address, weight and texel streams
-/// (texels are gathered over their addresses).
+/// A chunk's streams between `irast` and the composite in a frame with fragment programs:
+/// the interpolated values, then the fragment program's address, weight and texel streams
+/// (texels are gathered over their addresses), and the marble program's table and
+/// parameters.
 struct TexturingStreams {
     varyings: StreamId,
     addr: Option<StreamId>,
@@ -485,8 +490,8 @@ struct Kernels {
     clear: KernelId,
     /// `sort32` and `mergefrag`, when the depth test allows merging.
     merge: Option<(KernelId, KernelId)>,
-    /// Per object (textured frames): its fragment program's `texaddr` (none without
-    /// textures) and `fragment` kernels.
+    /// Per object (frames with fragment programs): its program's `texaddr` (none without
+    /// textures) and `fragment` kernels (`marble` for marble objects).
     fragment: Vec<(Option<KernelId>, KernelId)>,
     /// `filter8`, when a texture is mipmapped.
     filter8: Option<KernelId>,
@@ -757,7 +762,8 @@ pub struct PipelinePlan {
     merge: bool,
     /// What vertices carry beyond position and colour.
     pub varyings: Varyings,
-    /// Per object, in a textured frame, its fragment program (none in other frames).
+    /// Per object, in a frame with fragment programs (textures or marble), its program
+    /// (none in other frames).
     pub fragment_programs: Vec<Option<FragmentProgram>>,
     /// Where the textures lie in DRAM.
     pub textures: TextureMemory,
@@ -1787,7 +1793,7 @@ impl FrameRun<'_> {
         let varyings = p.first(t.varyings, len);
         let fp = self.fragment_programs[object]
             .as_ref()
-            .expect("a textured frame has a fragment program per object");
+            .expect("a frame with fragment programs has one per object");
         let per_fragment = |id: Option<StreamId>, words: usize| {
             id.filter(|_| words > 0).map(|id| p.words(id, len * words))
         };

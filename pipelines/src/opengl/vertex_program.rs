@@ -205,11 +205,10 @@ impl VertexProgram {
     /// The name it is registered and reported under.
     pub fn name(&self) -> String {
         let base = self.base_name();
-        match self.extras() {
-            0 => base,
-            2 if !matches!(self, VertexProgram::Marble { .. }) => format!("{base}_tex"),
-            n if matches!(self, VertexProgram::Marble { .. }) && n == 6 => base,
-            n => format!("{base}_x{n}"),
+        match (self, self.extras()) {
+            (_, 0) | (VertexProgram::Marble { .. }, 6) => base,
+            (_, 2) => format!("{base}_tex"),
+            (_, n) => format!("{base}_x{n}"),
         }
     }
 
