@@ -626,6 +626,7 @@ fn kernel_library_list_show_check() {
         "transform",
         "vertex",
         "turbulence",
+        "marble",
         "prefix_sum",
         "compact",
         "hash",

@@ -61,9 +61,8 @@ fn schedules_stay_near_their_bounds() {
             "compact" => mii + 1,
             // (turbulence: 283 by Rau's scheduler alone, 268 with modulo list scheduling and
             // relaxed waits, 218 by local search.)
-            "transform" | "prefix_sum" | "hash" | "vertex" | "sort32" | "merge" | "turbulence" => {
-                mii
-            }
+            "transform" | "prefix_sum" | "hash" | "vertex" | "sort32" | "merge" | "turbulence"
+            | "marble" => mii,
             _ => mii * 3,
         };
         assert!(ii >= mii, "{}: II {ii} below its bound {mii}", lk.name);

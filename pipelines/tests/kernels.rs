@@ -364,6 +364,41 @@ fn turbulence_matches_reference() {
     }
 }
 
+/// The marble fragment program reads irast's varyings (r, g, b dropped, then the
+/// turbulence kernel's record) and packs the shader's colour as RGBA8.
+#[test]
+fn marble_fragment_is_turbulence_packed() {
+    for name in MACHINES {
+        let desc = machine(name);
+        let c = desc.cluster.count;
+        let rows = if c == 1 { 16 } else { 2 };
+        let (inputs, out) = run("marble", &desc, rows, 17);
+        let table = doubled_table(&kernels::turbulence::table_of(&inputs.streams[1], c));
+        let params = floats(&inputs.params);
+        let k = kernels::turbulence::MARBLE_RECORD_WORDS;
+        let n = inputs.streams[0].len() / k;
+        let want: Vec<u32> = (0..n)
+            .map(|e| {
+                let f = floats(&record(&inputs.streams[0], e, k, c)[3..]);
+                let rgb = marble_reference(&table, &params, &f);
+                let byte = |ch: usize| ((rgb[ch] * 255.0 + 0.5) as u32) << (8 * ch);
+                0xFF00_0000 | byte(0) | byte(1) | byte(2)
+            })
+            .collect();
+        // One word per fragment: element order is the stream's.
+        assert_words(&format!("marble on {name}"), &out[2], &want);
+    }
+}
+
+#[test]
+fn perlins_permutation_is_a_permutation() {
+    let mut seen = [false; 256];
+    for &p in &kernels::turbulence::PERLIN_PERMUTATION {
+        assert!(!seen[p as usize], "{p} twice");
+        seen[p as usize] = true;
+    }
+}
+
 #[test]
 fn turbulence_noise_is_perlins() {
     // The reference's weighted-sum interpolation agrees with Perlin's nested lerps (to

@@ -27,14 +27,14 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             lights: 3,
             specular: true,
             shininess: 16,
-            texcoords: false,
+            extras: 0,
         };
         // The most lights a scene has: the first kernel's three, then a pass of five.
         let lit8 = VertexProgram::Lit {
             lights: 8,
             specular: true,
             shininess: 16,
-            texcoords: false,
+            extras: 0,
         };
         let lit8_passes = lit8.passes(&desc);
         assert_eq!(lit8_passes.len(), 1);
@@ -46,7 +46,7 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             lit8_passes[0].clone(),
             VertexProgram::Unlit {
                 per_vertex_colour: true,
-                texcoords: false,
+                extras: 0,
             }
             .build(&desc),
             kernels::clear(&desc).unwrap(),
@@ -435,7 +435,7 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
     sphere.objects[0].model = random_matrix;
     let unlit = VertexProgram::Unlit {
         per_vertex_colour: false,
-        texcoords: false,
+        extras: 0,
     };
     let lit = VertexProgram::for_object(&sphere, &sphere.objects[0], false).unwrap();
     for name in ["gold1", "gold8", "gold32"] {

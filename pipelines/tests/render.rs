@@ -433,3 +433,52 @@ fn a_frame_of_kernels_held_for_the_longest_minimum_time_finishes() {
     let quick = render_with(&scene, &MachineDesc::gold8(), cached(), None, |_, _| {}).unwrap();
     assert_eq!(f.pixels, quick.pixels);
 }
+
+/// Marble materials: their keys parse with defaults, only marble takes them, marble takes
+/// no textures, and a marble object needs normals (the error names it).
+#[test]
+fn marble_materials_are_checked_by_name() {
+    use imagine_pipelines::scene::model::{Marble, Shader};
+    let text = |material: &str| {
+        format!(
+            "[window]\nwidth = 16\nheight = 16\n\
+             [[texture]]\nname = \"t\"\nprocedural = {{ kind = \"checker\" }}\n\
+             [[material]]\nname = \"m\"\n{material}\n\
+             [[object]]\nname = \"ball\"\nprimitive = {{ kind = \"icosphere\", subdivisions = 1 }}\n\
+             material = \"m\"\n"
+        )
+    };
+    let parse = |material: &str| {
+        scene::file::parse(
+            &text(material),
+            std::path::Path::new("m.toml"),
+            &LoadOptions::default(),
+        )
+    };
+    let s = parse("shader = \"marble\"").unwrap();
+    assert_eq!(s.materials[0].shader, Shader::Marble(Marble::DEFAULT));
+    let s = parse("shader = \"marble\"\nfrequency = 2.5").unwrap();
+    let Shader::Marble(m) = s.materials[0].shader else {
+        panic!("marble")
+    };
+    assert_eq!((m.frequency, m.turbulence_scale), (2.5, 5.0));
+    for (material, words) in [
+        (
+            "shader = \"lit\"\nfrequency = 2.0",
+            ["material[0].frequency", "marble"],
+        ),
+        (
+            "shader = \"marble\"\ntextures = [\"t\"]",
+            ["material[0].textures", "no textures"],
+        ),
+    ] {
+        let e = parse(material).unwrap_err().to_string();
+        assert!(words.iter().all(|w| e.contains(w)), "{e}");
+    }
+    let mut s = parse("shader = \"marble\"").unwrap();
+    s.objects[0].mesh.normals.clear();
+    let e = render_with(&s, &MachineDesc::gold8(), cached(), None, |_, _| {})
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("`ball`") && e.contains("normals"), "{e}");
+}

@@ -234,6 +234,7 @@ pub fn describe(s: &Scene) -> Description {
         let shader = match m.shader {
             Shader::Unlit => "unlit",
             Shader::Lit => "lit",
+            Shader::Marble(_) => "marble",
         };
         let mode = match m.texture_mode {
             TextureMode::Modulate => "modulate",
@@ -252,6 +253,12 @@ pub fn describe(s: &Scene) -> Description {
                 v3(m.diffuse),
                 v3(m.specular),
                 m.shininess
+            );
+        }
+        if let Shader::Marble(marble) = m.shader {
+            l += &format!(
+                ", frequency {}, turbulence_scale {}",
+                marble.frequency, marble.turbulence_scale
             );
         }
         if !tex.is_empty() {

@@ -2,6 +2,7 @@
 //! (ARCHITECTURE §6).
 
 pub mod image;
+pub mod marble;
 #[cfg(feature = "osmesa")]
 pub mod osmesa;
 pub mod reference;

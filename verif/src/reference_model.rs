@@ -15,6 +15,8 @@
 //!
 //! * [`Shader::Unlit`]: the mesh's vertex colour, or the object's colour when the mesh has
 //!   none.
+//! * [`Shader::Marble`]: white at the vertices; the fragment's colour is the marble shader
+//!   ([`crate::marble`]) at its perspective-correct object-space position and normal.
 //! * [`Shader::Lit`]: OpenGL 1.x fixed-function lighting in eye space ([`lit_colour`]),
 //!   as `glLightfv(GL_POSITION)` with the camera's view loaded leaves the lights: each
 //!   light's eye position is `view · (position, 1)` with the *camera's* view (also for
@@ -82,6 +84,7 @@
 //! never stored: the framebuffer is RGB.
 
 use crate::image::{Image, quantise};
+use crate::marble::MarbleShading;
 use crate::reference::{self, Fragment, Sample, TieRule, V3, cross, dot, normalize, widen};
 use imagine_pipelines::scene::SceneError;
 use imagine_pipelines::scene::mipmap::{self, Level};
@@ -269,6 +272,13 @@ pub fn check(scene: &model::Scene) -> Result<(), SceneError> {
                 scene.materials[object.material].name
             ));
         }
+        let marble = matches!(scene.materials[object.material].shader, Shader::Marble(_));
+        if marble && mesh.normals.len() != n {
+            return bad(format!(
+                "marble needs normals: {} for {n} positions",
+                mesh.normals.len()
+            ));
+        }
         if let Some(t) = mesh
             .triangles
             .iter()
@@ -351,6 +361,7 @@ fn object_corner_colours(
             let colour = |i: u32| widen(*mesh.colours.get(i as usize).unwrap_or(&object.colour));
             mesh.triangles.iter().map(|t| t.map(colour)).collect()
         }
+        Shader::Marble(_) => vec![[[1.0; 3]; 3]; mesh.triangles.len()],
         Shader::Lit => {
             let mv = modelview(scene, object);
             let nm = normal_matrix(&mv);
@@ -399,6 +410,7 @@ pub fn vertex_colours(scene: &model::Scene, index: usize) -> Result<Vec<[f64; 3]
         Shader::Unlit => Ok((0..mesh.positions.len())
             .map(|i| widen(*mesh.colours.get(i).unwrap_or(&object.colour)))
             .collect()),
+        Shader::Marble(_) => Ok(vec![[1.0; 3]; mesh.positions.len()]),
         Shader::Lit if mesh.normals.is_empty() => Err(error(
             scene,
             format!(
@@ -624,6 +636,8 @@ pub fn for_each_fragment(
             .filter_map(|&t| samplers[t].as_ref())
             .collect();
         let mesh = &object.mesh;
+        // Marble shades from the perspective-correct barycentrics.
+        let marble = MarbleShading::of(scene, object);
         for (triangle, (t, col)) in mesh.triangles.iter().zip(&colours).enumerate() {
             let c = t.map(|i| clip[i as usize]);
             let texcoords = if units.is_empty() {
@@ -638,11 +652,28 @@ pub fn for_each_fragment(
                 rule,
                 |sample| {
                     let l = sample.barycentrics;
-                    let colour = std::array::from_fn(|k| {
-                        l[0] * col[0][k] + l[1] * col[1][k] + l[2] * col[2][k]
-                    });
-                    let [r, g, b, a] =
-                        textured_colour(colour, &units, material.texture_mode, sample, &texcoords);
+                    let [r, g, b, a] = match &marble {
+                        Some(m) => {
+                            let at = |v: &[[f32; 3]]| -> V3 {
+                                std::array::from_fn(|k| {
+                                    (0..3)
+                                        .map(|corner| {
+                                            l[corner] * f64::from(v[t[corner] as usize][k])
+                                        })
+                                        .sum()
+                                })
+                            };
+                            let [r, g, b] = m.colour(at(&mesh.positions), at(&mesh.normals));
+                            [r, g, b, 1.0]
+                        }
+                        None => {
+                            let colour = std::array::from_fn(|k| {
+                                l[0] * col[0][k] + l[1] * col[1][k] + l[2] * col[2][k]
+                            });
+                            let mode = material.texture_mode;
+                            textured_colour(colour, &units, mode, sample, &texcoords)
+                        }
+                    };
                     f(&ObjectFragment {
                         object: index,
                         fragment: Fragment {

@@ -14,6 +14,7 @@
 //! | [`transform`] | 4×4 matrix times a homogeneous position |
 //! | [`vertex`] | the SPHERE vertex program: transform plus three-light Blinn-Phong lighting |
 //! | [`turbulence`] | the MARBLE shader: four octaves of Perlin improved noise, marble colour ramp |
+//! | `marble` ([`turbulence::build_fragment`]) | `turbulence` as the OpenGL pipeline's fragment program: `irast`'s varyings in, packed RGBA8 out |
 //! | [`prefix_sum`] | inclusive prefix sum of an int32 stream |
 //! | [`compact`] | keeps the fp32 words below a threshold, in order |
 //! | [`hash`] | the composite stamp test of the OpenGL pipeline (per-cluster 32×32 stamp) |
@@ -67,6 +68,12 @@ static LIBRARY: &[LibraryKernel] = &[
         description: "MARBLE shader: four octaves of Perlin improved noise and a marble ramp",
         build: turbulence::build,
         inputs: turbulence::inputs,
+    },
+    LibraryKernel {
+        name: "marble",
+        description: "MARBLE fragment program: turbulence on irast's varyings, packed RGBA8 out",
+        build: turbulence::build_marble,
+        inputs: turbulence::marble_inputs,
     },
     LibraryKernel {
         name: "prefix_sum",

@@ -68,14 +68,25 @@ impl Unit {
     }
 }
 
-/// A textured material's fragment program.
+/// A textured material's fragment program, or (`marble`) the marble shader (built by
+/// [`super::turbulence::build_fragment`]).
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct FragmentProgram {
     pub units: Vec<Unit>,
     pub mode: TextureMode,
+    pub marble: bool,
 }
 
 impl FragmentProgram {
+    /// The marble shader's program.
+    pub fn marble() -> FragmentProgram {
+        FragmentProgram {
+            units: Vec::new(),
+            mode: TextureMode::Modulate,
+            marble: true,
+        }
+    }
+
     /// Texel words `texaddr` asks for per fragment outside mipmapped units (1 per
     /// point-sampled unit, 4 per bilinear one).
     pub fn direct_fetches(&self) -> usize {
@@ -113,6 +124,9 @@ impl FragmentProgram {
 
     /// A name unique to the program (its kernels are `texaddr_…` and `fragment_…`).
     pub fn name(&self) -> String {
+        if self.marble {
+            return "marble".into();
+        }
         let mut name = String::new();
         for u in &self.units {
             let f = match u.filter {
@@ -133,11 +147,15 @@ impl FragmentProgram {
         name
     }
 
-    /// The depth-1 kernel: per fragment (`varyings`: r, g, b, s, t and, when mipmapped, the
-    /// derivatives), the texel addresses of every unit — `addr` for point-sampled and
+    /// The depth-1 kernel: per fragment (`varyings`: r, g, b, s, t, any further words, and
+    /// when mipmapped the derivatives at `derivatives_at`), the texel addresses of every unit — `addr` for point-sampled and
     /// bilinear units (with the bilinear fractions on `weights`), `addr8` for mipmapped
     /// ones (with `filter8`'s weights on `weights5`).
-    pub fn texaddr(&self, fragment_words: usize) -> Result<Kernel, MachineRequirementError> {
+    pub fn texaddr(
+        &self,
+        fragment_words: usize,
+        derivatives_at: usize,
+    ) -> Result<Kernel, MachineRequirementError> {
         let mut b = KernelBuilder::new("texaddr");
         let input = b.input("varyings");
         let addr = (self.direct_fetches() > 0).then(|| b.output("addr"));
@@ -168,7 +186,8 @@ impl FragmentProgram {
                     b.write(w, beta);
                 }
                 Filter::Trilinear => {
-                    let (d1, d2, f) = level_of_detail(&mut b, u, &v[5..9]);
+                    let (d1, d2, f) =
+                        level_of_detail(&mut b, u, &v[derivatives_at..derivatives_at + 4]);
                     let mut fractions = Vec::new();
                     for d in [d1, d2] {
                         let level = Level::at(&mut b, u, d);
@@ -516,6 +535,7 @@ fn example() -> FragmentProgram {
             unit(Filter::Trilinear, Wrap::Repeat, 256, 128, 4096),
         ],
         mode: TextureMode::Modulate,
+        marble: false,
     }
 }
 
@@ -524,7 +544,7 @@ const EXAMPLE_WORDS: usize = 9;
 
 /// `texaddr` for [`example`].
 pub fn texaddr_example(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
-    example().texaddr(EXAMPLE_WORDS)
+    example().texaddr(EXAMPLE_WORDS, 5)
 }
 
 /// `fragment` for [`example`].

@@ -44,6 +44,14 @@
 //! every cluster the same word, which it writes to its scratchpad (one read and one write
 //! per cycle; no word waits in an LRF).
 //!
+//! [`build_fragment`] is the same shader as the OpenGL pipeline's fragment program for
+//! `shader = "marble"` (library name `marble`): it reads `irast`'s varyings records
+//! (r, g, b, dropped; the object-space position and normal; any further words of the
+//! frame, dropped) and writes the packed RGBA8 colour. The pipeline feeds it Perlin's own
+//! permutation ([`PERLIN_PERMUTATION`]) from DRAM, and its parameters as
+//! [`crate::opengl::fragment_program`] describes. Its loop is 1031 arithmetic ops (663 on
+//! the adders, 368 on the multipliers) and 120 scratchpad reads per fragment.
+//!
 //! `floor` is `ftoi32_trunc`, back to fp32 and one less where that rounded up (negative
 //! non-integers); it holds for |x| < 2^31. The loop body has no divide or square root.
 
@@ -54,7 +62,8 @@ use imagine_units::ops::Op;
 
 use super::{finish, records_to_stream, uniform, uniform_words};
 use crate::kernel::{
-    Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, Ty, Value,
+    Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, StreamId, Ty,
+    Value,
 };
 
 /// Entries of the permutation table (scratchpad words `0..TABLE`).
@@ -324,9 +333,9 @@ fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {
 
 /// Needs a cluster count that divides the table's 256 entries (it loads the table in rows)
 /// and a scratchpad that holds the table.
-pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+fn check_machine(desc: &MachineDesc, name: &str) -> Result<(), MachineRequirementError> {
     let clusters = desc.cluster.count;
-    let needs = Needs::new("turbulence", desc);
+    let needs = Needs::new(name, desc);
     if !TABLE.is_multiple_of(clusters) {
         return Err(needs.error(
             format!(
@@ -337,16 +346,30 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
         ));
     }
     needs.scratchpad_words(TABLE, "the permutation table", false)?;
-    let mut b = KernelBuilder::new("turbulence");
-    let fragments = b.input("fragments");
-    let perm = b.input("perm");
-    let colours = b.output("colours");
-    let frequency = b.param_f32("frequency");
-    let turbulence_scale = b.param_f32("turbulence_scale");
-    let light = ["x", "y", "z"].map(|c| b.param_f32(&format!("light_{c}")));
-    let half_vector = ["x", "y", "z"].map(|c| b.param_f32(&format!("half_{c}")));
-    let ambient = b.param_f32("ambient");
-    let specular = b.param_f32("specular");
+    Ok(())
+}
+
+/// The shader's parameters, declared in stream order (see the module notes).
+struct Params {
+    frequency: Value,
+    turbulence_scale: Value,
+    light: Vec3,
+    half_vector: Vec3,
+    ambient: Value,
+    specular: Value,
+}
+
+/// Parameters, ramp colours and constants, and the table's load into the scratchpad: what
+/// comes before the loop.
+fn prologue(b: &mut KernelBuilder) -> (Params, Vec<[Value; 3]>, Constants) {
+    let params = Params {
+        frequency: b.param_f32("frequency"),
+        turbulence_scale: b.param_f32("turbulence_scale"),
+        light: ["x", "y", "z"].map(|c| b.param_f32(&format!("light_{c}"))),
+        half_vector: ["x", "y", "z"].map(|c| b.param_f32(&format!("half_{c}"))),
+        ambient: b.param_f32("ambient"),
+        specular: b.param_f32("specular"),
+    };
     // Control colours times their binomial weights (one fp32 multiply, as the machine's).
     let ramp: Vec<[Value; 3]> = (0..RAMP)
         .map(|i| {
@@ -354,22 +377,32 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
             RAMP_COLOURS[i].map(|c| b.f32(c * weight))
         })
         .collect();
-    let k = Constants::new(&mut b);
-    let zero = b.f32(0.0);
+    let k = Constants::new(b);
+    (params, ramp, k)
+}
 
+fn load_table(b: &mut KernelBuilder, perm: StreamId) {
     for entry in 0..TABLE {
         let word = b.read_i32(perm);
         b.sp_write(entry as u16, None, word);
     }
+}
 
-    b.begin_loop(LoopSpec::OverStream(fragments));
-    let p: Vec3 = std::array::from_fn(|_| b.read_f32(fragments));
-    let normal: Vec3 = std::array::from_fn(|_| b.read_f32(fragments));
-    let turbulence = turbulence(&mut b, &k, p);
-    let along = b.fmul(p[0], frequency);
-    let perturbation = b.fmul(turbulence, turbulence_scale);
+/// The lit marble colour (r, g, b in [0, 1]) of shading position `p` with normal `normal`.
+fn shade(
+    b: &mut KernelBuilder,
+    k: &Constants,
+    params: &Params,
+    ramp: &[[Value; 3]],
+    zero: Value,
+    p: Vec3,
+    normal: Vec3,
+) -> [Value; 3] {
+    let turbulence = turbulence(b, k, p);
+    let along = b.fmul(p[0], params.frequency);
+    let perturbation = b.fmul(turbulence, params.turbulence_scale);
     let angle = b.fadd(along, perturbation);
-    let s = sine(&mut b, &k, angle);
+    let s = sine(b, k, angle);
     let half = b.f32(0.5);
     let u = b.fmadd(s, half, half);
     let one_minus_u = b.fsub(k.one_f, u);
@@ -382,8 +415,8 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
         }
         v
     };
-    let up = powers(&mut b, u);
-    let down = powers(&mut b, one_minus_u);
+    let up = powers(b, u);
+    let down = powers(b, one_minus_u);
     let degree = RAMP - 1;
     let basis: Vec<Value> = (0..RAMP)
         .map(|i| match i {
@@ -393,20 +426,20 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
         })
         .collect();
 
-    let n = normalize(&mut b, normal);
-    let n_dot_l = dot(&mut b, n, light);
+    let n = normalize(b, normal);
+    let n_dot_l = dot(b, n, params.light);
     let diffuse = b.fmax(n_dot_l, zero);
-    let lit = b.fadd(ambient, diffuse);
-    let n_dot_h = dot(&mut b, n, half_vector);
+    let lit = b.fadd(params.ambient, diffuse);
+    let n_dot_h = dot(b, n, params.half_vector);
     let mut highlight = b.fmax(n_dot_h, zero);
     for _ in 0..4 {
         highlight = b.fmul(highlight, highlight);
     }
-    let highlight = b.fmul(highlight, specular);
+    let highlight = b.fmul(highlight, params.specular);
 
-    for ch in 0..3 {
+    std::array::from_fn(|ch| {
         let mut colour = None;
-        for (&weight, control) in basis.iter().zip(&ramp) {
+        for (&weight, control) in basis.iter().zip(ramp) {
             let term = b.fmul(weight, control[ch]);
             colour = Some(match colour {
                 None => term,
@@ -417,11 +450,110 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
         let colour = b.fmul(colour, lit);
         let colour = b.fadd(colour, highlight);
         let colour = b.fmax(colour, zero);
-        let colour = b.fmin(colour, k.one_f);
-        b.write(colours, colour);
+        b.fmin(colour, k.one_f)
+    })
+}
+
+/// The library kernel: `fragments` (x, y, z, nx, ny, nz) and `perm` in, `colours`
+/// (r, g, b) out. Needs a cluster count that divides the table's 256 entries (it loads the
+/// table in rows) and a scratchpad that holds the table.
+pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+    check_machine(desc, "turbulence")?;
+    let mut b = KernelBuilder::new("turbulence");
+    let fragments = b.input("fragments");
+    let perm = b.input("perm");
+    let colours = b.output("colours");
+    let (params, ramp, k) = prologue(&mut b);
+    let zero = b.f32(0.0);
+    load_table(&mut b, perm);
+
+    b.begin_loop(LoopSpec::OverStream(fragments));
+    let p: Vec3 = std::array::from_fn(|_| b.read_f32(fragments));
+    let normal: Vec3 = std::array::from_fn(|_| b.read_f32(fragments));
+    for c in shade(&mut b, &k, &params, &ramp, zero, p, normal) {
+        b.write(colours, c);
     }
     b.end_loop();
     Ok(finish(b))
+}
+
+/// Words of the `varyings` record of a frame whose only fragment programs are marble: r,
+/// g, b, then x, y, z, nx, ny, nz.
+pub const MARBLE_RECORD_WORDS: usize = 9;
+
+/// `marble`: the shader as the OpenGL pipeline's fragment program (depth 0, no lookups).
+/// Per fragment it reads the `varyings` record `irast` writes (`record_words` words: r, g,
+/// b, which it drops, then the object-space shading position and normal, then any further
+/// words of the frame, dropped) and writes the packed RGBA8 `colour` (each channel
+/// `⌊255·c + ½⌋`, alpha 255) the composite expects. The table comes in on `perm` as for
+/// [`build`]; the parameters are [`build`]'s.
+pub fn build_fragment(
+    desc: &MachineDesc,
+    record_words: usize,
+) -> Result<Kernel, MachineRequirementError> {
+    assert!(
+        record_words >= MARBLE_RECORD_WORDS,
+        "r, g, b, position and normal"
+    );
+    check_machine(desc, "marble")?;
+    let mut b = KernelBuilder::new("marble");
+    let varyings = b.input("varyings");
+    let perm = b.input("perm");
+    let colour_out = b.output("colour");
+    let (params, ramp, k) = prologue(&mut b);
+    let zero = b.f32(0.0);
+    let (half, scale) = (b.f32(0.5), b.f32(255.0));
+    let alpha = b.word(0xFF00_0000);
+    load_table(&mut b, perm);
+
+    b.begin_loop(LoopSpec::OverStream(varyings));
+    let record: Vec<Value> = (0..record_words).map(|_| b.read_f32(varyings)).collect();
+    let p: Vec3 = std::array::from_fn(|i| record[3 + i]);
+    let normal: Vec3 = std::array::from_fn(|i| record[6 + i]);
+    let colour = shade(&mut b, &k, &params, &ramp, zero, p, normal);
+    let mut packed = alpha;
+    for (ch, c) in colour.into_iter().enumerate() {
+        let c = b.fmul(c, scale);
+        let c = b.fadd(c, half);
+        let byte = b.ftoi_trunc(c);
+        let shift = b.i32(8 * ch as i32);
+        let byte = b.shl(byte, shift);
+        packed = b.or(packed, byte);
+    }
+    b.write(colour_out, packed);
+    b.end_loop();
+    Ok(finish(b))
+}
+
+/// [`build_fragment`] for the record of a marble-only frame (the library's `marble`).
+pub fn build_marble(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+    build_fragment(desc, MARBLE_RECORD_WORDS)
+}
+
+/// Perlin's permutation (the table of his reference implementation of improved noise),
+/// the one the OpenGL pipeline's `marble` fragment program uses.
+pub const PERLIN_PERMUTATION: [u8; TABLE] = [
+    151, 160, 137, 91, 90, 15, 131, 13, 201, 95, 96, 53, 194, 233, 7, 225, 140, 36, 103, 30, 69,
+    142, 8, 99, 37, 240, 21, 10, 23, 190, 6, 148, 247, 120, 234, 75, 0, 26, 197, 62, 94, 252, 219,
+    203, 117, 35, 11, 32, 57, 177, 33, 88, 237, 149, 56, 87, 174, 20, 125, 136, 171, 168, 68, 175,
+    74, 165, 71, 134, 139, 48, 27, 166, 77, 146, 158, 231, 83, 111, 229, 122, 60, 211, 133, 230,
+    220, 105, 92, 41, 55, 46, 245, 40, 244, 102, 143, 54, 65, 25, 63, 161, 1, 216, 80, 73, 209, 76,
+    132, 187, 208, 89, 18, 169, 200, 196, 135, 130, 116, 188, 159, 86, 164, 100, 109, 198, 173,
+    186, 3, 64, 52, 217, 226, 250, 124, 123, 5, 202, 38, 147, 118, 126, 255, 82, 85, 212, 207, 206,
+    59, 227, 47, 16, 58, 17, 182, 189, 28, 42, 223, 183, 170, 213, 119, 248, 152, 2, 44, 154, 163,
+    70, 221, 153, 101, 155, 167, 43, 172, 9, 129, 22, 39, 253, 19, 98, 108, 110, 79, 113, 224, 232,
+    178, 185, 112, 104, 218, 246, 97, 228, 251, 34, 242, 193, 238, 210, 144, 12, 191, 179, 162,
+    241, 81, 51, 145, 235, 249, 14, 239, 107, 49, 192, 214, 31, 181, 199, 106, 157, 184, 84, 204,
+    176, 115, 121, 50, 45, 127, 4, 150, 254, 138, 236, 205, 93, 222, 114, 67, 29, 24, 72, 243, 141,
+    128, 195, 78, 66, 215, 61, 156, 180,
+];
+
+/// A `perm` stream of `table` for `clusters` clusters: each word once per cluster.
+pub fn perm_stream(table: &[u8], clusters: usize) -> Vec<u32> {
+    table
+        .iter()
+        .flat_map(|&w| std::iter::repeat_n(u32::from(w), clusters))
+        .collect()
 }
 
 /// The table a `perm` stream holds (each word is there once per cluster).
@@ -484,4 +616,22 @@ pub fn inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
         ],
         params,
     }
+}
+
+/// Inputs of [`build_marble`]: [`inputs`]' fragments as `varyings` records (a random
+/// colour in [0, 1) first, which the kernel drops), the same table and parameters.
+pub fn marble_inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
+    let c = desc.cluster.count;
+    let mut inputs = inputs(desc, rows, seed);
+    let mut rng = SplitMix64::new(seed ^ 0x6D61_7262_6C65);
+    let records: Vec<Vec<u32>> = super::stream_to_records(&inputs.streams[0], 6, c)
+        .into_iter()
+        .map(|r| {
+            let mut record = uniform_words(&mut rng, 3, 0.0, 1.0);
+            record.extend(r);
+            record
+        })
+        .collect();
+    inputs.streams[0] = records_to_stream(&records, c);
+    inputs
 }

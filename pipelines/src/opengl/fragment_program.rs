@@ -1,10 +1,31 @@
 //! A scene's textures on the machine: their mipmap pyramids laid out in one DRAM buffer
 //! (written by the host before the frame, a load phase, not frame time) and each textured
 //! material's fragment program ([`crate::kernels::texture`]) over that layout.
+//!
+//! **Marble** (`shader = "marble"`, MARBLE's procedural shader, Owens 2002 §5.1.1) is a
+//! depth-0 program without lookups: one kernel, `marble`
+//! ([`crate::kernels::turbulence::build_fragment`]), the project's `turbulence` shader
+//! reading `irast`'s varyings (the object-space shading position and normal) and writing
+//! the packed colour. Its permutation table is Perlin's
+//! ([`crate::kernels::turbulence::PERLIN_PERMUTATION`]), written by the host into DRAM
+//! when the scene loads (each word once per cluster, the layout the kernel reads) and
+//! loaded from there into the SRF once per frame. Its parameters ([`marble_params`]) are
+//! the material's `frequency` and `turbulence_scale`, lighting in object space from the
+//! scene's first light and the camera, treated as the shader's directional light and
+//! viewer at infinity: with `o` the object's origin in the world, `l` the light's
+//! position, `e` the eye (the view's inverse applied to the origin) and `A` the model
+//! matrix's upper 3 × 3, the light direction is `L = normalize(A⁻¹·(l − o))`, the
+//! direction to the viewer `V = normalize(A⁻¹·(e − o))`, the half vector
+//! `H = normalize(L + V)` (`n·(A⁻¹·d)` is `(A⁻ᵀ·n)·d`: the cosines are the world's, up to
+//! the normalisations, exact for rotations and uniform scales). Without a light
+//! `L = H = 0`. The ambient and specular intensities are the means of the material's
+//! `ambient` and `specular` colours; the diffuse weight is 1 and the exponent 16 (the
+//! material's `diffuse` and `shininess` and the lights' colours are not used). All of
+//! these are computed in f64 on the host and rounded to f32.
 
 use crate::kernels::texture::{FragmentProgram, Unit};
 use crate::scene::mipmap;
-use crate::scene::model::{Filter, Scene, Texture, TextureMode};
+use crate::scene::model::{Filter, Marble, Object, Scene, Texture, TextureMode};
 
 /// Where a scene's textures lie in the texture buffer.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -64,5 +85,77 @@ pub fn for_material(
             }
         })
         .collect();
-    FragmentProgram { units, mode }
+    FragmentProgram {
+        units,
+        mode,
+        marble: false,
+    }
+}
+
+/// The marble shader's parameters for `object` of `scene` (see the module notes), in the
+/// kernel's order: frequency, turbulence scale, L, H, ambient, specular.
+pub fn marble_params(scene: &Scene, object: &Object, marble: &Marble) -> Vec<u32> {
+    let m = &scene.materials[object.material];
+    let model = object.model.map(f64::from);
+    let view = scene.camera_for(object).view.map(f64::from);
+    let upper = |m: &[f64; 16]| -> [[f64; 3]; 3] {
+        std::array::from_fn(|i| std::array::from_fn(|j| m[4 * i + j]))
+    };
+    let column = |m: &[f64; 16]| [m[3], m[7], m[11]];
+    let origin = column(&model);
+    // The eye: V⁻¹·(0, 0, 0, 1) = −A_V⁻¹·t_V.
+    let eye = apply(&inverse3(&upper(&view)), column(&view)).map(|c| -c);
+    let to_object = inverse3(&upper(&model));
+    let direction = |to: [f64; 3]| {
+        let d = apply(&to_object, std::array::from_fn(|k| to[k] - origin[k]));
+        normalized(d)
+    };
+    let (light, half) = match scene.lights.first() {
+        Some(l) => {
+            let light = direction(l.position.map(f64::from));
+            let viewer = direction(eye);
+            (
+                light,
+                normalized(std::array::from_fn(|k| light[k] + viewer[k])),
+            )
+        }
+        None => ([0.0; 3], [0.0; 3]),
+    };
+    let mean = |c: [f32; 3]| c.iter().map(|&x| f64::from(x)).sum::<f64>() / 3.0;
+    [
+        f64::from(marble.frequency),
+        f64::from(marble.turbulence_scale),
+    ]
+    .into_iter()
+    .chain(light)
+    .chain(half)
+    .chain([mean(m.ambient), mean(m.specular)])
+    .map(|x| (x as f32).to_bits())
+    .collect()
+}
+
+/// The inverse of a 3 × 3 matrix (its adjugate over its determinant).
+fn inverse3(a: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let cof = |i: usize, j: usize| {
+        let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
+        let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
+        a[r0][c0] * a[r1][c1] - a[r0][c1] * a[r1][c0]
+    };
+    let det = a[0][0] * cof(0, 0) + a[0][1] * cof(0, 1) + a[0][2] * cof(0, 2);
+    // The inverse is the transposed cofactor matrix over the determinant.
+    std::array::from_fn(|i| std::array::from_fn(|j| cof(j, i) / det))
+}
+
+fn apply(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
+}
+
+/// `v / |v|`, or zero for a zero vector.
+fn normalized(v: [f64; 3]) -> [f64; 3] {
+    let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if length > 0.0 {
+        v.map(|c| c / length)
+    } else {
+        [0.0; 3]
+    }
 }

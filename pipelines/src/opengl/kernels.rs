@@ -98,37 +98,51 @@ impl FrameShape {
     }
 }
 
-/// What a frame's vertices carry beyond the clip position and the colour: texture
-/// coordinates (when any object is textured), and with them the per-triangle sums their
-/// screen-space derivatives need (when any texture is mipmapped).
+/// What a frame's vertices carry beyond the clip position and the colour: `extras` words
+/// per vertex, interpolated perspective-correctly for the fragment program (when any
+/// object has one) — texture coordinates s, t (2 words) for textured objects, the
+/// object-space shading position and normal x, y, z, nx, ny, nz (6 words) for marble ones,
+/// each object's padded with zeros to the frame's count — and with them the per-triangle
+/// sums the screen-space derivatives of the first two (s, t) need (when any texture is
+/// mipmapped).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Varyings {
-    pub texcoords: bool,
+    pub extras: usize,
     pub derivatives: bool,
 }
 
 impl Varyings {
-    /// Words of a shaded vertex: clip x, y, z, w, r, g, b, then s, t.
+    /// Whether fragments go through a fragment program (`irast` hands it their values).
+    pub fn fragment_program(self) -> bool {
+        self.extras > 0
+    }
+
+    /// Words of a shaded vertex: clip x, y, z, w, r, g, b, then the extras.
     pub fn shaded_words(self) -> usize {
-        7 + 2 * usize::from(self.texcoords)
+        7 + self.extras
     }
 
-    /// Words of an `attribs` record: [`ATTRIB_WORDS`], then s, t of each corner.
+    /// Words of an `attribs` record: [`ATTRIB_WORDS`], then the extras of each corner.
     pub fn attrib_words(self) -> usize {
-        ATTRIB_WORDS + 6 * usize::from(self.texcoords)
+        ATTRIB_WORDS + 3 * self.extras
     }
 
-    /// Words of an interpolation record: [`INTERP_WORDS`], then s, t of each corner, then
-    /// the derivative sums `ΣA, ΣB, Σs·A, Σs·B, Σt·A, Σt·B` over the edge functions
+    /// Words of an interpolation record: [`INTERP_WORDS`], then the extras of each corner,
+    /// then the derivative sums `ΣA, ΣB, Σs·A, Σs·B, Σt·A, Σt·B` over the edge functions
     /// `E_k = A_k·X + B_k·Y + C_k`.
     pub fn interp_words(self) -> usize {
-        INTERP_WORDS + 6 * usize::from(self.texcoords) + 6 * usize::from(self.derivatives)
+        INTERP_WORDS + 3 * self.extras + 6 * usize::from(self.derivatives)
     }
 
-    /// Words `irast` writes per fragment to `varyings` (textured frames): r, g, b, s, t,
-    /// then ∂s/∂X, ∂s/∂Y, ∂t/∂X, ∂t/∂Y.
+    /// Words `irast` writes per fragment to `varyings` (frames with a fragment program):
+    /// r, g, b, the extras, then ∂s/∂X, ∂s/∂Y, ∂t/∂X, ∂t/∂Y.
     pub fn fragment_words(self) -> usize {
-        5 + 4 * usize::from(self.derivatives)
+        3 + self.extras + 4 * usize::from(self.derivatives)
+    }
+
+    /// Where the derivatives start in a `varyings` record.
+    pub fn derivatives_at(self) -> usize {
+        3 + self.extras
     }
 }
 
@@ -617,7 +631,7 @@ pub fn baryprep(desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, Machin
     let index0 = b.carried(cluster);
     let z: [Value; 3] = std::array::from_fn(|_| b.read_f32(attribs));
     let colours: [Value; 9] = std::array::from_fn(|_| b.read_f32(attribs));
-    let texcoords: Vec<Value> = (0..6 * usize::from(varyings.texcoords))
+    let extras: Vec<Value> = (0..3 * varyings.extras)
         .map(|_| b.read_f32(attribs))
         .collect();
     // The edge functions' A and B (sign-normalised, as `xyrast` evaluates them).
@@ -639,8 +653,8 @@ pub fn baryprep(desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, Machin
         b.iadd(p, one)
     };
     b.write(interp, prim);
-    for &st in &texcoords {
-        b.write(interp, st);
+    for &x in &extras {
+        b.write(interp, x);
     }
     if let Some(e) = edges {
         // ΣA, ΣB, Σs·A, Σs·B, Σt·A, Σt·B: with them `irast` finds s's derivative
@@ -657,7 +671,10 @@ pub fn baryprep(desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, Machin
         for channel in 0..2 {
             for coefficient in 0..2 {
                 let terms: [Value; 3] = std::array::from_fn(|k| {
-                    b.fmul(texcoords[2 * k + channel], e[3 * k + coefficient])
+                    b.fmul(
+                        extras[varyings.extras * k + channel],
+                        e[3 * k + coefficient],
+                    )
                 });
                 let total = sum(&mut b, terms);
                 b.write(interp, total);
@@ -860,9 +877,9 @@ pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineR
     let e_in: [StreamId; 3] = ["e0", "e1", "e2"].map(|n| b.input(n));
     let interp = b.input("interp");
     let z_out = b.output("z");
-    // Textured frames hand the interpolated values to the fragment program instead of
-    // packing the colour here.
-    let (colour_out, varyings_out) = if varyings.texcoords {
+    // Frames with a fragment program hand it the interpolated values instead of packing
+    // the colour here.
+    let (colour_out, varyings_out) = if varyings.fragment_program() {
         (None, Some(b.output("varyings")))
     } else {
         (Some(b.output("colour")), None)
@@ -915,20 +932,25 @@ pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineR
         for &c in &channels {
             b.write(out, c);
         }
-        let st: Vec<Value> = (0..2)
-            .map(|ch| weighted(&mut b, &lambda, [rec[13 + ch], rec[15 + ch], rec[17 + ch]]))
+        let n = varyings.extras;
+        let extras: Vec<Value> = (0..n)
+            .map(|ch| {
+                let corners = std::array::from_fn(|k| rec[INTERP_WORDS + n * k + ch]);
+                weighted(&mut b, &lambda, corners)
+            })
             .collect();
-        for &v in &st {
+        for &v in &extras {
             b.write(out, v);
         }
         if varyings.derivatives {
             // ∂s/∂X = (Σs·A − s·ΣA)/ΣE, and so on (4 multiplies and 4 subtracts, then the
             // 4 multiplies by 1/ΣE).
-            let (sum_a, sum_b) = (rec[19], rec[20]);
-            for (ch, &value) in st.iter().enumerate() {
+            let sums = INTERP_WORDS + 3 * n;
+            let (sum_a, sum_b) = (rec[sums], rec[sums + 1]);
+            for (ch, &value) in extras[..2].iter().enumerate() {
                 for (k, total) in [sum_a, sum_b].into_iter().enumerate() {
                     let p = b.fmul(value, total);
-                    let d = b.fsub(rec[21 + 2 * ch + k], p);
+                    let d = b.fsub(rec[sums + 2 + 2 * ch + k], p);
                     let d = b.fmul(d, inv);
                     b.write(out, d);
                 }

@@ -36,7 +36,11 @@
 //! kernel holds, light passes after it, deferred with it, that hand partial records on in
 //! the SRF), `viewport_cull` for the scene's cull mode, `zcompare` for its depth test;
 //! `sort32` and `mergefrag` are compiled only if a round needs them (and never for depth
-//! tests other than LESS, whose minimum they implement). `--no-specialize` builds the
+//! tests other than LESS, whose minimum they implement); fragment programs only when an
+//! object is textured or marble (then every object has one: see
+//! [`super::fragment_program`]; a marble frame loads Perlin's permutation table into the
+//! SRF once, before its first batch, and writes the marble parameters at each batch of a
+//! marble object). `--no-specialize` builds the
 //! general pipeline instead: every vertex carries position, normal or colour, specular
 //! lighting always, and every kernel compiled up front.
 
@@ -58,8 +62,9 @@ use super::vertex_program::{self, VertexProgram};
 use crate::compile::CompileCache;
 use crate::kernel::MachineRequirementError;
 use crate::kernels::texture::{self, FragmentProgram};
+use crate::kernels::turbulence;
 use crate::scene::MAX_WINDOW;
-use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene};
+use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene, Shader};
 use crate::stream::{
     Buffer, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS, PlanError,
     SrfPlan, SrfPlanner, StreamHost, StreamId, live, pipelined, split_to_fit, strip_mine,
@@ -207,14 +212,15 @@ struct Streams {
     newaddr: StreamId,
     conflict: StreamId,
     conflicts: StreamId,
-    /// The fragment program's streams (textured frames).
+    /// The fragment program's streams (frames with textures or marble).
     texturing: Option<TexturingStreams>,
     chunk: usize,
 }
 
-/// A chunk's streams between `irast` and the composite in a textured frame: the
-/// interpolated values, then the fragment program's address, weight and texel streams
-/// (texels are gathered over their addresses).
+/// A chunk's streams between `irast` and the composite in a frame with fragment programs:
+/// the interpolated values, then the fragment program's address, weight and texel streams
+/// (texels are gathered over their addresses), and the marble program's table and
+/// parameters.
 struct TexturingStreams {
     varyings: StreamId,
     addr: Option<StreamId>,
@@ -222,6 +228,14 @@ struct TexturingStreams {
     addr8: Option<StreamId>,
     weights5: Option<StreamId>,
     filtered: Option<StreamId>,
+    marble: Option<MarbleStreams>,
+}
+
+/// The marble program's permutation table (loaded once per frame) and parameters
+/// (written per batch of a marble object).
+struct MarbleStreams {
+    perm: StreamId,
+    params: StreamId,
 }
 
 /// Words of the largest state and parameter lists of the scene's vertex programs.
@@ -242,6 +256,8 @@ struct Sizes {
     direct_fetches: usize,
     direct_weights: usize,
     mipmapped: usize,
+    /// Whether an object is marble (the permutation table and its parameters in the SRF).
+    marble: bool,
 }
 
 /// Words of `perlight`'s parameters (see [`VertexProgram::perlight_params`]).
@@ -368,7 +384,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
             live("composite", "composite"),
         ),
         conflicts: p.stream("conflicts", words, c, live("composite", "composite")),
-        texturing: s.varyings.texcoords.then(|| {
+        texturing: s.varyings.fragment_program().then(|| {
             let mut per_fragment = |name: &str, words: usize| {
                 (words > 0).then(|| {
                     p.stream(
@@ -381,12 +397,21 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
             };
             TexturingStreams {
                 varyings: per_fragment("varyings", s.varyings.fragment_words())
-                    .expect("a textured frame's fragments carry their varyings"),
+                    .expect("a fragment program's fragments carry their varyings"),
                 addr: per_fragment("texel_addr", s.direct_fetches),
                 weights: per_fragment("texel_weights", s.direct_weights),
                 addr8: per_fragment("mipmap_addr", texture::FILTER8_TEXELS * s.mipmapped),
                 weights5: per_fragment("mipmap_weights", texture::FILTER8_WEIGHTS * s.mipmapped),
                 filtered: per_fragment("filtered", s.mipmapped),
+                marble: s.marble.then(|| MarbleStreams {
+                    perm: p.stream("perm", words, turbulence::TABLE * c, always),
+                    params: p.stream(
+                        "marble_params",
+                        words,
+                        turbulence::SCALAR_PARAMS * c,
+                        always,
+                    ),
+                }),
             }
         }),
         chunk,
@@ -460,8 +485,8 @@ struct Kernels {
     clear: KernelId,
     /// `sort32` and `mergefrag`, when the depth test allows merging.
     merge: Option<(KernelId, KernelId)>,
-    /// Per object (textured frames): its fragment program's `texaddr` (none without
-    /// textures) and `fragment` kernels.
+    /// Per object (frames with fragment programs): its program's `texaddr` (none without
+    /// textures) and `fragment` kernels (`marble` for marble objects).
     fragment: Vec<(Option<KernelId>, KernelId)>,
     /// `filter8`, when a texture is mipmapped.
     filter8: Option<KernelId>,
@@ -521,13 +546,15 @@ fn register_kernels(
                 } else {
                     Some(lib.register(
                         &format!("texaddr:{name}"),
-                        fp.texaddr(varyings.fragment_words())?,
+                        fp.texaddr(varyings.fragment_words(), varyings.derivatives_at())?,
                     ))
                 };
-                let colour = lib.register(
-                    &format!("fragment:{name}"),
-                    fp.fragment(varyings.fragment_words())?,
-                );
+                let kernel = if fp.marble {
+                    turbulence::build_fragment(desc, varyings.fragment_words())?
+                } else {
+                    fp.fragment(varyings.fragment_words())?
+                };
+                let colour = lib.register(&format!("fragment:{name}"), kernel);
                 registered.push((fp, (texaddr, colour)));
                 (texaddr, colour)
             }
@@ -733,7 +760,8 @@ pub struct PipelinePlan {
     merge: bool,
     /// What vertices carry beyond position and colour.
     pub varyings: Varyings,
-    /// Per object, in a textured frame, its fragment program (none in other frames).
+    /// Per object, in a frame with fragment programs (textures or marble), its program
+    /// (none in other frames).
     pub fragment_programs: Vec<Option<FragmentProgram>>,
     /// Where the textures lie in DRAM.
     pub textures: TextureMemory,
@@ -829,10 +857,14 @@ impl PipelinePlan {
                 out.push("per-vertex colours (a constant colour instead)".to_string());
             }
         }
-        if !self.varyings.texcoords {
+        let programs = self.fragment_programs.iter().flatten();
+        if !programs.clone().any(|f| !f.marble && !f.units.is_empty()) {
             out.push("textures".into());
         }
-        out.extend(["procedural noise", "blending"].map(String::from));
+        if !programs.clone().any(|f| f.marble) {
+            out.push("procedural noise".into());
+        }
+        out.push("blending".into());
         if !self.merge {
             out.push("merge of conflicting fragments (sort32, mergefrag)".into());
         }
@@ -882,20 +914,22 @@ pub fn plan_pipeline(
         .map(|o| VertexProgram::for_object(scene, o, general))
         .collect::<Result<_, _>>()
         .map_err(|e| RenderError(format!("scene `{}`: {e}", scene.name)))?;
-    let textured = vertex_program::textured(scene);
+    let extras = vertex_program::extra_words(scene);
     let textures = TextureMemory::new(scene);
     let fragment_programs: Vec<Option<FragmentProgram>> = scene
         .objects
         .iter()
         .map(|o| {
             let m = &scene.materials[o.material];
-            textured.then(|| {
-                fragment_program::for_material(scene, &m.textures, m.texture_mode, &textures)
+            (extras > 0).then(|| match m.shader {
+                Shader::Marble(_) => FragmentProgram::marble(),
+                _ => fragment_program::for_material(scene, &m.textures, m.texture_mode, &textures),
             })
         })
         .collect();
+    let marble = fragment_programs.iter().flatten().any(|f| f.marble);
     let varyings = Varyings {
-        texcoords: textured,
+        extras,
         derivatives: fragment_programs
             .iter()
             .flatten()
@@ -983,6 +1017,7 @@ pub fn plan_pipeline(
         direct_fetches,
         direct_weights,
         mipmapped,
+        marble,
     };
     let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
     let shape = FrameShape {
@@ -1082,8 +1117,11 @@ pub fn render_with(
     let mut dram = DramMap::new(desc);
     let fb_pixels = pixels.div_ceil(clusters) * clusters;
     let shaded_words = pp.varyings.shaded_words();
+    // The marble program's permutation table, each word once per cluster.
+    let perm_words = turbulence::perm_stream(&turbulence::PERLIN_PERMUTATION, clusters);
     let m = Memory {
         textures: dram.buffer("textures", pp.textures.words.len().max(1) as u64)?,
+        perm: dram.buffer("perm", perm_words.len() as u64)?,
         texture_words: pp.textures.words.len().max(1) as u64,
         vertices: dram.buffer("vertices", input.vertex_words.len() as u64)?,
         indices: dram.buffer("corner_indices", input.index_words.len() as u64)?,
@@ -1128,6 +1166,9 @@ pub fn render_with(
     host.upload(&input.light_words, m.lights, 0, staging);
     // The textures' mipmap pyramids, built when the scene loaded.
     host.upload(&pp.textures.words, m.textures, 0, staging);
+    if s.texturing.as_ref().is_some_and(|t| t.marble.is_some()) {
+        host.upload(&perm_words, m.perm, 0, staging);
+    }
     host.drain()?;
     let loaded = host.cycles();
 
@@ -1161,7 +1202,11 @@ pub fn render_with(
     host.drain()?;
     let cleared = host.cycles();
 
-    // The frame.
+    // The frame. The marble program's table comes into the SRF first.
+    if let Some(marble) = s.texturing.as_ref().and_then(|t| t.marble.as_ref()) {
+        let perm = plan.first(marble.perm, perm_words.len());
+        host.load(m.perm, 0, Layout::words(), perm_words.len(), perm);
+    }
     let mut frame = FrameRun {
         k: &k,
         plan,
@@ -1237,6 +1282,8 @@ struct Memory {
     /// gathers.
     textures: Buffer,
     texture_words: u64,
+    /// The marble program's permutation table.
+    perm: Buffer,
     vertices: Buffer,
     /// The lights as `perlight` reads them.
     lights: Buffer,
@@ -1428,6 +1475,14 @@ impl FrameRun<'_> {
             bindings.push(("window", window));
         }
         h.call(self.k.baryprep, &bindings)?;
+        let object = &self.scene.objects[bt.object];
+        let marble = s.texturing.as_ref().and_then(|t| t.marble.as_ref());
+        if let (Some(ms), Shader::Marble(shader)) =
+            (marble, self.scene.materials[object.material].shader)
+        {
+            let params = fragment_program::marble_params(self.scene, object, &shader);
+            h.write_params(p.first(ms.params, params.len() * h.clusters()), &params);
+        }
         let records = Layout::records(self.varyings.interp_words());
         h.store(interp, records, tris, m.interp, 0);
         let (w, ht) = (self.scene.width as i32, self.scene.height as i32);
@@ -1744,7 +1799,7 @@ impl FrameRun<'_> {
         let varyings = p.first(t.varyings, len);
         let fp = self.fragment_programs[object]
             .as_ref()
-            .expect("a textured frame has a fragment program per object");
+            .expect("a frame with fragment programs has one per object");
         let per_fragment = |id: Option<StreamId>, words: usize| {
             id.filter(|_| words > 0).map(|id| p.words(id, len * words))
         };
@@ -1786,6 +1841,13 @@ impl FrameRun<'_> {
             )?;
         }
         let mut bindings = vec![("varyings", varyings)];
+        if let Some(ms) = t.marble.as_ref().filter(|_| fp.marble) {
+            let c = h.clusters();
+            bindings.extend([
+                ("perm", p.first(ms.perm, turbulence::TABLE * c)),
+                (PARAMS, p.first(ms.params, turbulence::SCALAR_PARAMS * c)),
+            ]);
+        }
         bindings.extend(addr.map(|b| ("texels", b)));
         bindings.extend(weights.map(|b| ("weights", b)));
         bindings.extend(filtered.map(|b| ("filtered", b)));

@@ -30,8 +30,14 @@
 //! dropped). The colour sums in the one-kernel order — base, then light 0, 1, … — so the
 //! passes compute the very words one kernel would.
 //!
+//! **Marble** (`shader = "marble"`) is unlit: the clip position `MVP·p`, the colour white
+//! (the fragment program computes the colour), and the object-space position and normal
+//! passed through as they came, for the fragment program's noise and lighting.
+//!
 //! Output records (of the last kernel): clip x, y, z, w, then r, g, b — what
-//! `assemble_clip` reads.
+//! `assemble_clip` reads — then the frame's extra words ([`Varyings`](super::kernels::Varyings)):
+//! the vertex record's own for `unlit` and `lit` (s, t and zeros, taken from the record),
+//! the position and normal and then zeros for marble.
 
 use imagine_units::desc::MachineDesc;
 
@@ -49,10 +55,11 @@ pub const SHADED_WORDS: usize = 7;
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum VertexProgram {
     /// Unlit; `per_vertex_colour`: vertices carry their colour (else it is a parameter).
-    /// `texcoords`: vertices carry texture coordinates, passed through to the record.
+    /// `extras`: words vertices carry after these (texture coordinates and zeros), passed
+    /// through to the shaded record.
     Unlit {
         per_vertex_colour: bool,
-        texcoords: bool,
+        extras: usize,
     },
     /// Lit by `lights` lights with the specular term (when `specular`) to an integer
     /// power `shininess`.
@@ -60,8 +67,11 @@ pub enum VertexProgram {
         lights: usize,
         specular: bool,
         shininess: u32,
-        texcoords: bool,
+        extras: usize,
     },
+    /// Marble: the clip position, white, and the object-space position and normal then
+    /// zeros, `extras` words in all.
+    Marble { extras: usize },
     /// The general fixed-function program (`--no-specialize`): every vertex carries its
     /// position, normal and colour; lighting by `lights` lights with the specular term is
     /// always computed, and a parameter chooses it or the vertex colour (only the exponent
@@ -78,6 +88,26 @@ pub fn textured(scene: &Scene) -> bool {
         .any(|o| !scene.materials[o.material].textures.is_empty())
 }
 
+/// Whether any object of `scene` is drawn with the marble shader.
+pub fn marbled(scene: &Scene) -> bool {
+    scene
+        .objects
+        .iter()
+        .any(|o| matches!(scene.materials[o.material].shader, Shader::Marble(_)))
+}
+
+/// Extra words every shaded vertex of `scene` carries after its colour: 6 (shading position
+/// and normal) when an object is marble, else 2 (s, t) when one is textured, else none.
+pub fn extra_words(scene: &Scene) -> usize {
+    if marbled(scene) {
+        6
+    } else if textured(scene) {
+        2
+    } else {
+        0
+    }
+}
+
 /// The fewest lights the general program is built for.
 pub const GENERAL_LIGHTS: usize = 3;
 
@@ -89,11 +119,8 @@ impl VertexProgram {
         general: bool,
     ) -> Result<VertexProgram, String> {
         let m: &Material = &scene.materials[object.material];
-        let texcoords = textured(scene);
-        if texcoords
-            && !m.textures.is_empty()
-            && object.mesh.texcoords.len() != object.mesh.positions.len()
-        {
+        let extras = extra_words(scene);
+        if !m.textures.is_empty() && object.mesh.texcoords.len() != object.mesh.positions.len() {
             return Err(format!(
                 "object `{}` has textured material `{}` but its mesh has {} texture coordinates for {} vertices",
                 object.name,
@@ -103,8 +130,10 @@ impl VertexProgram {
             ));
         }
         if general {
-            if texcoords {
-                return Err("the general pipeline (--no-specialize) draws no textures".into());
+            if extras > 0 {
+                return Err(
+                    "the general pipeline (--no-specialize) draws no textures and no marble".into(),
+                );
             }
             if m.shader == Shader::Lit && object.mesh.normals.len() != object.mesh.positions.len() {
                 return Err(format!(
@@ -129,8 +158,19 @@ impl VertexProgram {
         match m.shader {
             Shader::Unlit => Ok(VertexProgram::Unlit {
                 per_vertex_colour: !object.mesh.colours.is_empty(),
-                texcoords,
+                extras,
             }),
+            Shader::Marble(_) => {
+                if object.mesh.normals.len() != object.mesh.positions.len() {
+                    return Err(format!(
+                        "object `{}` is marble but its mesh has {} normals for {} vertices",
+                        object.name,
+                        object.mesh.normals.len(),
+                        object.mesh.positions.len()
+                    ));
+                }
+                Ok(VertexProgram::Marble { extras })
+            }
             Shader::Lit => {
                 if m.shininess.fract() != 0.0 || !(0.0..=128.0).contains(&m.shininess) {
                     return Err(format!(
@@ -156,7 +196,7 @@ impl VertexProgram {
                     lights: scene.lights.len(),
                     specular: any_specular,
                     shininess: m.shininess as u32,
-                    texcoords,
+                    extras,
                 })
             }
         }
@@ -165,31 +205,36 @@ impl VertexProgram {
     /// The name it is registered and reported under.
     pub fn name(&self) -> String {
         let base = self.base_name();
-        if self.texcoords() {
-            format!("{base}_tex")
-        } else {
-            base
+        match (self, self.extras()) {
+            (_, 0) | (VertexProgram::Marble { .. }, 6) => base,
+            (_, 2) => format!("{base}_tex"),
+            (_, n) => format!("{base}_x{n}"),
         }
     }
 
-    /// Whether vertices carry texture coordinates (s, t), passed through to the shaded
-    /// record after the colour.
-    pub fn texcoords(&self) -> bool {
-        matches!(
-            self,
-            VertexProgram::Unlit {
-                texcoords: true,
-                ..
-            } | VertexProgram::Lit {
-                texcoords: true,
-                ..
-            }
-        )
+    /// Words vertices carry after the colour (texture coordinates, or for marble the
+    /// shading position and normal, then zeros), passed through to the shaded record.
+    pub fn extras(&self) -> usize {
+        match self {
+            VertexProgram::Unlit { extras, .. }
+            | VertexProgram::Lit { extras, .. }
+            | VertexProgram::Marble { extras } => *extras,
+            VertexProgram::General { .. } => 0,
+        }
     }
 
-    /// Words of the shaded record: clip x, y, z, w, r, g, b, then s, t when textured.
+    /// Words the vertex record carries for the extras (marble reads its position and
+    /// normal and writes zeros for the rest).
+    fn record_extras(&self) -> usize {
+        match self {
+            VertexProgram::Marble { .. } => 0,
+            _ => self.extras(),
+        }
+    }
+
+    /// Words of the shaded record: clip x, y, z, w, r, g, b, then the extras.
     pub fn shaded_words(&self) -> usize {
-        SHADED_WORDS + 2 * usize::from(self.texcoords())
+        SHADED_WORDS + self.extras()
     }
 
     fn base_name(&self) -> String {
@@ -217,18 +262,22 @@ impl VertexProgram {
             VertexProgram::General { lights, shininess } => {
                 format!("vertex_general{lights}_s{shininess}")
             }
+            VertexProgram::Marble { .. } => "vertex_marble".into(),
         }
     }
 
     /// Whether it lights vertices (and so has `perlight` and the lit parameters).
     pub fn lit(&self) -> bool {
-        !matches!(self, VertexProgram::Unlit { .. })
+        !matches!(
+            self,
+            VertexProgram::Unlit { .. } | VertexProgram::Marble { .. }
+        )
     }
 
     /// Lights it is built for, and whether with the specular term.
     pub fn lighting(&self) -> Option<(usize, bool)> {
         match self {
-            VertexProgram::Unlit { .. } => None,
+            VertexProgram::Unlit { .. } | VertexProgram::Marble { .. } => None,
             VertexProgram::Lit {
                 lights, specular, ..
             } => Some((*lights, *specular)),
@@ -242,13 +291,13 @@ impl VertexProgram {
             VertexProgram::Lit { shininess, .. } | VertexProgram::General { shininess, .. } => {
                 *shininess
             }
-            VertexProgram::Unlit { .. } => 0,
+            VertexProgram::Unlit { .. } | VertexProgram::Marble { .. } => 0,
         }
     }
 
     /// Words of a vertex record in memory.
     pub fn record_words(&self) -> usize {
-        2 * usize::from(self.texcoords())
+        self.record_extras()
             + match self {
                 VertexProgram::Unlit {
                     per_vertex_colour: false,
@@ -263,8 +312,13 @@ impl VertexProgram {
     /// coordinates).
     pub fn interpolants(&self) -> Vec<&'static str> {
         let mut names = vec!["r", "g", "b"];
-        if self.texcoords() {
-            names.extend(["s", "t"]);
+        let extras: &[&'static str] = match self {
+            VertexProgram::Marble { .. } => &["x", "y", "z", "nx", "ny", "nz"],
+            _ => &["s", "t"],
+        };
+        names.extend(extras.iter().take(self.extras()));
+        while names.len() < 3 + self.extras() {
+            names.push("0");
         }
         names
     }
@@ -285,17 +339,21 @@ impl VertexProgram {
                 per_vertex_colour: false,
                 ..
             } => {}
-            VertexProgram::Lit { .. } => out.extend(mesh.normals[v].map(f32::to_bits)),
+            VertexProgram::Lit { .. } | VertexProgram::Marble { .. } => {
+                out.extend(mesh.normals[v].map(f32::to_bits))
+            }
             VertexProgram::General { .. } => {
                 let n = mesh.normals.get(v).copied().unwrap_or([0.0; 3]);
                 let c = mesh.colours.get(v).copied().unwrap_or(object.colour);
                 out.extend(n.into_iter().chain(c).map(f32::to_bits));
             }
         }
-        if self.texcoords() {
+        let extras = self.record_extras();
+        if extras > 0 {
             // An object whose material has no texture still carries (0, 0).
             let st = mesh.texcoords.get(v).copied().unwrap_or([0.0; 2]);
             out.extend(st.map(f32::to_bits));
+            out.extend(std::iter::repeat_n(0, extras - 2));
         }
     }
 
@@ -388,7 +446,8 @@ impl VertexProgram {
             VertexProgram::Unlit {
                 per_vertex_colour: true,
                 ..
-            } => {}
+            }
+            | VertexProgram::Marble { .. } => {}
             VertexProgram::Unlit {
                 per_vertex_colour: false,
                 ..
@@ -502,7 +561,8 @@ impl VertexProgram {
             VertexProgram::Unlit {
                 per_vertex_colour: true,
                 ..
-            } => 0,
+            }
+            | VertexProgram::Marble { .. } => 0,
             VertexProgram::Unlit {
                 per_vertex_colour: false,
                 ..
@@ -552,13 +612,14 @@ impl VertexProgram {
     /// the colour so far r, g, b, the eye-space position, the unit normal and (with the
     /// specular term) the unit vector to the eye. 0 for unlit programs.
     pub fn partial_words(&self) -> usize {
-        2 * usize::from(self.texcoords() && self.lit())
-            + match self {
-                VertexProgram::Lit { specular, .. } => 13 + 3 * usize::from(*specular),
-                // The vertex colour travels too, for the last kernel's choice.
-                VertexProgram::General { .. } => 13 + 3 + 3,
-                VertexProgram::Unlit { .. } => 0,
-            }
+        match self {
+            VertexProgram::Lit {
+                specular, extras, ..
+            } => 13 + 3 * usize::from(*specular) + extras,
+            // The vertex colour travels too, for the last kernel's choice.
+            VertexProgram::General { .. } => 13 + 3 + 3,
+            VertexProgram::Unlit { .. } | VertexProgram::Marble { .. } => 0,
+        }
     }
 
     /// The lights each kernel of the program adds, `split.0` in the first kernel and
@@ -583,12 +644,15 @@ impl VertexProgram {
     /// kernel clamps the colour and writes the shaded record. Every kernel declares the
     /// same parameters (the whole parameter stream) and reads them all.
     fn kernels_with(&self, desc: &MachineDesc, split: (usize, usize)) -> Vec<Kernel> {
+        if let VertexProgram::Marble { extras } = *self {
+            return vec![self.build_marble(extras)];
+        }
         let Some((_, specular)) = self.lighting() else {
             return vec![self.build_unlit()];
         };
         let shininess = self.shininess();
         let general = matches!(self, VertexProgram::General { .. });
-        let texcoords = self.texcoords();
+        let extras = self.extras();
         let ranges = self.light_ranges(split);
         let count = ranges.len();
         ranges
@@ -619,7 +683,7 @@ impl VertexProgram {
                         general.then(|| std::array::from_fn(|_| b.read_f32(input)));
                     let mut v = transform_vertex(&mut b, &p, position, normal, specular, zero);
                     v.vertex_colour = vertex_colour;
-                    v.texcoords = texcoords.then(|| [b.read_f32(input), b.read_f32(input)]);
+                    v.extras = (0..extras).map(|_| b.read_f32(input)).collect();
                     v
                 } else {
                     let mut w = || b.read_f32(input);
@@ -629,7 +693,7 @@ impl VertexProgram {
                     let unit_n = std::array::from_fn(|_| w());
                     let e = specular.then(|| std::array::from_fn(|_| w()));
                     let vertex_colour = general.then(|| std::array::from_fn(|_| w()));
-                    let texcoords = texcoords.then(|| [w(), w()]);
+                    let extras = (0..extras).map(|_| w()).collect();
                     LitVertex {
                         clip,
                         colour,
@@ -637,7 +701,7 @@ impl VertexProgram {
                         unit_n,
                         e,
                         vertex_colour,
-                        texcoords,
+                        extras,
                     }
                 };
                 for l in lights {
@@ -668,8 +732,8 @@ impl VertexProgram {
                         b.write(output, c);
                     }
                 }
-                for st in v.texcoords.into_iter().flatten() {
-                    b.write(output, st);
+                for &x in &v.extras {
+                    b.write(output, x);
                 }
                 b.end_loop();
                 finish(b)
@@ -713,7 +777,7 @@ impl VertexProgram {
     fn build_unlit(&self) -> Kernel {
         let VertexProgram::Unlit {
             per_vertex_colour,
-            texcoords,
+            extras,
         } = *self
         else {
             unreachable!("unlit programs only");
@@ -730,13 +794,35 @@ impl VertexProgram {
             Some(c) => c,
             None => std::array::from_fn(|_| b.read_f32(vertices)),
         };
-        let st: Vec<Value> = if texcoords {
-            vec![b.read_f32(vertices), b.read_f32(vertices)]
-        } else {
-            Vec::new()
-        };
+        let st: Vec<Value> = (0..extras).map(|_| b.read_f32(vertices)).collect();
         let clip = transform_point(&mut b, &mvp, position, None);
         for v in clip.into_iter().chain(colour).chain(st) {
+            b.write(shaded, v);
+        }
+        b.end_loop();
+        finish(b)
+    }
+
+    /// The marble program: the clip position, white, then the position and normal as they
+    /// came and zeros up to `extras` words.
+    fn build_marble(&self, extras: usize) -> Kernel {
+        let mut b = KernelBuilder::new(&self.name());
+        let vertices = b.input("vertices");
+        let shaded = b.output("shaded");
+        let mvp = matrix_params(&mut b, "mvp");
+        let (zero, one) = (b.f32(0.0), b.f32(1.0));
+        b.begin_loop(LoopSpec::OverStream(vertices));
+        let position: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
+        let normal: Vec3 = std::array::from_fn(|_| b.read_f32(vertices));
+        let clip = transform_point(&mut b, &mvp, position, None);
+        let passed = position.into_iter().chain(normal);
+        let padding = std::iter::repeat_n(zero, extras.saturating_sub(6));
+        for v in clip
+            .into_iter()
+            .chain([one; 3])
+            .chain(passed)
+            .chain(padding)
+        {
             b.write(shaded, v);
         }
         b.end_loop();
@@ -776,7 +862,7 @@ struct LitVertex {
     /// The general program's vertex colour.
     vertex_colour: Option<Vec3>,
     /// Texture coordinates, passed through.
-    texcoords: Option<[Value; 2]>,
+    extras: Vec<Value>,
 }
 
 /// The clip position, eye-space position, unit normal and (`specular`) unit vector to the
@@ -814,7 +900,7 @@ fn transform_vertex(
         unit_n,
         e,
         vertex_colour: None,
-        texcoords: None,
+        extras: Vec::new(),
     }
 }
 
@@ -923,13 +1009,13 @@ mod tests {
             lights: 3,
             specular: true,
             shininess: 16,
-            texcoords: false,
+            extras: 0,
         };
         assert_eq!(lit.name(), "vertex_lit3_s16");
         assert_eq!(lit.record_words(), 6);
         let flat = VertexProgram::Unlit {
             per_vertex_colour: false,
-            texcoords: false,
+            extras: 0,
         };
         assert_eq!(flat.record_words(), 3);
         let desc = MachineDesc::resolve("gold8").unwrap();
@@ -938,7 +1024,7 @@ mod tests {
             flat,
             VertexProgram::Unlit {
                 per_vertex_colour: true,
-                texcoords: false,
+                extras: 0,
             },
         ] {
             let k = p.build(&desc);
@@ -963,7 +1049,7 @@ mod tests {
                     lights,
                     specular,
                     shininess: 16,
-                    texcoords: false,
+                    extras: 0,
                 };
                 let passes = p.passes(&desc);
                 assert_eq!(passes.len(), p.pass_names().len());
@@ -1020,7 +1106,7 @@ mod tests {
                 lights: 3,
                 specular,
                 shininess: 13,
-                texcoords: false,
+                extras: 0,
             };
             // Matrices and light positions anywhere in (-3.5, 0.5); the colour products
             // in [0, 0.25), so that sums of a few stay below 1.

@@ -16,6 +16,12 @@
 //!   triangle three vertices of its own, as SPHERE's published vertex count has it).
 //! * `tessellate` defaults to 20 (TEAPOT's OpenGL dicing), `basis` to `"bezier"`.
 //! * `cage` is refused: Catmull-Clark limit surfaces are not supported yet.
+//! * `shader = "marble"` (MARBLE's procedural shader, per fragment; no textures, and the
+//!   mesh needs normals, as for `lit`) takes two optional keys: `frequency` (default 4)
+//!   and `turbulence_scale` (default 5), in `sin(x·frequency +
+//!   turbulence(p)·turbulence_scale)` over object-space positions `p`; of the other
+//!   material keys it uses the means of `ambient` and `specular` (see
+//!   `crate::opengl::render`'s notes on marble).
 //!
 //! Keys beyond the contract, for the analogs of the thesis's published scenes (Table 5.1;
 //! the geometry is [`primitives`]'s, where each is documented):
@@ -367,6 +373,8 @@ struct MaterialFile {
     #[serde(default)]
     textures: Vec<String>,
     texture_mode: Option<TextureModeFile>,
+    frequency: Option<f64>,
+    turbulence_scale: Option<f64>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -374,6 +382,7 @@ struct MaterialFile {
 enum ShaderFile {
     Unlit,
     Lit,
+    Marble,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -645,7 +654,8 @@ impl Cx {
                     materials.len() - 1
                 }),
             };
-            let lit = materials[material].shader == model::Shader::Lit;
+            // Lit and marble materials shade with normals.
+            let lit = materials[material].shader != model::Shader::Unlit;
             let object = self.object(i, o, material, lit, width, height, left, opts)?;
             left -= object.mesh.triangles.len();
             objects.push(object);
@@ -984,11 +994,38 @@ impl Cx {
                     })
             })
             .collect::<R<Vec<_>>>()?;
+        let marble = |k: &str, v: Option<f64>, default: f32| -> R<f32> {
+            match (m.shader, v) {
+                (ShaderFile::Marble, None) => Ok(default),
+                (ShaderFile::Marble, Some(v)) => {
+                    self.finite(&key(k), &[v])?;
+                    Ok(v as f32)
+                }
+                (_, None) => Ok(0.0),
+                (_, Some(_)) => Err(self.err(&key(k), "only a `marble` material has it")),
+            }
+        };
+        let frequency = marble("frequency", m.frequency, model::Marble::DEFAULT.frequency)?;
+        let turbulence_scale = marble(
+            "turbulence_scale",
+            m.turbulence_scale,
+            model::Marble::DEFAULT.turbulence_scale,
+        )?;
+        if matches!(m.shader, ShaderFile::Marble) && !textures.is_empty() {
+            return Err(self.err(
+                &key("textures"),
+                "a `marble` material is procedural and takes no textures",
+            ));
+        }
         Ok(model::Material {
             name: m.name.clone(),
             shader: match m.shader {
                 ShaderFile::Unlit => model::Shader::Unlit,
                 ShaderFile::Lit => model::Shader::Lit,
+                ShaderFile::Marble => model::Shader::Marble(model::Marble {
+                    frequency,
+                    turbulence_scale,
+                }),
             },
             ambient: self.colour(&key("ambient"), m.ambient, 0.2)?,
             diffuse: self.colour(&key("diffuse"), m.diffuse, 0.8)?,

@@ -115,12 +115,30 @@ pub struct Texture {
     pub wrap: Wrap,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Shader {
     /// The vertex colour, Gouraud-interpolated.
     Unlit,
     /// OpenGL 1.x fixed-function lighting per vertex (the format's `lit`).
     Lit,
+    /// MARBLE's procedural shader, per fragment: turbulence, a marble colour ramp, lit by
+    /// the scene's first light (see `crate::kernels::turbulence`).
+    Marble(Marble),
+}
+
+/// The parameters of a `marble` material: `colour = ramp(sin(x·frequency +
+/// turbulence(p)·turbulence_scale))` over object-space positions `p`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Marble {
+    pub frequency: f32,
+    pub turbulence_scale: f32,
+}
+
+impl Marble {
+    pub const DEFAULT: Marble = Marble {
+        frequency: 4.0,
+        turbulence_scale: 5.0,
+    };
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
