@@ -83,6 +83,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("ADVS-8", include_str!("../../../scenes/ADVS-8.toml")),
     ("PIN", include_str!("../../../scenes/PIN.toml")),
     ("PIN-8", include_str!("../../../scenes/PIN-8.toml")),
+    ("MARBLE", include_str!("../../../scenes/MARBLE.toml")),
 ];
 
 /// The source tree's `scenes/` directory, where built-in scenes find their assets.
