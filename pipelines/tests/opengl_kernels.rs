@@ -36,6 +36,10 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             shininess: 16,
             extras: 0,
         };
+        let textured = Varyings {
+            extras: 2,
+            derivatives: true,
+        };
         let lit8_passes = lit8.passes(&desc);
         assert_eq!(lit8_passes.len(), 1);
         for k in [
@@ -56,6 +60,9 @@ fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
             kernels::baryprep(&desc, Varyings::default()).unwrap(),
             kernels::xyrast(&desc, shape).unwrap(),
             kernels::irast(&desc, Varyings::default()).unwrap(),
+            // A textured frame's (texture coordinates and their derivatives).
+            kernels::baryprep(&desc, textured).unwrap(),
+            kernels::irast(&desc, textured).unwrap(),
             kernels::hash(&desc, shape).unwrap(),
             kernels::zcompare(&desc, shape).unwrap(),
             kernels::compact_recycle(&desc, [0, 1]).unwrap(),
