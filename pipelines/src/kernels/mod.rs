@@ -214,6 +214,23 @@ pub fn stream_to_records(words: &[u32], k: usize, clusters: usize) -> Vec<Vec<u3
         .collect()
 }
 
+/// `word` with channel `channel` (0 red … 3 alpha) of an RGBA8 colour set from `c` in
+/// [0, 1]: `⌊c·255 + ½⌋` (`scale` = 255, `half` = ½) shifted into its byte and or-ed in.
+pub(crate) fn or_channel(
+    b: &mut crate::kernel::KernelBuilder,
+    word: crate::kernel::Value,
+    c: crate::kernel::Value,
+    channel: usize,
+    (half, scale): (crate::kernel::Value, crate::kernel::Value),
+) -> crate::kernel::Value {
+    let c = b.fmul(c, scale);
+    let c = b.fadd(c, half);
+    let byte = b.ftoi_trunc(c);
+    let shift = b.i32(8 * channel as i32);
+    let byte = b.shl(byte, shift);
+    b.or(word, byte)
+}
+
 /// Three values: a point, a direction or a colour.
 pub(crate) type Vec3 = [crate::kernel::Value; 3];
 

@@ -508,12 +508,7 @@ fn pack(b: &mut KernelBuilder, channels: [Value; 4]) -> Value {
     for (c, &x) in channels.iter().enumerate() {
         let x = b.fmax(x, zero);
         let x = b.fmin(x, one);
-        let x = b.fmul(x, scale);
-        let x = b.fadd(x, half);
-        let byte = b.ftoi_trunc(x);
-        let shift = b.i32(8 * c as i32);
-        let byte = b.shl(byte, shift);
-        word = b.or(word, byte);
+        word = super::or_channel(b, word, x, c, (half, scale));
     }
     word
 }

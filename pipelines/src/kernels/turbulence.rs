@@ -513,12 +513,7 @@ pub fn build_fragment(
     let colour = shade(&mut b, &k, &params, &ramp, zero, p, normal);
     let mut packed = alpha;
     for (ch, c) in colour.into_iter().enumerate() {
-        let c = b.fmul(c, scale);
-        let c = b.fadd(c, half);
-        let byte = b.ftoi_trunc(c);
-        let shift = b.i32(8 * ch as i32);
-        let byte = b.shl(byte, shift);
-        packed = b.or(packed, byte);
+        packed = super::or_channel(&mut b, packed, c, ch, (half, scale));
     }
     b.write(colour_out, packed);
     b.end_loop();

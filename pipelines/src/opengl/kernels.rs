@@ -52,6 +52,7 @@ use imagine_units::ops::Op;
 use crate::kernel::{
     Kernel, KernelBuilder, LoopSpec, MachineRequirementError, Needs, Perm, StreamId, Ty, Value,
 };
+use crate::kernels::or_channel;
 use crate::scene::model::{Cull, DepthTest};
 
 /// Words of a raster record (`xyprep` → `xyrast`): the bounding box's first and last pixel (`lo`, `hi`,
@@ -916,12 +917,7 @@ pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineR
         let mut colour = alpha;
         for ch in 0..3 {
             let c = channel(&mut b, ch);
-            let c = b.fmul(c, scale);
-            let c = b.fadd(c, half);
-            let byte = b.ftoi_trunc(c);
-            let shift = b.i32(8 * ch as i32);
-            let byte = b.shl(byte, shift);
-            colour = b.or(colour, byte);
+            colour = or_channel(&mut b, colour, c, ch, (half, scale));
         }
         b.write(z_out, z);
         b.write(out, colour);
