@@ -222,38 +222,57 @@ impl FragmentProgram {
         b.begin_loop(LoopSpec::OverStream(input));
         let v: Vec<Value> = (0..fragment_words).map(|_| b.read_f32(input)).collect();
         let mut colour = [v[0], v[1], v[2], one];
-        for u in &self.units {
+        // With `replace` only the last unit counts; a point-sampled or mipmapped texel is
+        // then the colour word itself (unpacking and packing an RGBA8 word gives it back).
+        let last = self.units.len().checked_sub(1);
+        let mut word = None;
+        for (i, u) in self.units.iter().enumerate() {
             let texel = match u.filter {
-                Filter::Nearest => {
-                    let w = b.read(texels.expect("a texel stream"));
-                    unpack(&mut b, w)
-                }
+                Filter::Nearest => Texel::Word(b.read(texels.expect("a texel stream"))),
+                Filter::Trilinear => Texel::Word(b.read(filtered.expect("a filtered stream"))),
                 Filter::Linear => {
-                    let t: Vec<[Value; 4]> = (0..4)
-                        .map(|_| {
-                            let w = b.read(texels.expect("a texel stream"));
-                            unpack(&mut b, w)
-                        })
-                        .collect();
+                    let t: [Value; 4] =
+                        std::array::from_fn(|_| b.read(texels.expect("a texel stream")));
                     let w = weights.expect("a weight stream");
-                    let (alpha, beta) = (b.read_f32(w), b.read_f32(w));
-                    bilerp(&mut b, &t, alpha, beta)
-                }
-                Filter::Trilinear => {
-                    let w = b.read(filtered.expect("a filtered stream"));
-                    unpack(&mut b, w)
+                    Texel::Bilinear(t, b.read_f32(w), b.read_f32(w))
                 }
             };
-            colour = match self.mode {
-                TextureMode::Modulate => std::array::from_fn(|c| b.fmul(colour[c], texel[c])),
-                TextureMode::Replace => texel,
+            let rgba = |b: &mut KernelBuilder, texel: Texel| match texel {
+                Texel::Word(w) => unpack(b, w),
+                Texel::Bilinear(t, alpha, beta) => {
+                    let t: Vec<[Value; 4]> = t.iter().map(|&w| unpack(b, w)).collect();
+                    bilerp(b, &t, alpha, beta)
+                }
             };
+            match self.mode {
+                TextureMode::Modulate => {
+                    let t = rgba(&mut b, texel);
+                    colour = std::array::from_fn(|c| b.fmul(colour[c], t[c]));
+                }
+                TextureMode::Replace if Some(i) == last => match texel {
+                    Texel::Word(w) => word = Some(w),
+                    bilinear => colour = rgba(&mut b, bilinear),
+                },
+                TextureMode::Replace => {}
+            }
+        }
+        if let Some(w) = word {
+            b.write(colour_out, w);
+            b.end_loop();
+            return Ok(finish(b));
         }
         let packed = pack(&mut b, colour);
         b.write(colour_out, packed);
         b.end_loop();
         Ok(finish(b))
     }
+}
+
+/// A unit's texel as `fragment` reads it: one RGBA8 word (point-sampled, or filtered by
+/// `filter8`), or the 2 × 2 words and fractions of a bilinear lookup.
+enum Texel {
+    Word(Value),
+    Bilinear([Value; 4], Value, Value),
 }
 
 /// `filter8`: per mipmapped access, 8 texels (levels `d_1` then `d_2`, each 2 × 2 in the
