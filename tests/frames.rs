@@ -344,6 +344,8 @@ fn textured_frames_match_the_reference() {
         3,
         "one texaddr per textured material: {names:?}"
     );
+    // Two objects share `vertex_unlit_flat_tex`: compiled (or found in the cache) once.
+    assert!(frame.stats.kernels_from_cache <= frame.stats.kernel_programs);
 }
 
 /// A marble sphere (turned, scaled and moved, so that the shader's object-space lighting

@@ -1097,15 +1097,12 @@ pub fn render_with(
         k.recycle_zc,
         k.recycle_ap,
     ]);
-    let fragment_kernels = k
-        .fragment
-        .iter()
-        .flat_map(|&(t, c)| t.into_iter().chain([c]));
-    for id in fragment_kernels.chain(k.filter8) {
-        if !eager.contains(&id) {
-            eager.push(id);
-        }
-    }
+    eager.extend(
+        k.fragment
+            .iter()
+            .flat_map(|&(t, c)| t.into_iter().chain([c])),
+    );
+    eager.extend(k.filter8);
     if general && let Some((a, b)) = k.merge {
         eager.extend([a, b]);
     }

@@ -107,11 +107,13 @@ impl KernelLibrary {
 
     /// Compiles `kernels` (those not compiled yet) on the host's cores.
     pub fn compile_now(&mut self, kernels: &[KernelId]) -> Result<(), CompileError> {
-        let todo: Vec<usize> = kernels
-            .iter()
-            .map(|k| k.0)
-            .filter(|&i| self.entries[i].compiled.is_none())
-            .collect();
+        let mut todo: Vec<usize> = Vec::new();
+        // Each once, in order: objects that share a program name its kernels again.
+        for i in kernels.iter().map(|k| k.0) {
+            if self.entries[i].compiled.is_none() && !todo.contains(&i) {
+                todo.push(i);
+            }
+        }
         if todo.is_empty() {
             return Ok(());
         }
