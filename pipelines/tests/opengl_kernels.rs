@@ -7,77 +7,90 @@ use imagine_pipelines::opengl::vertex_program::VertexProgram;
 use imagine_pipelines::scene::model::{Cull, DepthTest};
 use imagine_units::desc::MachineDesc;
 
+// One test per machine, so that the test threads compile them side by side.
 #[test]
-fn pipeline_kernels_compile_on_gold1_gold8_gold32() {
-    for name in ["gold1", "gold8", "gold32"] {
-        let desc = MachineDesc::resolve(name).unwrap();
-        let c = desc.cluster.count;
-        // The largest batch xyrast's scratchpad holds.
-        let rows = kernels::xyrast_rows(&desc);
-        assert!(rows >= 2, "{name}: {rows} raster records per cluster");
-        let shape = FrameShape {
-            width: 64,
-            height: 48,
-            clusters: c,
-            cull: Cull::Back,
-            depth_test: DepthTest::Less,
-            batch: rows * c,
-        };
-        let lit = VertexProgram::Lit {
-            lights: 3,
-            specular: true,
-            shininess: 16,
+fn pipeline_kernels_compile_on_gold1() {
+    pipeline_kernels_compile_on("gold1");
+}
+
+#[test]
+fn pipeline_kernels_compile_on_gold8() {
+    pipeline_kernels_compile_on("gold8");
+}
+
+#[test]
+fn pipeline_kernels_compile_on_gold32() {
+    pipeline_kernels_compile_on("gold32");
+}
+
+fn pipeline_kernels_compile_on(name: &str) {
+    let desc = MachineDesc::resolve(name).unwrap();
+    let c = desc.cluster.count;
+    // The largest batch xyrast's scratchpad holds.
+    let rows = kernels::xyrast_rows(&desc);
+    assert!(rows >= 2, "{name}: {rows} raster records per cluster");
+    let shape = FrameShape {
+        width: 64,
+        height: 48,
+        clusters: c,
+        cull: Cull::Back,
+        depth_test: DepthTest::Less,
+        batch: rows * c,
+    };
+    let lit = VertexProgram::Lit {
+        lights: 3,
+        specular: true,
+        shininess: 16,
+        extras: 0,
+    };
+    // The most lights a scene has: the first kernel's three, then a pass of five.
+    let lit8 = VertexProgram::Lit {
+        lights: 8,
+        specular: true,
+        shininess: 16,
+        extras: 0,
+    };
+    let textured = Varyings {
+        extras: 2,
+        derivatives: true,
+    };
+    let lit8_passes = lit8.passes(&desc);
+    assert_eq!(lit8_passes.len(), 1);
+    for k in [
+        lit.perbegin(&desc),
+        lit.perlight(&desc).unwrap(),
+        lit.build(&desc),
+        lit8.build(&desc),
+        lit8_passes[0].clone(),
+        VertexProgram::Unlit {
+            per_vertex_colour: true,
             extras: 0,
-        };
-        // The most lights a scene has: the first kernel's three, then a pass of five.
-        let lit8 = VertexProgram::Lit {
-            lights: 8,
-            specular: true,
-            shininess: 16,
-            extras: 0,
-        };
-        let textured = Varyings {
-            extras: 2,
-            derivatives: true,
-        };
-        let lit8_passes = lit8.passes(&desc);
-        assert_eq!(lit8_passes.len(), 1);
-        for k in [
-            lit.perbegin(&desc),
-            lit.perlight(&desc).unwrap(),
-            lit.build(&desc),
-            lit8.build(&desc),
-            lit8_passes[0].clone(),
-            VertexProgram::Unlit {
-                per_vertex_colour: true,
-                extras: 0,
-            }
-            .build(&desc),
-            kernels::clear(&desc).unwrap(),
-            kernels::assemble_clip(&desc, Varyings::default()).unwrap(),
-            kernels::viewport_cull(&desc, shape).unwrap(),
-            kernels::xyprep(&desc, shape).unwrap(),
-            kernels::baryprep(&desc, Varyings::default()).unwrap(),
-            kernels::xyrast(&desc, shape).unwrap(),
-            kernels::irast(&desc, Varyings::default()).unwrap(),
-            // A textured frame's (texture coordinates and their derivatives).
-            kernels::baryprep(&desc, textured).unwrap(),
-            kernels::irast(&desc, textured).unwrap(),
-            kernels::hash(&desc, shape).unwrap(),
-            kernels::zcompare(&desc, shape).unwrap(),
-            kernels::compact_recycle(&desc, [0, 1]).unwrap(),
-            imagine_pipelines::opengl::mergefrag::sort32(&desc, shape).unwrap(),
-            imagine_pipelines::opengl::mergefrag::mergefrag(&desc, shape).unwrap(),
-        ] {
-            let c = compile(&k, &desc).unwrap_or_else(|e| panic!("{name}: {e}"));
-            println!(
-                "{name} {}: II {:?} (bound {}), {} instructions",
-                k.name,
-                c.report.ii,
-                c.report.res_mii.max(c.report.rec_mii),
-                c.program.code.len()
-            );
         }
+        .build(&desc),
+        kernels::clear(&desc).unwrap(),
+        kernels::assemble_clip(&desc, Varyings::default()).unwrap(),
+        kernels::viewport_cull(&desc, shape).unwrap(),
+        kernels::xyprep(&desc, shape).unwrap(),
+        kernels::baryprep(&desc, Varyings::default()).unwrap(),
+        kernels::xyrast(&desc, shape).unwrap(),
+        kernels::irast(&desc, Varyings::default()).unwrap(),
+        // A textured frame's (texture coordinates and their derivatives).
+        kernels::baryprep(&desc, textured).unwrap(),
+        kernels::irast(&desc, textured).unwrap(),
+        kernels::hash(&desc, shape).unwrap(),
+        kernels::zcompare(&desc, shape).unwrap(),
+        kernels::compact_recycle(&desc, [0, 1]).unwrap(),
+        imagine_pipelines::opengl::mergefrag::sort32(&desc, shape).unwrap(),
+        imagine_pipelines::opengl::mergefrag::mergefrag(&desc, shape).unwrap(),
+    ] {
+        let c = compile(&k, &desc).unwrap_or_else(|e| panic!("{name}: {e}"));
+        println!(
+            "{name} {}: II {:?} (bound {}), {} instructions",
+            k.name,
+            c.report.ii,
+            c.report.res_mii.max(c.report.rec_mii),
+            c.program.code.len()
+        );
     }
 }
 

@@ -11,7 +11,8 @@
 //! | [`baryprep`] | triangle: the interpolation record | attribs, \|det\| → interp (13) |
 //! | [`xyprep`] | triangle, per scissor tile: box clamped to the tile, the raster record, `xyrast`'s cost | window → raster (12), counts |
 //! | [`xyrast`] | run of 4 candidate pixels: coverage by three edge functions | raster → addr, tri, E0, E1, E2 (conditional) |
-//! | [`irast`] | fragment: perspective-correct colour and depth | E0..E2, interp → z, colour, prim |
+//! | [`irast`] | fragment: perspective-correct colour and depth (with a fragment program: the interpolated values and texture-coordinate derivatives instead of the packed colour) | E0..E2, interp → z, colour or varyings, prim |
+//! | `texaddr`, `filter8`, `fragment`, `marble` ([`crate::kernels::texture`], [`crate::kernels::turbulence`]) | fragment: the object's fragment program, split at its texture lookups (texels gathered between `texaddr` and the rest) | varyings → colour |
 //! | [`hash`] | fragment: conflict with an earlier fragment of the round (32×32 stamp) | addr → conflict |
 //! | [`zcompare`] | fragment: the depth test (LESS, LEQUAL, ALWAYS) with primitive-order ties | z, colour, addr, prim, pixel, conflict → new pixel, its address |
 //! | [`compact_recycle`] | fragment: keeps the conflicting fragments for the next round | conflict, a, b → a', b' (conditional) |
