@@ -122,7 +122,8 @@ impl FragmentProgram {
         self.direct_fetches() + FILTER8_TEXELS * self.mipmapped()
     }
 
-    /// A name unique to the program (its kernels are `texaddr_…` and `fragment_…`).
+    /// A name unique to the program (its kernels are registered as `texaddr:…` and
+    /// `fragment:…`).
     pub fn name(&self) -> String {
         if self.marble {
             return "marble".into();
