@@ -27,6 +27,11 @@ fn cached() -> RenderOptions {
     }
 }
 
+/// A scene file's text, as if read from `file`.
+fn parse(file: &str, text: &str) -> Scene {
+    scene::file::parse(text, std::path::Path::new(file), &LoadOptions::default()).unwrap()
+}
+
 fn image_of(f: &Frame) -> Image {
     Image::from_rgba8_words(f.width, f.height, &f.pixels)
 }
@@ -322,12 +327,7 @@ scale = [2.0, 2.0, 2.0]
 /// approximation); every texel fetch counted.
 #[test]
 fn textured_frames_match_the_reference() {
-    let scene = scene::file::parse(
-        TEXTURED_BALLS,
-        std::path::Path::new("textured-balls.toml"),
-        &LoadOptions::default(),
-    )
-    .unwrap();
+    let scene = parse("textured-balls.toml", TEXTURED_BALLS);
     let (frame, m) = draw(&scene, "gold8");
     assert_eq!(m.coverage_mismatch_share, 0.0, "{m:?}");
     assert!(m.psnr_db > 45.0, "{m:?}");
@@ -392,12 +392,7 @@ scale = [0.5, 0.5, 0.5]
 
 #[test]
 fn marble_matches_the_reference() {
-    let scene = scene::file::parse(
-        MARBLE,
-        std::path::Path::new("marble.toml"),
-        &LoadOptions::default(),
-    )
-    .unwrap();
+    let scene = parse("marble.toml", MARBLE);
     let (frame, m) = draw(&scene, "gold8");
     assert!(m.psnr_db >= 30.0, "PSNR {}", m.psnr_db);
     assert!(m.coverage_mismatch_share < 0.001);

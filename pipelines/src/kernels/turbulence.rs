@@ -544,10 +544,10 @@ pub const PERLIN_PERMUTATION: [u8; TABLE] = [
 ];
 
 /// A `perm` stream of `table` for `clusters` clusters: each word once per cluster.
-pub fn perm_stream(table: &[u8], clusters: usize) -> Vec<u32> {
+pub fn perm_stream(table: impl IntoIterator<Item = u32>, clusters: usize) -> Vec<u32> {
     table
-        .iter()
-        .flat_map(|&w| std::iter::repeat_n(u32::from(w), clusters))
+        .into_iter()
+        .flat_map(|w| std::iter::repeat_n(w, clusters))
         .collect()
 }
 
@@ -591,10 +591,7 @@ pub fn inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
             r
         })
         .collect();
-    let table: Vec<u32> = random_permutation(&mut rng)
-        .into_iter()
-        .flat_map(|w| std::iter::repeat_n(w, desc.cluster.count))
-        .collect();
+    let table = perm_stream(random_permutation(&mut rng), desc.cluster.count);
     let mut params = vec![
         uniform(&mut rng, 0.5, 4.0).to_bits(),
         uniform(&mut rng, 1.0, 8.0).to_bits(),

@@ -23,6 +23,8 @@
 //! material's `diffuse` and `shininess` and the lights' colours are not used). All of
 //! these are computed in f64 on the host and rounded to f32.
 
+use glam::{DMat3, DMat4, DVec3};
+
 use crate::kernels::texture::{FragmentProgram, Unit};
 use crate::scene::mipmap;
 use crate::scene::model::{Filter, Marble, Object, Scene, Texture, TextureMode};
@@ -96,30 +98,21 @@ pub fn for_material(
 /// kernel's order: frequency, turbulence scale, L, H, ambient, specular.
 pub fn marble_params(scene: &Scene, object: &Object, marble: &Marble) -> Vec<u32> {
     let m = &scene.materials[object.material];
-    let model = object.model.map(f64::from);
-    let view = scene.camera_for(object).view.map(f64::from);
-    let upper = |m: &[f64; 16]| -> [[f64; 3]; 3] {
-        std::array::from_fn(|i| std::array::from_fn(|j| m[4 * i + j]))
-    };
-    let column = |m: &[f64; 16]| [m[3], m[7], m[11]];
-    let origin = column(&model);
-    // The eye: V⁻¹·(0, 0, 0, 1) = −A_V⁻¹·t_V.
-    let eye = apply(&inverse3(&upper(&view)), column(&view)).map(|c| -c);
-    let to_object = inverse3(&upper(&model));
-    let direction = |to: [f64; 3]| {
-        let d = apply(&to_object, std::array::from_fn(|k| to[k] - origin[k]));
-        normalized(d)
-    };
+    // Row-major f32 matrices, widened: glam's are column-major.
+    let matrix = |m: &[f32; 16]| DMat4::from_cols_array(&m.map(f64::from)).transpose();
+    let model = matrix(&object.model);
+    let view = matrix(&scene.camera_for(object).view);
+    let origin = model.w_axis.truncate();
+    let eye = view.inverse().transform_point3(DVec3::ZERO);
+    let to_object = DMat3::from_mat4(model).inverse();
+    let direction = |to: DVec3| (to_object * (to - origin)).normalize_or_zero();
     let (light, half) = match scene.lights.first() {
         Some(l) => {
-            let light = direction(l.position.map(f64::from));
+            let light = direction(DVec3::from(l.position.map(f64::from)));
             let viewer = direction(eye);
-            (
-                light,
-                normalized(std::array::from_fn(|k| light[k] + viewer[k])),
-            )
+            (light, (light + viewer).normalize_or_zero())
         }
-        None => ([0.0; 3], [0.0; 3]),
+        None => (DVec3::ZERO, DVec3::ZERO),
     };
     let mean = |c: [f32; 3]| c.iter().map(|&x| f64::from(x)).sum::<f64>() / 3.0;
     [
@@ -127,35 +120,9 @@ pub fn marble_params(scene: &Scene, object: &Object, marble: &Marble) -> Vec<u32
         f64::from(marble.turbulence_scale),
     ]
     .into_iter()
-    .chain(light)
-    .chain(half)
+    .chain(light.to_array())
+    .chain(half.to_array())
     .chain([mean(m.ambient), mean(m.specular)])
     .map(|x| (x as f32).to_bits())
     .collect()
-}
-
-/// The inverse of a 3 × 3 matrix (its adjugate over its determinant).
-fn inverse3(a: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let cof = |i: usize, j: usize| {
-        let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
-        let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
-        a[r0][c0] * a[r1][c1] - a[r0][c1] * a[r1][c0]
-    };
-    let det = a[0][0] * cof(0, 0) + a[0][1] * cof(0, 1) + a[0][2] * cof(0, 2);
-    // The inverse is the transposed cofactor matrix over the determinant.
-    std::array::from_fn(|i| std::array::from_fn(|j| cof(j, i) / det))
-}
-
-fn apply(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
-}
-
-/// `v / |v|`, or zero for a zero vector.
-fn normalized(v: [f64; 3]) -> [f64; 3] {
-    let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    if length > 0.0 {
-        v.map(|c| c / length)
-    } else {
-        [0.0; 3]
-    }
 }

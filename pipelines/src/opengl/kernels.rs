@@ -119,9 +119,9 @@ impl Varyings {
         self.extras > 0
     }
 
-    /// Words of a shaded vertex: clip x, y, z, w, r, g, b, then the extras.
+    /// Words of a shaded vertex: [`SHADED_WORDS`], then the extras.
     pub fn shaded_words(self) -> usize {
-        7 + self.extras
+        SHADED_WORDS + self.extras
     }
 
     /// Words of an `attribs` record: [`ATTRIB_WORDS`], then the extras of each corner.
@@ -223,6 +223,9 @@ pub fn clear(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     Ok(finish(b))
 }
 
+/// Words of a shaded vertex (a vertex program's output, `assemble_clip`'s input): clip x,
+/// y, z, w, then r, g, b.
+pub const SHADED_WORDS: usize = 7;
 /// Words of a `clipped` record (`assemble_clip` → `viewport_cull`): clip-space x, y and w
 /// of each corner, then 1 if no clip plane rejects the triangle, else 0.
 pub const CLIPPED_WORDS: usize = 10;

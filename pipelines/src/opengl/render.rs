@@ -561,12 +561,8 @@ fn register_kernels(
         };
         fragment.push(ids);
     }
-    let filter8 = if pp
-        .fragment_programs
-        .iter()
-        .flatten()
-        .any(|f| f.mipmapped() > 0)
-    {
+    // Mipmapped textures are what the derivatives are for.
+    let filter8 = if varyings.derivatives {
         Some(lib.register("filter8", texture::filter8(desc)?))
     } else {
         None
@@ -813,12 +809,7 @@ impl PipelinePlan {
                 }
             }
         }
-        if self
-            .fragment_programs
-            .iter()
-            .flatten()
-            .any(|f| f.mipmapped() > 0)
-        {
+        if self.varyings.derivatives {
             names.push("filter8".into());
         }
         if self.merge {
@@ -1115,7 +1106,8 @@ pub fn render_with(
     let fb_pixels = pixels.div_ceil(clusters) * clusters;
     let shaded_words = pp.varyings.shaded_words();
     // The marble program's permutation table, each word once per cluster.
-    let perm_words = turbulence::perm_stream(&turbulence::PERLIN_PERMUTATION, clusters);
+    let perm_words =
+        turbulence::perm_stream(turbulence::PERLIN_PERMUTATION.map(u32::from), clusters);
     let m = Memory {
         textures: dram.buffer("textures", pp.textures.words.len().max(1) as u64)?,
         perm: dram.buffer("perm", perm_words.len() as u64)?,

@@ -48,9 +48,6 @@ use crate::kernels::vertex::normalize;
 use crate::kernels::{Vec3, dot};
 use crate::scene::model::{Material, Mesh, Object, Scene, Shader};
 
-/// Words of a shaded vertex.
-pub const SHADED_WORDS: usize = 7;
-
 /// What a vertex program is built for.
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum VertexProgram {
@@ -230,11 +227,6 @@ impl VertexProgram {
             VertexProgram::Marble { .. } => 0,
             _ => self.extras(),
         }
-    }
-
-    /// Words of the shaded record: clip x, y, z, w, r, g, b, then the extras.
-    pub fn shaded_words(&self) -> usize {
-        SHADED_WORDS + self.extras()
     }
 
     fn base_name(&self) -> String {
@@ -1002,6 +994,7 @@ fn normal_matrix(b: &mut KernelBuilder, m: &[Value]) -> Vec<Value> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::opengl::kernels::SHADED_WORDS;
 
     #[test]
     fn names_and_record_words_follow_the_material() {
