@@ -187,3 +187,15 @@ fn texture_replace_and_two_units() {
 fn texture_trilinear_lit() {
     check_with("spot-trilinear-lit.toml", MIN_TEXTURED_PSNR_DB);
 }
+
+/// `blend = "alpha"`: a translucent ball (the Tango icon's alpha) over the lit Spot.
+#[test]
+fn blend_alpha() {
+    check_with("spot-alpha-blend.toml", MIN_TEXTURED_PSNR_DB);
+}
+
+/// `blend = "add"` with the `always` depth test (trilinear): every layer adds up.
+#[test]
+fn blend_add() {
+    check_with("spot-add-blend.toml", MIN_TEXTURED_PSNR_DB);
+}

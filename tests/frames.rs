@@ -398,3 +398,78 @@ fn marble_matches_the_reference() {
     assert!(m.coverage_mismatch_share < 0.001);
     assert!(frame.stats.fragments > 1000, "the spheres cover pixels");
 }
+
+/// Three translucent balls wearing the Tango icon (RGBA: its transparent background and
+/// soft edges give every alpha from 0 to 1), overlapping, drawn with no culling and the
+/// `always` depth test: each pixel blends the back and front faces of up to three balls,
+/// in drawing order. The faces of one batch are rasterized on different clusters, so a
+/// composite that did not keep the primitive order per pixel would blend them in another.
+const BLENDED: &str = r#"
+name = "BLENDED"
+[window]
+width = 48
+height = 48
+background = [0.2, 0.3, 0.4]
+[camera]
+eye = [0.0, 0.0, 4.0]
+target = [0.0, 0.0, 0.0]
+fov_y = 40.0
+near = 1.0
+far = 20.0
+[pipeline]
+cull = "none"
+depth_test = "always"
+blend = "MODE"
+[[texture]]
+name = "icon"
+image = "tango-address-book-new-128.png"
+filter = "linear"
+wrap = "clamp"
+[[material]]
+name = "glass"
+shader = "unlit"
+textures = ["icon"]
+[[object]]
+primitive = { kind = "uv_sphere", rings = 8, segments = 12 }
+material = "glass"
+colour = [1.0, 0.6, 0.3]
+translate = [-0.4, 0.1, 0.0]
+rotate = [40.0, 1.0, 0.0, 0.0]
+[[object]]
+primitive = { kind = "uv_sphere", rings = 8, segments = 12 }
+material = "glass"
+colour = [0.4, 1.0, 0.5]
+translate = [0.4, -0.2, 0.3]
+rotate = [-70.0, 0.0, 1.0, 0.0]
+[[object]]
+primitive = { kind = "uv_sphere", rings = 6, segments = 10 }
+material = "glass"
+translate = [0.0, 0.3, 0.6]
+scale = [0.7, 0.7, 0.7]
+"#;
+
+#[test]
+fn blended_frames_keep_the_primitive_order_on_every_cluster_count() {
+    // Beside the test scenes, so that the icon's path resolves.
+    let file = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/verif/tests/scenes/blended.toml"
+    );
+    for (mode, machines) in [
+        ("alpha", &["gold8", "gold1", "gold32"][..]),
+        ("add", &["gold8"]),
+    ] {
+        let scene = parse(file, &BLENDED.replace("MODE", mode));
+        for &machine in machines {
+            let (frame, m) = draw(&scene, machine);
+            // The machine blends the 8-bit colour it packed, the reference its exact
+            // colour: one step apart at most per blend, of which a pixel has up to six.
+            assert!(m.max_abs_error <= 3, "{mode} on {machine}: {m:?}");
+            assert!(m.psnr_db > 45.0, "{mode} on {machine}: {m:?}");
+            assert_eq!(m.coverage_mismatch_share, 0.0, "{mode} on {machine}");
+            // Up to six layers a pixel: the rounds peel them in order.
+            assert!(frame.stats.composite_rounds > frame.stats.batches, "{mode}");
+            assert_eq!(frame.stats.merge_rounds, 0, "merging would drop layers");
+        }
+    }
+}

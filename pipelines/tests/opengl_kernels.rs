@@ -4,7 +4,7 @@ use imagine_pipelines::compile::compile;
 use imagine_pipelines::kernels::{records_to_stream, stream_to_records};
 use imagine_pipelines::opengl::kernels::{self, FrameShape, Varyings};
 use imagine_pipelines::opengl::vertex_program::VertexProgram;
-use imagine_pipelines::scene::model::{Cull, DepthTest};
+use imagine_pipelines::scene::model::{Blend, Cull, DepthTest};
 use imagine_units::desc::MachineDesc;
 
 // One test per machine, so that the test threads compile them side by side.
@@ -36,6 +36,7 @@ fn pipeline_kernels_compile_on(name: &str) {
         cull: Cull::Back,
         depth_test: DepthTest::Less,
         batch: rows * c,
+        blend: Blend::None,
     };
     let lit = VertexProgram::Lit {
         lights: 3,
@@ -53,6 +54,14 @@ fn pipeline_kernels_compile_on(name: &str) {
     let textured = Varyings {
         extras: 2,
         derivatives: true,
+    };
+    let alpha = FrameShape {
+        blend: Blend::Alpha,
+        ..shape
+    };
+    let add = FrameShape {
+        blend: Blend::Add,
+        ..shape
     };
     let lit8_passes = lit8.passes(&desc);
     assert_eq!(lit8_passes.len(), 1);
@@ -79,6 +88,11 @@ fn pipeline_kernels_compile_on(name: &str) {
         kernels::irast(&desc, textured).unwrap(),
         kernels::hash(&desc, shape).unwrap(),
         kernels::zcompare(&desc, shape).unwrap(),
+        // A blending frame's: the boxes walked in primitive order, and both blends.
+        kernels::xyprep(&desc, alpha).unwrap(),
+        kernels::xyrast(&desc, alpha).unwrap(),
+        kernels::zcompare(&desc, alpha).unwrap(),
+        kernels::zcompare(&desc, add).unwrap(),
         kernels::compact_recycle(&desc, [0, 1]).unwrap(),
         imagine_pipelines::opengl::mergefrag::sort32(&desc, shape).unwrap(),
         imagine_pipelines::opengl::mergefrag::mergefrag(&desc, shape).unwrap(),
@@ -160,8 +174,13 @@ fn xyrast_covers_exactly_the_pixels_the_edges_cover() {
     flushing.name = "gold8 with flush-to-zero".into();
     flushing.arithmetic.flush_to_zero = true;
     let machines = ["gold1", "gold8", "gold8+F"].map(|n| MachineDesc::resolve(n).unwrap());
-    for desc in machines.into_iter().chain([flushing]) {
-        let name = &desc.name;
+    let blends = [Blend::None, Blend::Alpha];
+    let cases = machines
+        .into_iter()
+        .chain([flushing])
+        .flat_map(|d| blends.map(|b| (d.clone(), b)));
+    for (desc, blend) in cases {
+        let name = &format!("{} ({blend:?})", desc.name);
         let c = desc.cluster.count;
         let width = 40;
         let rows = kernels::xyrast_rows(&desc).min(8);
@@ -172,7 +191,9 @@ fn xyrast_covers_exactly_the_pixels_the_edges_cover() {
             cull: Cull::None,
             depth_test: DepthTest::Less,
             batch: rows * c,
+            blend,
         };
+        let ordered = shape.ordered();
         let k = kernels::xyrast(&desc, shape).unwrap();
         let compiled = compile(&k, &desc).unwrap();
         // Boxes of many widths (runs that end inside and past the box) and heights, empty
@@ -203,22 +224,29 @@ fn xyrast_covers_exactly_the_pixels_the_edges_cover() {
             }
         }
         // Each cluster walks its own boxes: the iterations are the most runs of any cluster.
+        // In primitive order the clusters walk every box together, runs of 4·C pixels,
+        // and step over an empty one in one iteration.
+        let run = kernels::XYRAST_RUN * if ordered { c } else { 1 };
         let runs = |rec: &Vec<u32>| -> usize {
             let (lo, hi) = (rec[0], rec[1]);
             if lo > hi {
-                return 0;
+                return usize::from(ordered);
             }
             let (w, h) = (
                 (hi & 0xFFFF) - (lo & 0xFFFF) + 1,
                 (hi >> 16) - (lo >> 16) + 1,
             );
-            (w as usize).div_ceil(kernels::XYRAST_RUN) * h as usize
+            (w as usize).div_ceil(run) * h as usize
         };
-        let iterations = (0..c)
-            .map(|t| records.iter().skip(t).step_by(c).map(runs).sum::<usize>())
-            .max()
-            .unwrap()
-            .max(1);
+        let iterations = if ordered {
+            records.iter().map(runs).sum::<usize>()
+        } else {
+            (0..c)
+                .map(|t| records.iter().skip(t).step_by(c).map(runs).sum::<usize>())
+                .max()
+                .unwrap()
+        }
+        .max(1);
         let inputs = KernelInputs {
             streams: vec![
                 records_to_stream(&records, c),
@@ -237,8 +265,16 @@ fn xyrast_covers_exactly_the_pixels_the_edges_cover() {
         let mut got: Vec<[u32; 5]> = (0..fragments)
             .map(|i| std::array::from_fn(|s| golden[2 + s][i]))
             .collect();
-        got.sort_unstable();
         let want = covered_pixels(&records, width);
+        if ordered {
+            // Triangle by triangle, as OpenGL draws them (within one, any order: a
+            // triangle covers a pixel once).
+            assert!(
+                got.is_sorted_by_key(|f| f[1]),
+                "{name}: the fragments in primitive order"
+            );
+        }
+        got.sort_unstable();
         let candidates: usize = records
             .iter()
             .filter(|rec| rec[0] <= rec[1])
@@ -296,6 +332,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             cull: Cull::Back,
             depth_test: DepthTest::Less,
             batch: 8 * c,
+            blend: Blend::None,
         };
         let tris = 64.max(8 * c);
         let m = scene.mvp();
@@ -433,6 +470,43 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
         let candidates: u64 = counts[c..].iter().map(|&w| u64::from(w)).sum();
         assert!(box_area > 0, "{name}: some triangles are kept");
         assert_eq!(candidates, box_area, "{name}: candidate pixels");
+        // Blending: the clusters walk every box together, runs of 4·C pixels, and step
+        // over a culled triangle in one iteration.
+        let ordered = FrameShape {
+            blend: Blend::Add,
+            ..shape
+        };
+        let prepped_in_order = run_checked(
+            &kernels::xyprep(&desc, ordered).unwrap(),
+            &desc,
+            &KernelInputs {
+                streams: vec![viewed[1].clone(), vec![], vec![]],
+                params: vec![0, 0, 127, 127],
+            },
+        );
+        assert_eq!(prepped_in_order[1], prepped[1], "{name}: the same records");
+        let runs_in_order: usize = records
+            .iter()
+            .map(|rec| {
+                if rec[0] > rec[1] {
+                    return 1;
+                }
+                let w = (rec[1] & 0xFFFF) - (rec[0] & 0xFFFF) + 1;
+                let h = (rec[1] >> 16) - (rec[0] >> 16) + 1;
+                (w as usize).div_ceil(kernels::XYRAST_RUN * c) * h as usize
+            })
+            .sum();
+        let counts_in_order = &prepped_in_order[2];
+        assert!(
+            counts_in_order[..c]
+                .iter()
+                .all(|&w| w as usize == runs_in_order)
+        );
+        assert_eq!(
+            counts_in_order[c..],
+            counts[c..],
+            "{name}: candidate pixels"
+        );
     }
 }
 
@@ -528,6 +602,7 @@ fn hash_holds_back_exactly_the_fragments_an_earlier_one_shares_a_stamp_key_with(
             cull: Cull::None,
             depth_test: DepthTest::Less,
             batch: c,
+            blend: Blend::None,
         };
         let k = kernels::hash(&desc, shape).unwrap();
         let compiled = compile(&k, &desc).unwrap();
@@ -690,6 +765,7 @@ fn sort32_and_mergefrag_keep_the_fragment_zcompare_would_keep_per_pixel_and_grou
             cull: Cull::None,
             depth_test: DepthTest::Less,
             batch: c,
+            blend: Blend::None,
         };
         let trash = shape.trash();
         // Not whole groups: the last group is part stream, part padding.
@@ -759,6 +835,84 @@ fn sort32_and_mergefrag_keep_the_fragment_zcompare_would_keep_per_pixel_and_grou
             let _ = ();
             let r = imagine_pipelines::run::check(k, &compiled, &desc, inputs).unwrap();
             assert!(r.mismatch.is_none(), "{name} {}: {:?}", k.name, r.mismatch);
+        }
+    }
+}
+
+/// `zcompare` under blending, on the machine and in the interpreter, against the blend
+/// equations in integers: `alpha` rounds `(s·a + d·(255 − a)) / 255` to nearest, `add`
+/// saturates `s + d`, every channel (alpha too); a fragment that fails the depth test or
+/// waits (`conflict`) leaves the pixel as it was.
+#[test]
+fn zcompare_blends_each_channel_as_the_equations_say() {
+    use imagine_pipelines::kernel::KernelInputs;
+    use imagine_units::arith::fp32::testgen::SplitMix64;
+    let desc = MachineDesc::resolve("gold8").unwrap();
+    let c = desc.cluster.count;
+    let n = 32 * c;
+    let mut rng = SplitMix64::new(29);
+    // Colours with channels at 0 and 255 among random ones.
+    let mut colour = || -> u32 {
+        (0..4).fold(0, |w, k| {
+            let byte = match rng.below(4) {
+                0 => 0,
+                1 => 255,
+                _ => rng.below(256),
+            };
+            w | byte << (8 * k)
+        })
+    };
+    let src: Vec<u32> = (0..n).map(|_| colour()).collect();
+    let dst: Vec<u32> = (0..n).map(|_| colour()).collect();
+    // Every fourth fragment behind the pixel, every seventh waiting.
+    let z: Vec<u32> = (0..n)
+        .map(|i| if i % 4 == 3 { 0.75f32 } else { 0.25 }.to_bits())
+        .collect();
+    let conflict: Vec<u32> = (0..n).map(|i| u32::from(i % 7 == 6)).collect();
+    let pixels: Vec<Vec<u32>> = (0..n).map(|i| vec![dst[i], 0.5f32.to_bits(), 1]).collect();
+    for blend in [Blend::Alpha, Blend::Add] {
+        let shape = FrameShape {
+            width: 64,
+            height: 64,
+            clusters: c,
+            cull: Cull::None,
+            depth_test: DepthTest::Less,
+            batch: 8 * c,
+            blend,
+        };
+        let inputs = KernelInputs {
+            streams: vec![
+                z.clone(),
+                src.clone(),
+                (0..n as u32).collect(),
+                vec![2; n],
+                records_to_stream(&pixels, c),
+                conflict.clone(),
+                vec![],
+                vec![],
+            ],
+            params: vec![],
+        };
+        let out = run_checked(&kernels::zcompare(&desc, shape).unwrap(), &desc, &inputs);
+        let written = stream_to_records(&out[6], kernels::PIXEL_WORDS, c);
+        for i in 0..n {
+            let passes = i % 4 != 3 && i % 7 != 6;
+            let want = if !passes {
+                dst[i]
+            } else {
+                let a = src[i] >> 24;
+                (0..4).fold(0, |w, k| {
+                    let (s, d) = (src[i] >> (8 * k) & 255, dst[i] >> (8 * k) & 255);
+                    let byte = match blend {
+                        Blend::Add => (s + d).min(255),
+                        _ => ((s * a + d * (255 - a)) as f64 / 255.0).round() as u32,
+                    };
+                    w | byte << (8 * k)
+                })
+            };
+            assert_eq!(written[i][0], want, "{blend:?}: fragment {i}");
+            let at = if passes { i as u32 } else { shape.trash() };
+            assert_eq!(out[7][i], at, "{blend:?}: fragment {i}'s address");
         }
     }
 }

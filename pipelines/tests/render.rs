@@ -209,11 +209,11 @@ fn an_unlit_scene_builds_no_lighting_and_no_merge_it_never_reaches() {
 fn unsupported_scenes_and_shapes_are_refused_by_name() {
     let desc = MachineDesc::gold8();
     let mut scene = two_triangles();
-    scene.pipeline.blend = imagine_pipelines::scene::model::Blend::Add;
+    scene.pipeline.kind = imagine_pipelines::scene::model::PipelineKind::Reyes;
     let e = render_with(&scene, &desc, cached(), None, |_, _| {})
         .unwrap_err()
         .to_string();
-    assert!(e.contains("blend"), "{e}");
+    assert!(e.contains("Reyes"), "{e}");
     let mut lit = scene::load(
         "SPHERE-FULL",
         &LoadOptions {

@@ -10,11 +10,11 @@
 //! | [`viewport_cull`] | triangle: window-homogeneous corners, edge functions, facing, cull, bounding box, top-left flags | clipped → window (14), \|det\| |
 //! | [`baryprep`] | triangle: the interpolation record | attribs, \|det\| → interp (13) |
 //! | [`xyprep`] | triangle, per scissor tile: box clamped to the tile, the raster record, `xyrast`'s cost | window → raster (12), counts |
-//! | [`xyrast`] | run of 4 candidate pixels: coverage by three edge functions | raster → addr, tri, E0, E1, E2 (conditional) |
+//! | [`xyrast`] | run of 4 candidate pixels: coverage by three edge functions (in primitive order when blending) | raster → addr, tri, E0, E1, E2 (conditional) |
 //! | [`irast`] | fragment: perspective-correct colour and depth (with a fragment program: the interpolated values and texture-coordinate derivatives instead of the packed colour) | E0..E2, interp → z, colour or varyings, prim |
 //! | `texaddr`, `filter8`, `fragment`, `marble` ([`crate::kernels::texture`], [`crate::kernels::turbulence`]) | fragment: the object's fragment program, split at its texture lookups (texels gathered between `texaddr` and the rest) | varyings → colour |
 //! | [`hash`] | fragment: conflict with an earlier fragment of the round (32×32 stamp) | addr → conflict |
-//! | [`zcompare`] | fragment: the depth test (LESS, LEQUAL, ALWAYS) with primitive-order ties | z, colour, addr, prim, pixel, conflict → new pixel, its address |
+//! | [`zcompare`] | fragment: the depth test (LESS, LEQUAL, ALWAYS) with primitive-order ties, and the blend | z, colour, addr, prim, pixel, conflict → new pixel, its address |
 //! | [`compact_recycle`] | fragment: keeps the conflicting fragments for the next round | conflict, a, b → a', b' (conditional) |
 //! | [`sort32`](super::mergefrag::sort32) | group of 32 fragments: the conflicting ones sorted by address | conflict, addr, z, prim → key, z, prim |
 //! | [`mergefrag`](super::mergefrag::mergefrag) | sorted group: one fragment per address, the one `zcompare` would keep | key, z, prim, colour → z, colour, addr, prim (conditional) |
@@ -54,7 +54,7 @@ use crate::kernel::{
     Kernel, KernelBuilder, LoopSpec, MachineRequirementError, Needs, Perm, StreamId, Ty, Value,
 };
 use crate::kernels::or_channel;
-use crate::scene::model::{Cull, DepthTest};
+use crate::scene::model::{Blend, Cull, DepthTest};
 
 /// Words of a raster record (`xyprep` → `xyrast`): the bounding box's first and last pixel (`lo`, `hi`,
 /// packed `y·2^16 + x`), the tag (the triangle's index in the batch and its three top-left
@@ -91,13 +91,29 @@ pub struct FrameShape {
     /// Triangles per batch (a multiple of `clusters`): `xyrast` keeps a batch's raster
     /// records in the scratchpad.
     pub batch: usize,
+    /// The blend `zcompare` applies; blending also makes `xyrast` write the fragments in
+    /// primitive order ([`FrameShape::ordered`]).
+    pub blend: Blend,
 }
 
 impl FrameShape {
+    /// Whether `xyrast` must write a batch's fragments in primitive order: a blend is not
+    /// an extremum over (depth, primitive), so a pixel's fragments must reach the composite
+    /// in the order OpenGL draws them.
+    pub fn ordered(&self) -> bool {
+        in_primitive_order(self.blend)
+    }
+
     /// The pixel address null fragments go to: one past the window.
     pub fn trash(&self) -> u32 {
         self.width * self.height
     }
+}
+
+/// Whether a frame blending by `blend` rasterizes in primitive order (see
+/// [`FrameShape::ordered`]).
+pub fn in_primitive_order(blend: Blend) -> bool {
+    blend != Blend::None
 }
 
 /// What a frame's vertices carry beyond the clip position and the colour: `extras` words
@@ -522,8 +538,9 @@ pub fn viewport_cull(
 /// Outputs: `raster` ([`RASTER_WORDS`] per triangle, every triangle: one not kept, or whose
 /// box misses the tile, gets an empty box) and, after the loop, `rows`: a row of the
 /// iterations `xyrast` needs (the most runs of [`XYRAST_RUN`] box pixels of any cluster, at
-/// least one; the same word in every cluster), then a row of each cluster's candidate
-/// pixels, whose sum bounds the fragments `xyrast` writes.
+/// least one; the same word in every cluster; in primitive order the sum over the
+/// triangles of their runs of `XYRAST_RUN·C` pixels, 1 for an empty box), then a row of
+/// each cluster's candidate pixels, whose sum bounds the fragments `xyrast` writes.
 ///
 /// Needs a power-of-two cluster count (the busiest cluster is found by butterfly
 /// exchanges).
@@ -590,14 +607,22 @@ pub fn xyprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     let candidates = b.select(kept, area, zero);
     let candidates_total = b.iadd(candidates0, candidates);
     b.set_next(candidates0, candidates_total);
-    // xyrast's iterations: runs of XYRAST_RUN pixels, ⌈width / RUN⌉ per box row.
+    // xyrast's iterations: runs of XYRAST_RUN pixels, ⌈width / RUN⌉ per box row; in
+    // primitive order, runs of RUN·C pixels (one per cluster side by side), and one
+    // iteration for a box not kept, which every cluster steps over together.
+    let run = if shape.ordered() {
+        XYRAST_RUN * clusters
+    } else {
+        XYRAST_RUN
+    };
     let runs = {
-        let r = b.i32(XYRAST_RUN as i32 - 1);
+        let r = b.i32(run as i32 - 1);
         let w = b.iadd(width, r);
-        let shift = b.i32(XYRAST_RUN.trailing_zeros() as i32);
+        let shift = b.i32(run.trailing_zeros() as i32);
         let per_row = b.shr(w, shift);
         let n = b.imul(per_row, height);
-        b.select(kept, n, zero)
+        let skipped = if shape.ordered() { one } else { zero };
+        b.select(kept, n, skipped)
     };
     let runs_total = b.iadd(runs0, runs);
     b.set_next(runs0, runs_total);
@@ -610,8 +635,14 @@ pub fn xyprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     let next_index = b.iadd(index0, row_c);
     b.set_next(index0, next_index);
     b.end_loop();
-    // Each cluster walks its own boxes in `xyrast`: the busiest one sets the iterations.
-    let most = all_reduce(&mut b, clusters, runs0, KernelBuilder::imax);
+    // Each cluster walks its own boxes in `xyrast`: the busiest one sets the iterations;
+    // in primitive order all walk every box together.
+    let reduce = if shape.ordered() {
+        KernelBuilder::iadd
+    } else {
+        KernelBuilder::imax
+    };
+    let most = all_reduce(&mut b, clusters, runs0, reduce);
     let iterations = b.imax(most, one);
     b.write(rows_out, iterations);
     b.write(rows_out, candidates0);
@@ -704,6 +735,16 @@ pub fn baryprep(desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, Machin
 /// of a row. The loop runs for as many iterations as the busiest cluster needs (`xyprep`
 /// counts them); a cluster that is done sits on the sentinel, which covers nothing.
 ///
+/// **In primitive order** (blending frames, [`FrameShape::ordered`]) the fragments must
+/// come out triangle by triangle. Then every record keeps its place (record `t` in row
+/// `t / C` of cluster `t mod C`, empty or not), and the clusters walk the boxes together:
+/// each iteration the cluster holding the current record sends its words to all
+/// (`Perm::PerCluster` of the owner, the same in every cluster), and the run is `4·C`
+/// pixels of a box row, cluster `c` testing pixels `4c … 4c + 3` of it. The walk's
+/// decisions are the same in every cluster, so they move to the next triangle together; an
+/// empty box (`lo > hi`) covers nothing and costs one iteration. `xyprep` counts the
+/// iterations as the sum over the triangles.
+///
 /// Needs a scratchpad that holds the batch's `batch / C` records per cluster (see
 /// [`xyrast_rows`]).
 pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequirementError> {
@@ -719,18 +760,26 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
         &format!("{rows} raster records, a sentinel and the word read past it"),
         true,
     )?;
+    let ordered = shape.ordered();
+    let clusters = shape.clusters;
     let record = b.i32(RASTER_WORDS as i32);
     let zero = b.i32(0);
 
-    // The records, compacted: an empty box (lo > hi) is overwritten by the next record.
+    // The records, compacted: an empty box (lo > hi) is overwritten by the next record. In
+    // primitive order every record keeps its place, record `t` of the batch in row
+    // `t / C` of cluster `t mod C`, where the others find it.
     let mut at = zero;
     for _ in 0..rows {
         let words: Vec<Value> = (0..RASTER_WORDS).map(|_| b.read(raster)).collect();
         for (i, &w) in words.iter().enumerate() {
             b.sp_write(i as u16, Some(at), w);
         }
-        let nonempty = b.op(Op::ILeU, &[words[LO as usize], words[HI as usize]]);
-        let size = b.select(nonempty, record, zero);
+        let size = if ordered {
+            record
+        } else {
+            let nonempty = b.op(Op::ILeU, &[words[LO as usize], words[HI as usize]]);
+            b.select(nonempty, record, zero)
+        };
         at = b.iadd(at, size);
     }
     // The sentinel: from lo = 0 the position only creeps on (hi = 2^32 - 1 would take 2^30
@@ -744,10 +793,27 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
         b.sp_write(word, Some(at), v);
     }
     let first = b.sp_read(LO, None);
+    let first = if ordered {
+        b.comm(first, Perm::Broadcast(0))
+    } else {
+        first
+    };
     let first = b.cast(first, Ty::I32);
+    // In primitive order the clusters walk one box together, cluster `c` taking pixels
+    // `4c .. 4c + 3` of a run of `4·C`.
+    let step = if ordered {
+        XYRAST_RUN * clusters
+    } else {
+        XYRAST_RUN
+    };
+    let offset = ordered.then(|| {
+        let lane = b.cluster_id();
+        let run = b.i32(XYRAST_RUN as i32);
+        b.imul(lane, run)
+    });
 
-    let run = b.i32(XYRAST_RUN as i32);
-    let run_end = b.i32(XYRAST_RUN as i32 - 1);
+    let run = b.i32(step as i32);
+    let run_end = b.i32(step as i32 - 1);
     let down = b.i32(1 << 16);
     let low16 = b.i32(0xFFFF);
     let up16 = b.word(1 << 16);
@@ -762,14 +828,40 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     let zero_word = b.word(0);
 
     b.begin_loop(LoopSpec::OverStream(tickets));
+    // The current record's first word, or in primitive order the triangle's index.
     let at0 = b.carried(zero);
     let pos0 = b.carried(first);
     let row0 = b.carried(first);
     let _ticket = b.read(tickets);
-    let rec: Vec<Value> = (HI..RASTER_WORDS as u16)
-        .map(|i| b.sp_read(i, Some(at0)))
-        .collect();
-    let next_lo = b.sp_read(RASTER_WORDS as u16 + LO, Some(at0));
+    let (rec, next_lo, at_moved) = if ordered {
+        // Record `t`'s words from the cluster that holds it, to every cluster.
+        let lane_mask = b.i32(clusters as i32 - 1);
+        let log2_c = b.i32(clusters.trailing_zeros() as i32);
+        let place = |b: &mut KernelBuilder, t: Value| {
+            let owner = b.and(t, lane_mask);
+            let row = b.shr(t, log2_c);
+            (owner, b.imul(row, record))
+        };
+        let (owner, slot) = place(&mut b, at0);
+        let rec: Vec<Value> = (HI..RASTER_WORDS as u16)
+            .map(|i| {
+                let w = b.sp_read(i, Some(slot));
+                b.comm(w, Perm::PerCluster(owner))
+            })
+            .collect();
+        let one = b.i32(1);
+        let next = b.iadd(at0, one);
+        let (next_owner, next_slot) = place(&mut b, next);
+        let lo = b.sp_read(LO, Some(next_slot));
+        let next_lo = b.comm(lo, Perm::PerCluster(next_owner));
+        (rec, next_lo, Some(next))
+    } else {
+        let rec: Vec<Value> = (HI..RASTER_WORDS as u16)
+            .map(|i| b.sp_read(i, Some(at0)))
+            .collect();
+        let next_lo = b.sp_read(RASTER_WORDS as u16 + LO, Some(at0));
+        (rec, next_lo, None)
+    };
     let (hi, tag) = (b.cast(rec[0], Ty::I32), b.cast(rec[1], Ty::I32));
     let coefficient = |edge: usize, k: usize| rec[2 + 3 * edge + k];
     // Positions are packed y·2^16 + x (`xyprep` clamps both to the scissor tile, inside the window). This run is pixels
@@ -789,7 +881,7 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     let row_moved = b.select(wrap, next_row, row0);
     let row_next = b.select(done, next_lo, row_moved);
     b.set_next(row0, row_next);
-    let at_moved = b.iadd(at0, record);
+    let at_moved = at_moved.unwrap_or_else(|| b.iadd(at0, record));
     let at_next = b.select(done, at_moved, at0);
     b.set_next(at0, at_next);
 
@@ -810,6 +902,10 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     // Pixel centres, exact: x + 0.5 + j and y + 0.5. The multipliers, which have room,
     // take the shifts (`imul_hi_u` by 2^16 is a shift right by 16) off the adders.
     let x = b.and(pos0, low16);
+    let x = match offset {
+        Some(o) => b.iadd(x, o),
+        None => x,
+    };
     let fx0 = b.itof(x);
     let fx0 = b.fadd(fx0, half);
     let y = b.op(Op::IMulHiU, &[pos0, up16]);
@@ -825,14 +921,18 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
         b.iadd(r, x)
     };
     for j in 0..XYRAST_RUN {
-        let (fx, addr, mut inside) = if j == 0 {
+        let (fx, addr, mut inside) = if j == 0 && !ordered {
             (fx0, addr0, None)
         } else {
-            let fj = b.f32(j as f32);
             let ij = b.i32(j as i32);
-            let fx = b.fadd(fx0, fj);
-            let addr = b.iadd(addr0, ij);
-            // Pixel j of the run is in the box while j <= x1 - x.
+            let (fx, addr) = if j == 0 {
+                (fx0, addr0)
+            } else {
+                let fj = b.f32(j as f32);
+                (b.fadd(fx0, fj), b.iadd(addr0, ij))
+            };
+            // Pixel j of the run is in the box while j <= x1 - x (always the first pixel
+            // of a run, unless the clusters share the run).
             let in_box = b.ile(ij, room);
             (fx, addr, Some(b.cast(in_box, Ty::I32)))
         };
@@ -1107,9 +1207,11 @@ pub fn hash(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequ
 /// one with an earlier primitive (the later of two equal depths fails LESS); LEQUAL — a
 /// smaller depth, or an equal one with a later primitive; ALWAYS — a later primitive. Each
 /// test is an extremum over (depth, primitive), so the order in which the rounds reach a
-/// pixel does not change the result. Outputs, unconditional: the pixel to write back
-/// (3 words) and where (`newaddr`: the fragment's pixel if it passed, else the trash
-/// pixel).
+/// pixel does not change the result. A blending frame's fragment that passes writes its
+/// colour blended over the pixel's (`blend`), which does depend on the order: a blending
+/// frame keeps it from `xyrast` on (see [`xyrast`]). Outputs,
+/// unconditional: the pixel to write back (3 words) and where (`newaddr`: the fragment's
+/// pixel if it passed, else the trash pixel).
 pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("zcompare");
     let z_in = b.input("z");
@@ -1156,6 +1258,7 @@ pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machin
     };
     // Both 0 or 1: passes when it wins and does not conflict.
     let pass = b.ilt(conflict, wins);
+    let colour = blend(&mut b, shape.blend, colour, old_colour);
     let new = [
         b.select(pass, colour, old_colour),
         b.select(pass, z, old_z),
@@ -1168,6 +1271,52 @@ pub fn zcompare(_desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machin
     b.write(newaddr_out, where_);
     b.end_loop();
     Ok(finish(b))
+}
+
+/// The colour a fragment `src` leaves on a pixel `dst` (both packed RGBA8) under `mode`,
+/// each of the four channels (alpha too, as OpenGL blends an RGBA buffer) in integers:
+/// `alpha` (`GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA`) is `round((s·a + d·(255 − a)) / 255)`,
+/// with `round(x / 255) = (x + 128 + ((x + 128) >> 8)) >> 8` exact for `x ≤ 255²` (and no
+/// ties: 255 is odd); `add` (`GL_ONE, GL_ONE`) is `min(s + d, 255)`.
+fn blend(b: &mut KernelBuilder, mode: Blend, src: Value, dst: Value) -> Value {
+    if mode == Blend::None {
+        return src;
+    }
+    let byte = b.i32(0xFF);
+    let (eight, half) = (b.i32(8), b.i32(128));
+    let channel = |b: &mut KernelBuilder, word: Value, k: i32| {
+        let shift = b.i32(8 * k);
+        let v = b.shr(word, shift);
+        b.and(v, byte)
+    };
+    let alpha = channel(b, src, 3);
+    let keep = b.isub(byte, alpha);
+    let mut out = None;
+    for k in 0..4 {
+        let (s, d) = (channel(b, src, k), channel(b, dst, k));
+        let c = match mode {
+            Blend::Add => {
+                let sum = b.iadd(s, d);
+                b.imin(sum, byte)
+            }
+            _ => {
+                let sa = b.imul(s, alpha);
+                let dk = b.imul(d, keep);
+                let x = b.iadd(sa, dk);
+                let x = b.iadd(x, half);
+                let high = b.shr(x, eight);
+                let x = b.iadd(x, high);
+                b.shr(x, eight)
+            }
+        };
+        let shift = b.i32(8 * k);
+        let c = b.shl(c, shift);
+        out = Some(match out {
+            None => c,
+            Some(w) => b.or(w, c),
+        });
+    }
+    out.expect("four channels")
 }
 
 /// `compact_recycle`: keeps the words of streams `a` and `b` whose `conflict` flag is set,

@@ -22,7 +22,9 @@
 //! that share a pixel with an earlier one, `zcompare` applies the depth test to the
 //! others, the pixels that passed are scattered, and the held-back fragments are recycled
 //! (`compact_recycle`), or sorted and merged (`sort32`, `mergefrag`) when many are, until
-//! none is left.
+//! none is left. A blending frame keeps each pixel's fragments in drawing order through all
+//! of this: `xyrast` walks the boxes in primitive order, `zcompare` blends, and the merge
+//! stage stays off (see [`kernels::xyrast`]).
 //!
 //! **Two batches in flight.** The next batch's vertices are loaded while this one is set
 //! up, and its vertex program is deferred to where the host first waits for the machine
@@ -84,6 +86,10 @@ const CHUNK: usize = 96;
 /// A run tests 4 candidate pixels, so 2048 words (256 runs per cluster on gold8) bind only
 /// when a cluster's boxes hold about as many candidates as the fragment streams do.
 const TICKET_WORDS: usize = 2048;
+/// Iterations of a pass of `xyrast` in primitive order, where the clusters walk every box
+/// together (one iteration at least per triangle of the batch): the stream takes this
+/// many rows, as many as [`TICKET_WORDS`] gives gold8 in the other order.
+const ORDERED_TICKET_ROWS: usize = 256;
 
 /// Words of the staging buffer the host interface fills for loads and read-backs.
 const STAGING_WORDS: usize = 8192;
@@ -258,6 +264,8 @@ struct Sizes {
     mipmapped: usize,
     /// Whether an object is marble (the permutation table and its parameters in the SRF).
     marble: bool,
+    /// Whether `xyrast` walks the boxes in primitive order (blending).
+    ordered: bool,
 }
 
 /// Words of `perlight`'s parameters (see [`VertexProgram::perlight_params`]).
@@ -347,7 +355,11 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         tickets: p.stream(
             "tickets",
             words,
-            TICKET_WORDS / c * c,
+            if s.ordered {
+                ORDERED_TICKET_ROWS * c
+            } else {
+                TICKET_WORDS / c * c
+            },
             live("xyrast", "xyrast"),
         ),
         addr: p.elastic("addr", words, live("xyrast", "composite")),
@@ -578,7 +590,7 @@ fn register_kernels(
         kernels::compact_recycle(desc, [shape.trash(), 0])?,
     );
     let clear = lib.register("clear", kernels::clear(desc)?);
-    let merge = if shape.depth_test == DepthTest::Less && options.merge_min_conflicts.is_some() {
+    let merge = if merges(shape, options) {
         Some((
             lib.register("sort32", mergefrag::sort32(desc, shape)?),
             lib.register("mergefrag", mergefrag::mergefrag(desc, shape)?),
@@ -719,14 +731,20 @@ fn inputs(scene: &Scene, programs: &[VertexProgram], batch: usize, clusters: usi
     out
 }
 
+/// Whether the merge stage may run: it keeps one fragment per pixel, the minimum over
+/// (depth, primitive), which is what the LESS test keeps of them, and what a blend must
+/// not lose.
+fn merges(shape: FrameShape, options: &RenderOptions) -> bool {
+    shape.depth_test == DepthTest::Less
+        && shape.blend == Blend::None
+        && options.merge_min_conflicts.is_some()
+}
+
 /// Reasons the pipeline cannot draw `scene` yet.
 fn check_supported(scene: &Scene) -> Result<(), RenderError> {
     let bad = |m: String| Err(RenderError(format!("scene `{}`: {m}", scene.name)));
     if scene.pipeline.kind != PipelineKind::OpenGl {
         return bad("the Reyes pipeline is not built yet; use kind = \"opengl\"".into());
-    }
-    if scene.pipeline.blend != Blend::None {
-        return bad("blending is not supported yet (pipeline.blend must be \"none\")".into());
     }
     if scene.width == 0
         || scene.height == 0
@@ -855,7 +873,9 @@ impl PipelinePlan {
         if !programs.clone().any(|f| f.marble) {
             out.push("procedural noise".into());
         }
-        out.push("blending".into());
+        if !self.shape.ordered() {
+            out.push("blending (and fragments in primitive order)".into());
+        }
         if !self.merge {
             out.push("merge of conflicting fragments (sort32, mergefrag)".into());
         }
@@ -944,6 +964,7 @@ pub fn plan_pipeline(
             cull: scene.pipeline.cull,
             depth_test: scene.pipeline.depth_test,
             batch: clusters,
+            blend: scene.pipeline.blend,
         };
         let e = match kernels::xyrast(desc, one_row) {
             Err(e) => e.to_string(),
@@ -1009,6 +1030,7 @@ pub fn plan_pipeline(
         direct_weights,
         mipmapped,
         marble,
+        ordered: kernels::in_primitive_order(scene.pipeline.blend),
     };
     let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
     let shape = FrameShape {
@@ -1018,9 +1040,10 @@ pub fn plan_pipeline(
         cull: scene.pipeline.cull,
         depth_test: scene.pipeline.depth_test,
         batch,
+        blend: scene.pipeline.blend,
     };
     Ok(PipelinePlan {
-        merge: shape.depth_test == DepthTest::Less && options.merge_min_conflicts.is_some(),
+        merge: merges(shape, options),
         programs,
         batch,
         plan,
