@@ -687,6 +687,8 @@ fn render_rejects_bad_scenes_with_a_clear_error() {
             "unknown scene: the built-in scenes are SPHERE, RATE-1",
         ),
         (vec!["render", "SPHERE", "--size", "0"], "--size"),
+        (vec!["render", "SPHERE", "--batch", "0"], "--batch"),
+        (vec!["scene", "show", "PIN", "--batch", "70000"], "--batch"),
     ] {
         assert_clear_error(&args);
         let err = stderr(&imagine(&args));

@@ -482,3 +482,46 @@ fn marble_materials_are_checked_by_name() {
         .to_string();
     assert!(e.contains("`ball`") && e.contains("normals"), "{e}");
 }
+
+/// The batch size is the scene's (`pipeline.batch`) or the options' (which win), rounded
+/// to whole rows of clusters and bounded by what the machine holds; the image does not
+/// depend on it (each depth test is an extremum over depth and primitive).
+#[test]
+fn the_batch_size_is_asked_for_and_changes_no_pixel() {
+    let desc = MachineDesc::gold8();
+    let mut scene = scene::load(
+        "SPHERE-FULL",
+        &LoadOptions {
+            size: Some(48),
+            subdivisions: Some(2),
+        },
+    )
+    .unwrap();
+    let default = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
+    assert_eq!(default.stats.batch_triangles, 64);
+    scene.pipeline.batch = Some(20);
+    let from_scene = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
+    assert_eq!(
+        from_scene.stats.batch_triangles, 24,
+        "whole rows of 8 clusters"
+    );
+    let asked = RenderOptions {
+        batch: Some(8),
+        ..cached()
+    };
+    let from_options = render_with(&scene, &desc, asked, None, |_, _| {}).unwrap();
+    assert_eq!(from_options.stats.batch_triangles, 8, "the options win");
+    // More than xyrast's scratchpad holds: the largest batch it does.
+    let huge = RenderOptions {
+        batch: Some(100_000),
+        ..cached()
+    };
+    let largest = render_with(&scene, &desc, huge, None, |_, _| {}).unwrap();
+    let rows = imagine_pipelines::opengl::kernels::xyrast_rows(&desc);
+    assert!(largest.stats.batch_triangles <= rows * 8);
+    assert!(largest.stats.batch_triangles > 64);
+    for f in [&from_scene, &from_options, &largest] {
+        assert_eq!(f.pixels, default.pixels, "the same image, bit for bit");
+        assert_ne!(f.stats.cycles, default.stats.cycles);
+    }
+}

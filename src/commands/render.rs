@@ -12,7 +12,7 @@ use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
 use imagine_pipelines::scene::model::Scene;
 use imagine_pipelines::scene::{self, LoadOptions};
 use imagine_units::desc::MachineDesc;
-use imagine_units::limits::MAX_RUN_CYCLES;
+use imagine_units::limits::{MAX_BATCH, MAX_RUN_CYCLES};
 use imagine_verif::image::{Image, Metrics, compare};
 use imagine_verif::reference_model as reference;
 
@@ -37,6 +37,10 @@ pub struct RenderArgs {
     /// Build the general pipeline instead of one specialised for the scene (to compare)
     #[arg(long)]
     no_specialize: bool,
+    /// At most N triangles per batch, instead of the scene's `pipeline.batch` or 64 (the
+    /// largest batch up to N that the machine's scratchpad and SRF hold)
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_BATCH)))]
+    batch: Option<u32>,
     /// Write the frame as PNG
     #[arg(long)]
     png: Option<PathBuf>,
@@ -106,6 +110,7 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
             CompileCache::from_env()
         },
         max_cycles: a.max_cycles,
+        batch: a.batch.map(|b| b as usize),
         ..RenderOptions::default()
     };
     let frame = render_with(&scene, &desc, options, on_start, |done, total| {

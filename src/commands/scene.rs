@@ -11,6 +11,7 @@ use imagine_pipelines::scene::model::{
 };
 use imagine_pipelines::scene::{LoadOptions, load};
 use imagine_units::desc::MachineDesc;
+use imagine_units::limits::MAX_BATCH;
 use serde_json::{Value, json};
 
 #[derive(Subcommand)]
@@ -33,6 +34,9 @@ pub enum SceneCommand {
         /// Plan the general pipeline instead of one specialised for the scene
         #[arg(long)]
         no_specialize: bool,
+        /// At most N triangles per batch, instead of the scene's `pipeline.batch` or 64
+        #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_BATCH)))]
+        batch: Option<u32>,
         /// Print the description as JSON
         #[arg(long)]
         json: bool,
@@ -55,6 +59,7 @@ pub fn run(c: SceneCommand) -> Result<ExitCode> {
             subdivisions,
             machine,
             no_specialize,
+            batch,
             json,
         } => {
             let scene = load(&name, &LoadOptions { size, subdivisions })?;
@@ -62,6 +67,7 @@ pub fn run(c: SceneCommand) -> Result<ExitCode> {
             let mut d = describe(&scene);
             let options = RenderOptions {
                 specialise: !no_specialize,
+                batch: batch.map(|b| b as usize),
                 ..RenderOptions::default()
             };
             match plan_pipeline(&scene, &desc, &options) {
@@ -210,10 +216,13 @@ pub fn describe(s: &Scene) -> Description {
     if p.kind == PipelineKind::Reyes {
         pl += &format!(", stop length {} px", p.stop_length);
     }
+    if let Some(b) = p.batch {
+        pl += &format!(", at most {b} triangles per batch");
+    }
     d.push(
         "pipeline",
         vec![pl],
-        json!({"kind": kind, "depth_test": depth, "cull": cull, "blend": blend, "stop_length": p.stop_length}),
+        json!({"kind": kind, "depth_test": depth, "cull": cull, "blend": blend, "stop_length": p.stop_length, "batch": p.batch}),
     );
     let mut lines = vec![format!("{}", s.lights.len())];
     let mut js = Vec::new();

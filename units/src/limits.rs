@@ -57,6 +57,9 @@ pub const MAX_WINDOW: u32 = 4096;
 pub const MAX_TRI_COORDINATE: f32 = 1.0e6;
 /// Most quads a patch may be diced into per side.
 pub const MAX_TESSELLATE: u32 = 256;
+/// Most triangles a scene or `--batch` may ask of a batch (the machine's scratchpad and SRF
+/// then bound it further).
+pub const MAX_BATCH: u32 = 1 << 16;
 /// Most rings or segments of a `uv_sphere`.
 pub const MAX_SPHERE_DIVISIONS: u32 = 4096;
 /// Most triangles of a scene, all objects together: 16 times SPHERE's, 8 times RATE-1's in

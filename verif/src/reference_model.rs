@@ -785,6 +785,7 @@ mod tests {
                 cull: Cull::Back,
                 blend: Blend::None,
                 stop_length: 1.5,
+                batch: None,
             },
             lights: Vec::new(),
             textures: Vec::new(),

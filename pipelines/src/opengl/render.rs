@@ -81,6 +81,13 @@ use imagine_units::limits::MAX_RUN_CYCLES;
 /// sizes 64 to 256 tried.
 const CHUNK: usize = 96;
 
+/// Triangles per batch unless the scene or the options say otherwise: on gold8 the fastest
+/// for SPHERE, MARBLE and ADVS-8 of 64, 128 and 152 (larger batches need more scissor
+/// tiles split to fit their fragments). ADVS-1, PIN and PIN-8 run faster at 112, 128 and
+/// 80, which their scene files ask for (`pipeline.batch`): the thesis, too, sized each
+/// scene's batch by profiling (Table 5.1).
+pub const DEFAULT_BATCH: usize = 64;
+
 /// Words of `xyrast`'s tickets stream: its iteration count is the busiest cluster's runs,
 /// so this bounds a pass at `TICKET_WORDS / C` runs per cluster (a tile splits beyond).
 /// A run tests 4 candidate pixels, so 2048 words (256 runs per cluster on gold8) bind only
@@ -148,6 +155,9 @@ pub struct RenderOptions {
     /// Step the simulation through idle time instead of jumping over it (the same frame
     /// and statistics either way; tests compare the two).
     pub step_idle: bool,
+    /// The most triangles per batch, instead of the scene's `pipeline.batch` or
+    /// [`DEFAULT_BATCH`].
+    pub batch: Option<usize>,
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
@@ -166,6 +176,7 @@ impl Default for RenderOptions {
             cache: CompileCache::disabled(),
             max_cycles: MAX_RUN_CYCLES,
             step_idle: false,
+            batch: None,
         }
     }
 }
@@ -975,16 +986,20 @@ pub fn plan_pipeline(
         };
         return Err(RenderError(format!("cannot build the pipeline: {e}")));
     }
-    // Strip-mining: the largest batch up to 64 triangles (whole rows of clusters, at most
-    // `rows` per cluster for `xyrast`'s scratchpad, no more than the largest object needs)
-    // whose streams fit the SRF.
+    // Strip-mining: the largest batch up to the one asked for (whole rows of clusters, at
+    // most `rows` per cluster for `xyrast`'s scratchpad, no more than the largest object
+    // needs) whose streams fit the SRF.
     let most = scene
         .objects
         .iter()
         .map(|o| o.mesh.triangles.len())
         .max()
         .unwrap_or(0);
-    let want = 64usize.max(clusters).div_ceil(clusters) * clusters;
+    let asked = options
+        .batch
+        .or(scene.pipeline.batch.map(|b| b as usize))
+        .unwrap_or(DEFAULT_BATCH);
+    let want = asked.max(clusters).div_ceil(clusters) * clusters;
     let top = want
         .min(most.div_ceil(clusters) * clusters)
         .min(rows * clusters)

@@ -6,7 +6,8 @@
 //!   to `[0, 1, 0]`; the view comes from `eye`/`target`/`up` or `modelview`, the
 //!   projection from `fov_y`/`near`/`far`, `ortho` or `projection`, one of each.
 //! * `[pipeline]`: `kind = "opengl"`, `depth_test = "less"`, `cull = "none"` (OpenGL's
-//!   initial state), `blend = "none"`, `stop_length = 1.5`.
+//!   initial state), `blend = "none"`, `stop_length = 1.5`; `batch` (the most triangles per
+//!   batch, an addition to the format) defaults to the pipeline's choice.
 //! * `[window] background` defaults to black; a material's `shader` is required.
 //! * A texture's `filter` defaults to `"nearest"` and `wrap` to `"repeat"`; a procedural
 //!   checker defaults to `size = 256`, `cells = 8`, `colours = [[1,1,1], [0,0,0]]`. A
@@ -42,7 +43,7 @@
 
 use std::path::{Path, PathBuf};
 
-use imagine_units::limits::{read_file, read_text_file};
+use imagine_units::limits::{MAX_BATCH, read_file, read_text_file};
 
 use glam::dcamera::rh::proj::opengl;
 use glam::{DMat4, DVec3};
@@ -185,6 +186,7 @@ pub fn window_scene(old: super::Scene) -> model::Scene {
             cull: model::Cull::None,
             blend: model::Blend::None,
             stop_length: 1.5,
+            batch: None,
         },
         lights: Vec::new(),
         textures: Vec::new(),
@@ -278,6 +280,7 @@ struct PipelineFile {
     cull: Option<CullFile>,
     blend: Option<BlendFile>,
     stop_length: Option<f64>,
+    batch: Option<i64>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -819,6 +822,16 @@ impl Cx {
                 BlendFile::Add => model::Blend::Add,
             },
             stop_length: stop_length as f32,
+            batch: match p.batch {
+                None => None,
+                Some(n) if (1..=i64::from(MAX_BATCH)).contains(&n) => Some(n as u32),
+                Some(n) => {
+                    return Err(self.err(
+                        "pipeline.batch",
+                        format!("{n} is outside 1..={MAX_BATCH} triangles"),
+                    ));
+                }
+            },
         })
     }
 
@@ -1418,13 +1431,21 @@ mod tests {
         assert_eq!(s.camera.projection, IDENTITY);
         let p = s.pipeline;
         assert_eq!(
-            (p.kind, p.depth_test, p.cull, p.blend, p.stop_length),
+            (
+                p.kind,
+                p.depth_test,
+                p.cull,
+                p.blend,
+                p.stop_length,
+                p.batch
+            ),
             (
                 PipelineKind::OpenGl,
                 DepthTest::Less,
                 Cull::None,
                 Blend::None,
-                1.5
+                1.5,
+                None
             )
         );
         let l = s.lights[0];
@@ -1530,6 +1551,9 @@ mod tests {
             (format!("{WINDOW}[[object]]\nprimitive = {{ kind = \"icosphere\" }}\n"), vec!["`object[0].primitive.subdivisions`", "missing"]),
             (format!("{WINDOW}[[object]]\nprimitive = {{ kind = \"rate\", size = 3 }}\n"), vec!["`object[0].primitive.size`", "power of two"]),
             (format!("{WINDOW}[pipeline]\ncull = \"sideways\"\n{BALL}"), vec!["pipeline.cull", "sideways"]),
+            (format!("{WINDOW}[pipeline]\nbatch = 0\n{BALL}"), vec!["`pipeline.batch`", "1..=65536"]),
+            (format!("{WINDOW}[pipeline]\nbatch = 70000\n{BALL}"), vec!["`pipeline.batch`", "70000"]),
+            (format!("{WINDOW}[pipeline]\nbatch = 6.5\n{BALL}"), vec!["pipeline.batch"]),
             (format!("{WINDOW}[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 0]\n{BALL}"), vec!["`camera.fov_y`", "missing"]),
             (format!("{WINDOW}[camera]\nmodelview = [1, 2]\northo = [-1, 1, -1, 1, -1, 1]\n{BALL}"), vec!["camera.modelview", "16"]),
         ];

@@ -79,6 +79,9 @@ pub struct PipelineSettings {
     pub blend: Blend,
     /// Reyes: the largest micropolygon side, in pixels.
     pub stop_length: f32,
+    /// OpenGL: the most triangles per batch (the pipeline takes the largest batch up to
+    /// this that the machine holds), or the pipeline's default.
+    pub batch: Option<u32>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
