@@ -22,6 +22,7 @@
 //! the output stream buffers into the SRF; then the kernel is over.
 
 use std::fmt;
+use std::sync::Arc;
 
 use imagine_hdl::{ContractError, DomainId, Module, Scope, Trace, Violation};
 
@@ -82,7 +83,7 @@ impl KernelStats {
 }
 
 struct Kernel {
-    program: Program,
+    program: Arc<Program>,
     /// Some result goes from the switch straight to an output stream.
     switch_writes_streams: bool,
     bindings: Vec<StreamBinding>,
@@ -428,6 +429,20 @@ impl Machine {
         program: &Program,
         bindings: &[StreamBinding],
     ) -> Result<(), StartError> {
+        program
+            .check(&self.desc)
+            .map_err(|e| StartError(e.to_string()))?;
+        self.start_checked(Arc::new(program.clone()), bindings)
+    }
+
+    /// [`start`](Self::start) for a program already checked against this machine (the
+    /// stream controller checks its programs once, when they are loaded), shared rather
+    /// than copied.
+    pub(crate) fn start_checked(
+        &mut self,
+        program: Arc<Program>,
+        bindings: &[StreamBinding],
+    ) -> Result<(), StartError> {
         if let Some(k) = &self.kernel
             && self.uc.phase() != Phase::Idle
         {
@@ -436,9 +451,6 @@ impl Machine {
                 k.program.name
             )));
         }
-        program
-            .check(&self.desc)
-            .map_err(|e| StartError(e.to_string()))?;
         if bindings.len() != program.streams.len() {
             return Err(StartError(format!(
                 "kernel `{}` has {} streams, {} bound",
@@ -497,7 +509,7 @@ impl Machine {
         });
         self.kernel = Some(Box::new(Kernel {
             switch_writes_streams,
-            program: program.clone(),
+            program,
             bindings: bindings.to_vec(),
             stats: KernelStats {
                 fu_ops: vec![0; fu_slots],

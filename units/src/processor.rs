@@ -183,7 +183,7 @@ impl Processor {
                 }
                 let p = p.clone();
                 self.machine
-                    .start(&p, bindings)
+                    .start_checked(p, bindings)
                     .map_err(|e| self.error("issue", e.to_string()))?;
                 self.kernel = Some(RunningKernel {
                     id: is.id,

@@ -34,6 +34,7 @@
 //! reports completions back with [`StreamController::complete`].
 
 use std::collections::VecDeque;
+use std::sync::Arc;
 
 use crate::desc::MachineDesc;
 use crate::machine::{KernelStats, StreamBinding};
@@ -103,7 +104,7 @@ impl InstrRecord {
     }
 
     /// A short name: `load`, `store`, `kernel NAME`, `microcode NAME`.
-    pub fn kind(&self, programs: &[Program]) -> String {
+    pub fn kind(&self, programs: &[Arc<Program>]) -> String {
         match &self.instr {
             StreamInstr::Memory(m) if m.kind == MemOpKind::Load => "load".into(),
             StreamInstr::Memory(_) => "store".into(),
@@ -141,7 +142,7 @@ fn mem_overlap(a: Option<(u64, u64)>, b: Option<(u64, u64)>) -> bool {
 }
 
 impl Footprint {
-    fn of(instr: &StreamInstr, programs: &[Program]) -> Self {
+    fn of(instr: &StreamInstr, programs: &[Arc<Program>]) -> Self {
         let mut f = Footprint::default();
         match instr {
             StreamInstr::Memory(m) => {
@@ -216,7 +217,8 @@ pub struct ScStats {
 }
 
 pub struct StreamController {
-    programs: Vec<Program>,
+    /// Shared with the clusters while a kernel runs (no copy per call).
+    programs: Vec<Arc<Program>>,
     records: Vec<InstrRecord>,
     /// Instructions the host has not yet written into the queue, and the queue.
     host: VecDeque<usize>,
@@ -258,7 +260,7 @@ impl StreamController {
     pub fn new(desc: &MachineDesc, programs: Vec<Program>, instrs: Vec<StreamInstr>) -> Self {
         let n = instrs.len();
         StreamController {
-            programs,
+            programs: programs.into_iter().map(Arc::new).collect(),
             records: instrs.into_iter().map(InstrRecord::new).collect(),
             host: (0..n).collect(),
             queue: VecDeque::new(),
@@ -274,7 +276,7 @@ impl StreamController {
         }
     }
 
-    pub fn programs(&self) -> &[Program] {
+    pub fn programs(&self) -> &[Arc<Program>] {
         &self.programs
     }
 
@@ -282,7 +284,7 @@ impl StreamController {
     /// late); returns its index for [`StreamInstr::Kernel`] and
     /// [`StreamInstr::LoadMicrocode`].
     pub fn add_program(&mut self, program: Program) -> usize {
-        self.programs.push(program);
+        self.programs.push(Arc::new(program));
         self.programs.len() - 1
     }
 
