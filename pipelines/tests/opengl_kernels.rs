@@ -55,14 +55,7 @@ fn pipeline_kernels_compile_on(name: &str) {
         extras: 2,
         derivatives: true,
     };
-    let alpha = FrameShape {
-        blend: Blend::Alpha,
-        ..shape
-    };
-    let add = FrameShape {
-        blend: Blend::Add,
-        ..shape
-    };
+
     let lit8_passes = lit8.passes(&desc);
     assert_eq!(lit8_passes.len(), 1);
     for k in [
@@ -88,11 +81,6 @@ fn pipeline_kernels_compile_on(name: &str) {
         kernels::irast(&desc, textured).unwrap(),
         kernels::hash(&desc, shape).unwrap(),
         kernels::zcompare(&desc, shape).unwrap(),
-        // A blending frame's: the boxes walked in primitive order, and both blends.
-        kernels::xyprep(&desc, alpha).unwrap(),
-        kernels::xyrast(&desc, alpha).unwrap(),
-        kernels::zcompare(&desc, alpha).unwrap(),
-        kernels::zcompare(&desc, add).unwrap(),
         kernels::compact_recycle(&desc, [0, 1]).unwrap(),
         imagine_pipelines::opengl::mergefrag::sort32(&desc, shape).unwrap(),
         imagine_pipelines::opengl::mergefrag::mergefrag(&desc, shape).unwrap(),
