@@ -229,14 +229,12 @@ impl DramParams {
         if byte_addr >= self.capacity_bytes() {
             return None;
         }
-        let mut u = byte_addr / self.burst_bytes();
-        let channel = (u % self.channels as u64) as usize;
-        u /= self.channels as u64;
-        let bursts = (self.columns / self.burst) as u64;
-        let column = (u % bursts) * self.burst as u64;
-        u /= bursts;
-        let bank = u % self.banks as u64;
-        let row = u / self.banks as u64;
+        let (u, _) = div_rem(byte_addr, self.burst_bytes());
+        let (u, channel) = div_rem(u, self.channels as u64);
+        let (u, burst) = div_rem(u, (self.columns / self.burst) as u64);
+        let column = burst * self.burst as u64;
+        let (row, bank) = div_rem(u, self.banks as u64);
+        let channel = channel as usize;
         Some(Location {
             channel,
             bank: u4::new(bank as u8),
@@ -253,6 +251,16 @@ impl DramParams {
             * self.channels as u64
             + l.channel as u64;
         u * self.burst_bytes()
+    }
+}
+
+/// `(n / d, n % d)`, by a shift and a mask when `d` is a power of two (every built-in
+/// part's geometry): an address is mapped for every word the memory system moves.
+fn div_rem(n: u64, d: u64) -> (u64, u64) {
+    if d.is_power_of_two() {
+        (n >> d.trailing_zeros(), n & (d - 1))
+    } else {
+        (n / d, n % d)
     }
 }
 
