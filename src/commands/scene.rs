@@ -235,6 +235,7 @@ pub fn describe(s: &Scene) -> Description {
             Shader::Unlit => "unlit",
             Shader::Lit => "lit",
             Shader::Marble(_) => "marble",
+            Shader::BumpEnv(_) => "bump_env",
         };
         let mode = match m.texture_mode {
             TextureMode::Modulate => "modulate",
