@@ -771,6 +771,8 @@ fn scene_list_names_every_builtin() {
         "ADVS-8",
         "PIN",
         "PIN-8",
+        "MARBLE",
+        "VERONA",
     ] {
         let line = list
             .lines()

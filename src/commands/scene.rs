@@ -262,6 +262,15 @@ pub fn describe(s: &Scene) -> Description {
                 marble.frequency, marble.turbulence_scale
             );
         }
+        if let Shader::BumpEnv(b) = m.shader {
+            l += &format!(
+                ", displacement {}, bump map {size}×{size} of {cells}×{cells} bumps, slope {}",
+                b.displacement,
+                b.bump_scale,
+                size = b.bump_size,
+                cells = b.bump_cells
+            );
+        }
         if !tex.is_empty() {
             l += &format!(", textures {} ({mode})", tex.join(", "));
         }
