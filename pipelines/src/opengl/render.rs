@@ -37,10 +37,14 @@
 //! the SRF), `viewport_cull` for the scene's cull mode, `zcompare` for its depth test;
 //! `sort32` and `mergefrag` are compiled only if a round needs them (and never for depth
 //! tests other than LESS, whose minimum they implement); fragment programs only when an
-//! object is textured or marble (then every object has one: see
+//! object is textured, marble or `bump_env` (then every object has one: see
 //! [`super::fragment_program`]; a marble frame loads Perlin's permutation table into the
 //! SRF once, before its first batch, and writes the marble parameters at each batch of a
-//! marble object). `--no-specialize` builds the
+//! marble object). A `bump_env` object's vertex program is split at its vertex texture:
+//! `vtexaddr` runs as soon as the batch's vertices are loaded, its texels are gathered
+//! over its addresses, and the rest of the program is deferred as any vertex program; its
+//! fragment program is a dependent read, `bumpaddr`, a gather, `envaddr`, a gather and
+//! `fragment` ([`crate::kernels::bump_env`]). `--no-specialize` builds the
 //! general pipeline instead: every vertex carries position, normal or colour, specular
 //! lighting always, and every kernel compiled up front.
 
