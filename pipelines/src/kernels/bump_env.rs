@@ -30,8 +30,11 @@
 //!   `fragment` kernel packs.
 //!
 //! Per fragment 3 + 1 texel words are fetched (16 bytes), per vertex 4 (16 bytes).
-//! `normalize(v)` is `v · (1 / sqrt(v·v))` (one `fsqrt`, one `fdiv`), dot products sum
-//! left to right, cross products are `(a₁b₂ − a₂b₁, a₂b₀ − a₀b₂, a₀b₁ − a₁b₀)`.
+//! `normalize(v)` is `v · (1 / sqrt(v·v))` (one `fsqrt`, one `fdiv`), except in `envaddr`
+//! for `V` and `1/m`, which take the reciprocal square root by the bit-level guess and
+//! three Newton steps ([`super::turbulence`]'s) on the multipliers, so that the loop is not
+//! bound by the divide/sqrt unit; dot products sum left to right, cross products are
+//! `(a₁b₂ − a₂b₁, a₂b₀ − a₀b₂, a₀b₁ − a₁b₀)`.
 //!
 //! **Fragment records** (`varyings`, as `irast` writes them): r, g, b, then s, t, the
 //! eye-space position (3), normal (3) and tangent (3): [`EXTRAS`] words after the colour.
@@ -41,6 +44,7 @@ use imagine_units::desc::MachineDesc;
 
 use super::texture::{Unit, nearest_address, pack, unpack};
 use super::transform::{matrix_params, transform_point};
+use super::turbulence::reciprocal_sqrt;
 use super::vertex::normalize;
 use super::{Vec3, dot, records_to_stream, uniform, uniform_words};
 use crate::kernel::{
@@ -251,7 +255,13 @@ pub fn environment_address(
     let binormal = cross(&mut b, n, tangent);
     let bumped = in_frame(&mut b, bump, tangent, binormal, n);
     let bumped = normalize(&mut b, bumped);
-    let view = normalize(&mut b, position);
+    // The view direction and the sphere map's 1/m by Newton's reciprocal square root, on
+    // the multipliers: with all four on the divide/sqrt unit the loop waits for it.
+    let view = {
+        let length_squared = dot(&mut b, position, position);
+        let y = reciprocal_sqrt(&mut b, length_squared);
+        position.map(|c| b.fmul(c, y))
+    };
     let d = dot(&mut b, bumped, view);
     let twice = b.fmul(d, two);
     let r: Vec3 = std::array::from_fn(|i| {
@@ -260,9 +270,8 @@ pub fn environment_address(
     });
     let z1 = b.fadd(r[2], one);
     let m2 = dot(&mut b, [r[0], r[1], z1], [r[0], r[1], z1]);
-    let m = b.fsqrt(m2);
-    let m = b.fmul(m, two);
-    let inverse = b.fdiv(one, m);
+    let inverse = reciprocal_sqrt(&mut b, m2);
+    let inverse = b.fmul(inverse, half);
     let es = b.fmadd(r[0], inverse, half);
     let et = b.fmadd(r[1], inverse, half);
     let a = nearest_address(&mut b, &maps.environment, es, et);
