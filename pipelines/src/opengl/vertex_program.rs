@@ -176,6 +176,14 @@ impl VertexProgram {
                 extras,
             }),
             Shader::BumpEnv(_) => {
+                if m.textures.len() != 1 {
+                    return Err(format!(
+                        "material `{}` is bump_env with {} textures: it takes exactly one, its \
+                         environment map",
+                        m.name,
+                        m.textures.len()
+                    ));
+                }
                 let n = object.mesh.positions.len();
                 if object.mesh.normals.len() != n || object.mesh.tangents.len() != n {
                     return Err(format!(
@@ -1089,7 +1097,13 @@ mod tests {
             extras: 0,
         };
         assert_eq!(flat.record_words(), 3);
+        let bump_env = VertexProgram::BumpEnv {
+            extras: bump_env::EXTRAS,
+        };
+        assert_eq!(bump_env.name(), "vertex_bump_env");
+        assert_eq!(bump_env.record_words(), bump_env::VERTEX_WORDS);
         let desc = MachineDesc::resolve("gold8").unwrap();
+        assert_eq!(bump_env.param_count(&desc), bump_env::VERTEX_PARAMS);
         for p in [
             lit,
             flat,
@@ -1097,6 +1111,7 @@ mod tests {
                 per_vertex_colour: true,
                 extras: 0,
             },
+            bump_env,
         ] {
             let k = p.build(&desc);
             let pb = p.perbegin(&desc);
