@@ -773,6 +773,8 @@ fn scene_list_names_every_builtin() {
         "ADVS-8",
         "PIN",
         "PIN-8",
+        "MARBLE",
+        "VERONA",
     ] {
         let line = list
             .lines()

@@ -61,7 +61,8 @@ fn schedule_stays_near_its_bound(name: &str, report: &Report) {
         // (turbulence: 283 by Rau's scheduler alone, 268 with modulo list scheduling and
         // relaxed waits, 218 by local search.)
         "transform" | "prefix_sum" | "hash" | "vertex" | "sort32" | "merge" | "turbulence"
-        | "marble" | "texaddr" | "filter8" | "fragment" => mii,
+        | "marble" | "texaddr" | "filter8" | "fragment" | "vtexaddr" | "vertex_bump_env"
+        | "bumpaddr" | "envaddr" | "envshade" => mii,
         _ => mii * 3,
     };
     assert!(ii >= mii, "{name}: II {ii} below its bound {mii}");

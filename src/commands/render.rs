@@ -22,7 +22,8 @@ use super::waves::WaveArgs;
 #[derive(Args)]
 pub struct RenderArgs {
     /// Scene: a built-in name (`imagine scene list`: SPHERE, SPHERE-FULL, RATE-1 …
-    /// RATE-128, ADVS-1, ADVS-8, PIN, PIN-8) or a `.toml` scene file or `.tri` triangle file
+    /// RATE-128, ADVS-1, ADVS-8, PIN, PIN-8, MARBLE, VERONA) or a `.toml` scene file or
+    /// `.tri` triangle file
     /// [default: SPHERE]
     scene: Option<String>,
     /// Machine description name or file

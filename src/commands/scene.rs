@@ -244,6 +244,7 @@ pub fn describe(s: &Scene) -> Description {
             Shader::Unlit => "unlit",
             Shader::Lit => "lit",
             Shader::Marble(_) => "marble",
+            Shader::BumpEnv(_) => "bump_env",
         };
         let mode = match m.texture_mode {
             TextureMode::Modulate => "modulate",
@@ -268,6 +269,15 @@ pub fn describe(s: &Scene) -> Description {
             l += &format!(
                 ", frequency {}, turbulence_scale {}",
                 marble.frequency, marble.turbulence_scale
+            );
+        }
+        if let Shader::BumpEnv(b) = m.shader {
+            l += &format!(
+                ", displacement {}, bump map {size}×{size} of {cells}×{cells} bumps, slope {}",
+                b.displacement,
+                b.bump_scale,
+                size = b.bump_size,
+                cells = b.bump_cells
             );
         }
         if !tex.is_empty() {

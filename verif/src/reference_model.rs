@@ -17,6 +17,9 @@
 //!   none.
 //! * [`Shader::Marble`]: white at the vertices; the fragment's colour is the marble shader
 //!   ([`crate::marble`]) at its perspective-correct object-space position and normal.
+//! * [`Shader::BumpEnv`]: the object's colour; its vertices are displaced by the combined
+//!   displacement/bump map and the fragment's colour is the environment texel along the
+//!   reflection of the bumped normal, times that colour ([`crate::bump_env`]).
 //! * [`Shader::Lit`]: OpenGL 1.x fixed-function lighting in eye space ([`lit_colour`]),
 //!   as `glLightfv(GL_POSITION)` with the camera's view loaded leaves the lights: each
 //!   light's eye position is `view · (position, 1)` with the *camera's* view (also for
@@ -83,6 +86,7 @@
 //! `src·a + dst·(1 − a)`; `add` (`GL_ONE, GL_ONE`) writes `min(1, src + dst)`. Alpha is
 //! never stored: the framebuffer is RGB.
 
+use crate::bump_env::BumpEnvShading;
 use crate::image::{Image, quantise};
 use crate::marble::MarbleShading;
 use crate::reference::{self, Fragment, Sample, TieRule, V3, cross, dot, normalize, widen};
@@ -279,6 +283,22 @@ pub fn check(scene: &model::Scene) -> Result<(), SceneError> {
                 mesh.normals.len()
             ));
         }
+        if let Shader::BumpEnv(_) = scene.materials[object.material].shader {
+            let m = &scene.materials[object.material];
+            if mesh.normals.len() != n || mesh.tangents.len() != n {
+                return bad(format!(
+                    "bump_env needs normals and tangents: {} and {} for {n} positions",
+                    mesh.normals.len(),
+                    mesh.tangents.len()
+                ));
+            }
+            if m.textures.len() != 1 {
+                return bad(format!(
+                    "bump_env material `{}` needs exactly one texture (its environment map)",
+                    m.name
+                ));
+            }
+        }
         if let Some(t) = mesh
             .triangles
             .iter()
@@ -362,6 +382,7 @@ fn object_corner_colours(
             mesh.triangles.iter().map(|t| t.map(colour)).collect()
         }
         Shader::Marble(_) => vec![[[1.0; 3]; 3]; mesh.triangles.len()],
+        Shader::BumpEnv(_) => vec![[widen(object.colour); 3]; mesh.triangles.len()],
         Shader::Lit => {
             let mv = modelview(scene, object);
             let nm = normal_matrix(&mv);
@@ -411,6 +432,7 @@ pub fn vertex_colours(scene: &model::Scene, index: usize) -> Result<Vec<[f64; 3]
             .map(|i| widen(*mesh.colours.get(i).unwrap_or(&object.colour)))
             .collect()),
         Shader::Marble(_) => Ok(vec![[1.0; 3]; mesh.positions.len()]),
+        Shader::BumpEnv(_) => Ok(vec![widen(object.colour); mesh.positions.len()]),
         Shader::Lit if mesh.normals.is_empty() => Err(error(
             scene,
             format!(
@@ -627,7 +649,12 @@ pub fn for_each_fragment(
         }
     }
     for (index, object) in scene.objects.iter().enumerate() {
-        let clip = clip_positions(scene, object);
+        // Bump_env displaces its vertices and shades from eye-space frames.
+        let bump_env = BumpEnvShading::of(scene, object);
+        let clip = match &bump_env {
+            Some(b) => b.clip.clone(),
+            None => clip_positions(scene, object),
+        };
         let colours = object_corner_colours(scene, object, &lights);
         let material = &scene.materials[object.material];
         let units: Vec<&Sampler> = material
@@ -652,8 +679,9 @@ pub fn for_each_fragment(
                 rule,
                 |sample| {
                     let l = sample.barycentrics;
-                    let [r, g, b, a] = match &marble {
-                        Some(m) => {
+                    let [r, g, b, a] = match (&marble, &bump_env) {
+                        (_, Some(shading)) => shading.colour(*t, l),
+                        (Some(m), None) => {
                             let at = |v: &[[f32; 3]]| -> V3 {
                                 std::array::from_fn(|k| {
                                     (0..3)
@@ -666,7 +694,7 @@ pub fn for_each_fragment(
                             let [r, g, b] = m.colour(at(&mesh.positions), at(&mesh.normals));
                             [r, g, b, 1.0]
                         }
-                        None => {
+                        (None, None) => {
                             let colour = std::array::from_fn(|k| {
                                 l[0] * col[0][k] + l[1] * col[1][k] + l[2] * col[2][k]
                             });

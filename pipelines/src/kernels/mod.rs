@@ -21,7 +21,9 @@
 //! | [`sort32`] | bitonic sort of 32-word chunks of u32 keys |
 //! | [`merge`] | bitonic merge of pairs of sorted 32-word chunks into 64-word chunks |
 //! | [`texture`] | texture sampling: `texaddr` (texel addresses), `filter8` (trilinear filter), `fragment` (texture environment) |
+//! | [`bump_env`] | VERONA's shader split at its lookups: `vtexaddr` and `vertex_bump_env` (vertex texture, displacement), `bumpaddr` (depth 2), `envaddr` (depth 1: bumped normal, reflection, sphere map), `envshade` (depth 0) |
 
+pub mod bump_env;
 pub mod compact;
 pub mod hash;
 pub mod merge;
@@ -116,6 +118,36 @@ static LIBRARY: &[LibraryKernel] = &[
         description: "texture environment: vertex colour modulated by three textures",
         build: texture::fragment_example,
         inputs: texture::fragment_inputs,
+    },
+    LibraryKernel {
+        name: "vtexaddr",
+        description: "VERONA vertex texture: a vertex's 4 words of the combined bump map",
+        build: bump_env::vtexaddr_example,
+        inputs: bump_env::vtexaddr_inputs,
+    },
+    LibraryKernel {
+        name: "vertex_bump_env",
+        description: "VERONA vertex program: displacement, bumped normal, eye-space frame",
+        build: bump_env::vertex_example,
+        inputs: bump_env::vertex_inputs,
+    },
+    LibraryKernel {
+        name: "bumpaddr",
+        description: "VERONA depth 2: the bump-map normal's 3 word addresses per fragment",
+        build: bump_env::bumpaddr_example,
+        inputs: bump_env::bumpaddr_inputs,
+    },
+    LibraryKernel {
+        name: "envaddr",
+        description: "VERONA depth 1: bumped normal, reflection, sphere-map texel address",
+        build: bump_env::envaddr_example,
+        inputs: bump_env::envaddr_inputs,
+    },
+    LibraryKernel {
+        name: "envshade",
+        description: "VERONA depth 0: environment texel times the vertex colour, RGBA8",
+        build: bump_env::shade_example,
+        inputs: bump_env::shade_inputs,
     },
     LibraryKernel {
         name: "merge",

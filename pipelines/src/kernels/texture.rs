@@ -69,12 +69,14 @@ impl Unit {
 }
 
 /// A textured material's fragment program, or (`marble`) the marble shader (built by
-/// [`super::turbulence::build_fragment`]).
+/// [`super::turbulence::build_fragment`]), or (`bump_env`) VERONA's shader over its maps
+/// (built by [`super::bump_env`]: a dependent read, 3 kernels and 2 gathers).
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct FragmentProgram {
     pub units: Vec<Unit>,
     pub mode: TextureMode,
     pub marble: bool,
+    pub bump_env: Option<super::bump_env::Maps>,
 }
 
 impl FragmentProgram {
@@ -84,20 +86,36 @@ impl FragmentProgram {
             units: Vec::new(),
             mode: TextureMode::Modulate,
             marble: true,
+            bump_env: None,
+        }
+    }
+
+    /// The `bump_env` shader's program over `maps`.
+    pub fn bump_env(maps: super::bump_env::Maps) -> FragmentProgram {
+        FragmentProgram {
+            units: Vec::new(),
+            mode: TextureMode::Modulate,
+            marble: false,
+            bump_env: Some(maps),
         }
     }
 
     /// Texel words `texaddr` asks for per fragment outside mipmapped units (1 per
-    /// point-sampled unit, 4 per bilinear one).
+    /// point-sampled unit, 4 per bilinear one; `bump_env`'s depth-2 kernel: the 3 normal
+    /// words).
     pub fn direct_fetches(&self) -> usize {
-        self.units
+        let bump = self
+            .bump_env
+            .map_or(0, |_| super::bump_env::FRAGMENT_BUMP_WORDS);
+        bump + self
+            .units
             .iter()
             .map(|u| match u.filter {
                 Filter::Nearest => 1,
                 Filter::Linear => 4,
                 Filter::Trilinear => 0,
             })
-            .sum()
+            .sum::<usize>()
     }
 
     /// Bilinear weights per fragment (2 per bilinear unit).
@@ -117,9 +135,15 @@ impl FragmentProgram {
             .count()
     }
 
+    /// Texel words fetched per fragment by an address computed from fetched texels (a
+    /// dependent read: `bump_env`'s environment texel).
+    pub fn dependent_fetches(&self) -> usize {
+        usize::from(self.bump_env.is_some())
+    }
+
     /// Texel words fetched per fragment, all units.
     pub fn texel_fetches(&self) -> usize {
-        self.direct_fetches() + FILTER8_TEXELS * self.mipmapped()
+        self.direct_fetches() + FILTER8_TEXELS * self.mipmapped() + self.dependent_fetches()
     }
 
     /// A name unique to the program (its kernels are registered as `texaddr:…` and
@@ -127,6 +151,9 @@ impl FragmentProgram {
     pub fn name(&self) -> String {
         if self.marble {
             return "marble".into();
+        }
+        if let Some(maps) = &self.bump_env {
+            return format!("bump_env_{}", maps.name());
         }
         let mut name = String::new();
         for u in &self.units {
@@ -170,10 +197,7 @@ impl FragmentProgram {
         for u in &self.units {
             match u.filter {
                 Filter::Nearest => {
-                    let level = Level::constant(&mut b, u, 0);
-                    let i = texel_index(&mut b, s, level.width_f, level.width_mask, u.wrap);
-                    let j = texel_index(&mut b, t, level.height_f, level.height_mask, u.wrap);
-                    let a = level.address(&mut b, i, j);
+                    let a = nearest_address(&mut b, u, s, t);
                     b.write(addr.expect("an address stream"), a);
                 }
                 Filter::Linear => {
@@ -358,6 +382,14 @@ impl Level {
     }
 }
 
+/// The level-0 texel of `u` holding `(s, t)` (point sampling, `u`'s wrap): its address.
+pub(crate) fn nearest_address(b: &mut KernelBuilder, u: &Unit, s: Value, t: Value) -> Value {
+    let level = Level::constant(b, u, 0);
+    let i = texel_index(b, s, level.width_f, level.width_mask, u.wrap);
+    let j = texel_index(b, t, level.height_f, level.height_mask, u.wrap);
+    level.address(b, i, j)
+}
+
 /// `⌊x⌋` as an int32 (`ftoi` truncates; one less where that rounded up).
 fn floor(b: &mut KernelBuilder, x: Value) -> Value {
     let i = b.ftoi_trunc(x);
@@ -495,7 +527,7 @@ fn level_of_detail(
 }
 
 /// An RGBA8 word as four channels in [0, 1].
-fn unpack(b: &mut KernelBuilder, word: Value) -> [Value; 4] {
+pub(crate) fn unpack(b: &mut KernelBuilder, word: Value) -> [Value; 4] {
     let (mask, scale) = (b.i32(0xFF), b.f32(1.0 / 255.0));
     std::array::from_fn(|c| {
         let shift = b.i32(8 * c as i32);
@@ -522,7 +554,7 @@ fn bilerp(b: &mut KernelBuilder, t: &[[Value; 4]], alpha: Value, beta: Value) ->
 }
 
 /// Four channels, clamped to [0, 1], as an RGBA8 word rounded to nearest.
-fn pack(b: &mut KernelBuilder, channels: [Value; 4]) -> Value {
+pub(crate) fn pack(b: &mut KernelBuilder, channels: [Value; 4]) -> Value {
     let (zero, one, half, scale) = (b.f32(0.0), b.f32(1.0), b.f32(0.5), b.f32(255.0));
     let mut word = b.word(0);
     for (c, &x) in channels.iter().enumerate() {
@@ -551,6 +583,7 @@ fn example() -> FragmentProgram {
         ],
         mode: TextureMode::Modulate,
         marble: false,
+        bump_env: None,
     }
 }
 

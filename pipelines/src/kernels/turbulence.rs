@@ -313,6 +313,13 @@ use super::{Vec3, dot};
 /// `v / |v|` without a divide or square root (see the module notes).
 fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {
     let length_squared = dot(b, v, v);
+    let y = reciprocal_sqrt(b, length_squared);
+    v.map(|c| b.fmul(c, y))
+}
+
+/// `1 / sqrt(x)` without a divide or square root: the bit-level initial guess and
+/// [`RSQRT_STEPS`] Newton steps (see the module notes).
+pub(crate) fn reciprocal_sqrt(b: &mut KernelBuilder, length_squared: Value) -> Value {
     let bits = b.cast(length_squared, Ty::I32);
     let shift_right = b.constant(1 << 31, Ty::I32);
     let halved_bits = b.op(Op::IMulHiU, &[bits, shift_right]);
@@ -328,7 +335,7 @@ fn normalize(b: &mut KernelBuilder, v: Vec3) -> Vec3 {
         let t = b.fsub(three_halves, t);
         y = b.fmul(y, t);
     }
-    v.map(|c| b.fmul(c, y))
+    y
 }
 
 /// Needs a cluster count that divides the table's 256 entries (it loads the table in rows)

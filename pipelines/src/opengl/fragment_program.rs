@@ -1,6 +1,7 @@
-//! A scene's textures on the machine: their mipmap pyramids laid out in one DRAM buffer
-//! (written by the host before the frame, a load phase, not frame time) and each textured
-//! material's fragment program ([`crate::kernels::texture`]) over that layout.
+//! A scene's textures on the machine: their mipmap pyramids and the `bump_env` materials'
+//! combined displacement/bump maps laid out in one DRAM buffer (written by the host before
+//! the frame, a load phase, not frame time) and each textured material's fragment program
+//! ([`crate::kernels::texture`], [`crate::kernels::bump_env`]) over that layout.
 //!
 //! **Marble** (`shader = "marble"`, MARBLE's procedural shader, Owens 2002 §5.1.1) is a
 //! depth-0 program without lookups: one kernel, `marble`
@@ -25,15 +26,19 @@
 
 use glam::{DMat3, DMat4, DVec3};
 
+use crate::kernels::bump_env::Maps;
 use crate::kernels::texture::{FragmentProgram, Unit};
-use crate::scene::mipmap;
-use crate::scene::model::{Filter, Marble, Object, Scene, Texture, TextureMode};
+use crate::scene::model::{Filter, Marble, Object, Scene, Shader, Texture, TextureMode};
+use crate::scene::{bump_map, mipmap};
 
-/// Where a scene's textures lie in the texture buffer.
+/// Where a scene's textures lie in the texture buffer: the textures in order, then the
+/// combined displacement/bump map of each `bump_env` material ([`bump_map`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TextureMemory {
     /// Per scene texture: its level 0's first word.
     pub base: Vec<u32>,
+    /// Per material: its combined map's first word (`bump_env` materials).
+    pub bump_base: Vec<Option<u32>>,
     /// The buffer's words (every level of every texture, at their offsets).
     pub words: Vec<u32>,
 }
@@ -62,8 +67,45 @@ impl TextureMemory {
                 words[at..at + l.texels.len()].copy_from_slice(&l.texels);
             }
         }
-        TextureMemory { base, words }
+        let bump_base = scene
+            .materials
+            .iter()
+            .map(|m| match m.shader {
+                Shader::BumpEnv(b) => {
+                    let at = words.len() as u32;
+                    words.extend(bump_map::build(&b));
+                    Some(at)
+                }
+                _ => None,
+            })
+            .collect();
+        TextureMemory {
+            base,
+            bump_base,
+            words,
+        }
     }
+}
+
+/// The `bump_env` program of material `material` (its one texture the environment map),
+/// its maps at their places in `memory`.
+pub fn for_bump_env(
+    scene: &Scene,
+    material: usize,
+    memory: &TextureMemory,
+) -> Option<FragmentProgram> {
+    let m = &scene.materials[material];
+    let (Shader::BumpEnv(b), Some(bump_base), [environment]) =
+        (m.shader, memory.bump_base[material], m.textures.as_slice())
+    else {
+        return None;
+    };
+    let mut units = for_material(scene, &[*environment], m.texture_mode, memory).units;
+    Some(FragmentProgram::bump_env(Maps {
+        bump_base,
+        bump_size: b.bump_size,
+        environment: units.remove(0),
+    }))
 }
 
 /// The fragment program of a material with textures `textures` (indices into the scene's)
@@ -91,6 +133,7 @@ pub fn for_material(
         units,
         mode,
         marble: false,
+        bump_env: None,
     }
 }
 

@@ -5,6 +5,7 @@
 //! |---|---|---|
 //! | [`perbegin`](super::vertex_program) | once per object: the vertex program's parameters from the OpenGL state | state → params |
 //! | `vertex_*` ([`super::vertex_program`]) | vertex: clip position and colour | 3 or 6 words → 7 words |
+//! | `vtexaddr`, then `vertex_bump_env` ([`crate::kernels::bump_env`]) | vertex: a vertex texture's addresses; the texels gathered; displacement, bumped normal, eye-space frame | 11 words → 4 addresses; 11 words, 4 texels → 18 words |
 //! | [`clear`] | pixel: the clear colour and depth | tickets → pixels |
 //! | [`assemble_clip`] | triangle: its three vertices gathered into one cluster (comms), trivial reject | shaded vertices → clipped (10), attribs (12) |
 //! | [`viewport_cull`] | triangle: window-homogeneous corners, edge functions, facing, cull, bounding box, top-left flags | clipped → window (14), \|det\| |
@@ -13,6 +14,7 @@
 //! | [`xyrast`] | run of 4 candidate pixels: coverage by three edge functions (in primitive order when blending) | raster → addr, tri, E0, E1, E2 (conditional) |
 //! | [`irast`] | fragment: perspective-correct colour and depth (with a fragment program: the interpolated values and texture-coordinate derivatives instead of the packed colour) | E0..E2, interp → z, colour or varyings, prim |
 //! | `texaddr`, `filter8`, `fragment`, `marble` ([`crate::kernels::texture`], [`crate::kernels::turbulence`]) | fragment: the object's fragment program, split at its texture lookups (texels gathered between `texaddr` and the rest) | varyings → colour |
+//! | `bumpaddr`, `envaddr`, `fragment` ([`crate::kernels::bump_env`]) | fragment: `bump_env`'s dependent read, 3 kernels and 2 gathers (bump-map normal; environment texel along the reflection) | varyings → 3 addresses; varyings, 3 texels → 1 address; varyings, 1 texel → colour |
 //! | [`hash`] | fragment: conflict with an earlier fragment of the round (32×32 stamp) | addr → conflict |
 //! | [`zcompare`] | fragment: the depth test (LESS, LEQUAL, ALWAYS) with primitive-order ties, and the blend | z, colour, addr, prim, pixel, conflict → new pixel, its address |
 //! | [`compact_recycle`] | fragment: keeps the conflicting fragments for the next round | conflict, a, b → a', b' (conditional) |

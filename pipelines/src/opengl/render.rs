@@ -39,10 +39,14 @@
 //! the SRF), `viewport_cull` for the scene's cull mode, `zcompare` for its depth test;
 //! `sort32` and `mergefrag` are compiled only if a round needs them (and never for depth
 //! tests other than LESS, whose minimum they implement); fragment programs only when an
-//! object is textured or marble (then every object has one: see
+//! object is textured, marble or `bump_env` (then every object has one: see
 //! [`super::fragment_program`]; a marble frame loads Perlin's permutation table into the
 //! SRF once, before its first batch, and writes the marble parameters at each batch of a
-//! marble object). `--no-specialize` builds the
+//! marble object). A `bump_env` object's vertex program is split at its vertex texture:
+//! `vtexaddr` runs as soon as the batch's vertices are loaded, its texels are gathered
+//! over its addresses, and the rest of the program is deferred as any vertex program; its
+//! fragment program is a dependent read, `bumpaddr`, a gather, `envaddr`, a gather and
+//! `fragment` ([`crate::kernels::bump_env`]). `--no-specialize` builds the
 //! general pipeline instead: every vertex carries position, normal or colour, specular
 //! lighting always, and every kernel compiled up front.
 
@@ -63,10 +67,11 @@ use super::stats::{BatchRow, Phases, Specialisation};
 use super::vertex_program::{self, VertexProgram};
 use crate::compile::CompileCache;
 use crate::kernel::MachineRequirementError;
+use crate::kernels::bump_env;
 use crate::kernels::texture::{self, FragmentProgram};
 use crate::kernels::turbulence;
-use crate::scene::MAX_WINDOW;
 use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene, Shader};
+use crate::scene::{MAX_WINDOW, bump_map};
 use crate::stream::{
     Buffer, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS, PlanError,
     SrfPlan, SrfPlanner, StreamHost, StreamId, live, pipelined, split_to_fit, strip_mine,
@@ -203,6 +208,8 @@ struct Streams {
     baryprep_params: StreamId,
     vertices: StreamId,
     corner_index: [StreamId; 2],
+    /// A vertex texture's addresses, the texels gathered over them (`bump_env`).
+    vertex_texels: Option<StreamId>,
     shaded: [StreamId; 2],
     /// The records a lit program's kernels hand on to its next light pass: none, or one
     /// buffer, or two that alternate between passes.
@@ -245,6 +252,9 @@ struct TexturingStreams {
     addr8: Option<StreamId>,
     weights5: Option<StreamId>,
     filtered: Option<StreamId>,
+    /// Dependent reads' addresses, their texels gathered over them (`bump_env`'s
+    /// environment texel).
+    dependent: Option<StreamId>,
     marble: Option<MarbleStreams>,
 }
 
@@ -277,6 +287,10 @@ struct Sizes {
     marble: bool,
     /// Whether `xyrast` walks the boxes in primitive order (blending).
     ordered: bool,
+    /// The most dependent texel fetches of any fragment program.
+    dependent_fetches: usize,
+    /// Texel words per vertex of the vertex textures (`bump_env`), 0 without.
+    vertex_texels: usize,
 }
 
 /// Words of `perlight`'s parameters (see [`VertexProgram::perlight_params`]).
@@ -309,6 +323,14 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         baryprep_params: p.stream("baryprep_params", words, c, always),
         vertices: p.stream("vertices", Layout::records(s.vertex_words), 3 * b, always),
         corner_index: p.buffers("corner_index", words, 3 * b, always),
+        vertex_texels: (s.vertex_texels > 0).then(|| {
+            p.stream(
+                "vertex_texels",
+                Layout::records(s.vertex_texels),
+                3 * b,
+                always,
+            )
+        }),
         shaded: p.buffers(
             "shaded",
             Layout::records(s.varyings.shaded_words()),
@@ -426,6 +448,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
                 addr8: per_fragment("mipmap_addr", texture::FILTER8_TEXELS * s.mipmapped),
                 weights5: per_fragment("mipmap_weights", texture::FILTER8_WEIGHTS * s.mipmapped),
                 filtered: per_fragment("filtered", s.mipmapped),
+                dependent: per_fragment("dependent_addr", s.dependent_fetches),
                 marble: s.marble.then(|| MarbleStreams {
                     perm: p.stream("perm", words, turbulence::TABLE * c, always),
                     params: p.stream(
@@ -508,9 +531,8 @@ struct Kernels {
     clear: KernelId,
     /// `sort32` and `mergefrag`, when the depth test allows merging.
     merge: Option<(KernelId, KernelId)>,
-    /// Per object (frames with fragment programs): its program's `texaddr` (none without
-    /// textures) and `fragment` kernels (`marble` for marble objects).
-    fragment: Vec<(Option<KernelId>, KernelId)>,
+    /// Per object (frames with fragment programs): its program's kernels.
+    fragment: Vec<FragmentKernels>,
     /// `filter8`, when a texture is mipmapped.
     filter8: Option<KernelId>,
 }
@@ -525,7 +547,7 @@ fn register_kernels(
     let programs = &pp.programs;
     let varyings = pp.varyings;
     let mut per_program: Vec<(VertexProgram, ObjectKernels)> = Vec::new();
-    let per_object = programs
+    let per_object: Vec<ObjectKernels> = programs
         .iter()
         .map(|vp| {
             if let Some((_, ids)) = per_program.iter().find(|(p, _)| p == vp) {
@@ -534,6 +556,7 @@ fn register_kernels(
             let name = vp.name();
             let ids = ObjectKernels {
                 perbegin: lib.register(&format!("perbegin:{name}"), vp.perbegin(desc)),
+                vtexaddr: None,
                 perlight: vp
                     .perlight(desc)
                     .map(|k| lib.register(&format!("perlight:{name}"), k)),
@@ -557,11 +580,47 @@ fn register_kernels(
     let xyprep = lib.register("xyprep", kernels::xyprep(desc, shape)?);
     let xyrast = lib.register("xyrast", kernels::xyrast(desc, shape)?);
     let irast = lib.register("irast", kernels::irast(desc, varyings)?);
+    let mut per_object = per_object;
+    // A vertex texture's address kernel per combined map.
+    let mut vertex_textures: Vec<(bump_env::Maps, KernelId)> = Vec::new();
+    for (ids, fp) in per_object.iter_mut().zip(&pp.fragment_programs) {
+        if let Some(maps) = fp.as_ref().and_then(|f| f.bump_env) {
+            let same = |(m, _): &&(bump_env::Maps, KernelId)| {
+                m.vertex_kernel_name() == maps.vertex_kernel_name()
+            };
+            ids.vtexaddr = Some(match vertex_textures.iter().find(same) {
+                Some(&(_, id)) => id,
+                None => {
+                    let k = bump_env::vertex_texel_address(&maps)?;
+                    let id = lib.register(&maps.vertex_kernel_name(), k);
+                    vertex_textures.push((maps, id));
+                    id
+                }
+            });
+        }
+    }
     let mut fragment = Vec::new();
-    let mut registered: Vec<(&FragmentProgram, (Option<KernelId>, KernelId))> = Vec::new();
+    let mut registered: Vec<(&FragmentProgram, FragmentKernels)> = Vec::new();
     for fp in pp.fragment_programs.iter().flatten() {
         let ids = match registered.iter().find(|(p, _)| *p == fp) {
             Some((_, ids)) => *ids,
+            None if fp.bump_env.is_some() => {
+                let (name, maps) = (fp.name(), fp.bump_env.expect("a bump_env program"));
+                let words = varyings.fragment_words();
+                let ids = FragmentKernels {
+                    texaddr: Some(lib.register(
+                        &format!("bumpaddr:{name}"),
+                        bump_env::bump_address(&maps, words)?,
+                    )),
+                    dependent: Some(lib.register(
+                        &format!("envaddr:{name}"),
+                        bump_env::environment_address(&maps, words)?,
+                    )),
+                    colour: lib.register(&format!("fragment:{name}"), bump_env::shade(words)?),
+                };
+                registered.push((fp, ids));
+                ids
+            }
             None => {
                 let name = fp.name();
                 let texaddr = if fp.units.is_empty() {
@@ -578,8 +637,13 @@ fn register_kernels(
                     fp.fragment(varyings.fragment_words())?
                 };
                 let colour = lib.register(&format!("fragment:{name}"), kernel);
-                registered.push((fp, (texaddr, colour)));
-                (texaddr, colour)
+                let ids = FragmentKernels {
+                    texaddr,
+                    dependent: None,
+                    colour,
+                };
+                registered.push((fp, ids));
+                ids
             }
         };
         fragment.push(ids);
@@ -628,9 +692,29 @@ fn register_kernels(
     })
 }
 
+/// A fragment program's kernels: the texel addresses (`texaddr`, or `bump_env`'s depth-2
+/// `bumpaddr`; none without textures), the dependent read's addresses (`bump_env`'s
+/// `envaddr`) and the colour (`fragment`, `marble`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct FragmentKernels {
+    texaddr: Option<KernelId>,
+    dependent: Option<KernelId>,
+    colour: KernelId,
+}
+
+impl FragmentKernels {
+    fn all(&self) -> impl Iterator<Item = KernelId> {
+        [self.texaddr, self.dependent, Some(self.colour)]
+            .into_iter()
+            .flatten()
+    }
+}
+
 #[derive(Clone, Debug, PartialEq, Eq)]
 struct ObjectKernels {
     perbegin: KernelId,
+    /// The vertex texture's address kernel (`bump_env` objects: `vtexaddr`).
+    vtexaddr: Option<KernelId>,
     perlight: Option<KernelId>,
     vertex: KernelId,
     /// The light passes after `vertex` (lit programs with more lights than it holds).
@@ -692,7 +776,11 @@ fn inputs(scene: &Scene, programs: &[VertexProgram], batch: usize, clusters: usi
         state_at += len;
         let tris = &object.mesh.triangles;
         for (k, chunk) in tris.chunks(batch).enumerate() {
-            let vertex_at = (out.vertex_words.len() / vp.record_words()) as u64;
+            // Loads address whole records of this program's size: objects with records of
+            // another size before it leave the words padded to a multiple of it.
+            let aligned = out.vertex_words.len().next_multiple_of(vp.record_words());
+            out.vertex_words.resize(aligned, 0);
+            let vertex_at = (aligned / vp.record_words()) as u64;
             let mut local: Vec<u32> = Vec::new();
             let mut corners: Vec<u32> = Vec::new();
             if object.mesh.separate {
@@ -832,6 +920,16 @@ impl PipelinePlan {
             if !fp.units.is_empty() {
                 these.insert(0, format!("texaddr:{name}"));
             }
+            if let Some(maps) = fp.bump_env {
+                these.splice(
+                    0..0,
+                    [
+                        maps.vertex_kernel_name(),
+                        format!("bumpaddr:{name}"),
+                        format!("envaddr:{name}"),
+                    ],
+                );
+            }
             for n in these {
                 if !names.contains(&n) {
                     names.push(n);
@@ -878,7 +976,10 @@ impl PipelinePlan {
             }
         }
         let programs = self.fragment_programs.iter().flatten();
-        if !programs.clone().any(|f| !f.marble && !f.units.is_empty()) {
+        if !programs
+            .clone()
+            .any(|f| !f.marble && (!f.units.is_empty() || f.bump_env.is_some()))
+        {
             out.push("textures".into());
         }
         if !programs.clone().any(|f| f.marble) {
@@ -900,6 +1001,19 @@ impl PipelinePlan {
             .map(VertexProgram::record_words)
             .max()
             .unwrap_or(0)
+    }
+
+    /// Texel words a vertex texture fetches per vertex (the most of any program).
+    pub fn vertex_texel_words(&self) -> usize {
+        if self
+            .programs
+            .iter()
+            .any(|p| matches!(p, VertexProgram::BumpEnv { .. }))
+        {
+            bump_map::TEXEL_WORDS
+        } else {
+            0
+        }
     }
 
     /// Interpolated words per fragment, by name.
@@ -945,6 +1059,8 @@ pub fn plan_pipeline(
             let m = &scene.materials[o.material];
             (extras > 0).then(|| match m.shader {
                 Shader::Marble(_) => FragmentProgram::marble(),
+                Shader::BumpEnv(_) => fragment_program::for_bump_env(scene, o.material, &textures)
+                    .expect("the scene file checked a bump_env material's one texture"),
                 _ => fragment_program::for_material(scene, &m.textures, m.texture_mode, &textures),
             })
         })
@@ -960,11 +1076,21 @@ pub fn plan_pipeline(
     let most_of = |f: fn(&FragmentProgram) -> usize| {
         fragment_programs.iter().flatten().map(f).max().unwrap_or(0)
     };
-    let (direct_fetches, direct_weights, mipmapped) = (
+    let (direct_fetches, direct_weights, mipmapped, dependent_fetches) = (
         most_of(FragmentProgram::direct_fetches),
         most_of(FragmentProgram::direct_weights),
         most_of(FragmentProgram::mipmapped),
+        most_of(FragmentProgram::dependent_fetches),
     );
+    let vertex_texels = if programs
+        .iter()
+        .any(|p| matches!(p, VertexProgram::BumpEnv { .. }))
+    {
+        bump_map::TEXEL_WORDS
+    } else {
+        0
+    };
+    // (`PipelinePlan::vertex_texel_words` says the same once the plan is built.)
     let rows = kernels::xyrast_rows(desc);
     if rows == 0 {
         // `xyrast` names what its scratchpad lacks for a batch of one row.
@@ -1046,6 +1172,8 @@ pub fn plan_pipeline(
         mipmapped,
         marble,
         ordered: kernels::in_primitive_order(scene.pipeline.blend),
+        dependent_fetches,
+        vertex_texels,
     };
     let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
     let shape = FrameShape {
@@ -1107,7 +1235,7 @@ pub fn render_with(
         .per_object
         .iter()
         .flat_map(|o| {
-            [Some(o.perbegin), o.perlight, Some(o.vertex)]
+            [Some(o.perbegin), o.perlight, o.vtexaddr, Some(o.vertex)]
                 .into_iter()
                 .flatten()
                 .chain(o.passes.iter().copied())
@@ -1126,11 +1254,7 @@ pub fn render_with(
         k.recycle_zc,
         k.recycle_ap,
     ]);
-    eager.extend(
-        k.fragment
-            .iter()
-            .flat_map(|&(t, c)| t.into_iter().chain([c])),
-    );
+    eager.extend(k.fragment.iter().flat_map(FragmentKernels::all));
     eager.extend(k.filter8);
     if general && let Some((a, b)) = k.merge {
         eager.extend([a, b]);
@@ -1400,7 +1524,32 @@ impl FrameRun<'_> {
             h.load(m.indices, at, Layout::words(), 3 * self.batch, ci);
         }
         let shaded = p.first(s.shaded[b % 2], bt.vertices);
-        if ok.passes.is_empty() {
+        if let (Some(vtexaddr), Some(texels)) = (ok.vtexaddr, s.vertex_texels) {
+            // The vertex texture: the texel addresses now (they need only the records),
+            // the texels gathered over them, the rest of the program deferred as usual.
+            let words = bt.vertices * bump_map::TEXEL_WORDS;
+            let texels = p.words(texels, words);
+            h.call(vtexaddr, &[("vertices", vertices), ("addr", texels)])?;
+            h.gather(
+                m.textures,
+                texels,
+                m.texture_words,
+                Layout::words(),
+                words,
+                texels,
+            );
+            self.stats.texel_words += words as u64;
+            self.stats.vertex_texel_fetches += words as u64;
+            h.defer(
+                ok.vertex,
+                &[
+                    ("vertices", vertices),
+                    ("texels", texels),
+                    ("shaded", shaded),
+                    (PARAMS, params),
+                ],
+            );
+        } else if ok.passes.is_empty() {
             h.defer(
                 ok.vertex,
                 &[("vertices", vertices), ("shaded", shaded), (PARAMS, params)],
@@ -1822,11 +1971,18 @@ impl FrameRun<'_> {
     ) -> Result<(), RenderError> {
         let (p, m) = (self.plan, self.m);
         let object = self.current_object;
-        let (texaddr, fragment) = self.k.fragment[object];
+        let FragmentKernels {
+            texaddr,
+            dependent,
+            colour: fragment,
+        } = self.k.fragment[object];
         let varyings = p.first(t.varyings, len);
         let fp = self.fragment_programs[object]
             .as_ref()
             .expect("a frame with fragment programs has one per object");
+        if let Some(envaddr) = dependent {
+            return self.dependent_read(h, t, len, (texaddr, envaddr, fragment), colour);
+        }
         let per_fragment = |id: Option<StreamId>, words: usize| {
             id.filter(|_| words > 0).map(|id| p.words(id, len * words))
         };
@@ -1880,6 +2036,60 @@ impl FrameRun<'_> {
         bindings.extend(filtered.map(|b| ("filtered", b)));
         bindings.push(("colour", colour));
         h.call(fragment, &bindings)?;
+        Ok(())
+    }
+
+    /// A fragment program with a dependent read (`bump_env`) on `len` fragments: the
+    /// depth-2 kernel's addresses, their texels gathered over them, the depth-1 kernel's
+    /// addresses from those texels, the dependent texels gathered over them, and the
+    /// depth-0 kernel, which writes the packed colours to `colour`.
+    fn dependent_read(
+        &mut self,
+        h: &mut StreamHost,
+        t: &TexturingStreams,
+        len: usize,
+        (first, second, last): (Option<KernelId>, KernelId, KernelId),
+        colour: StreamBinding,
+    ) -> Result<(), RenderError> {
+        let (p, m) = (self.plan, self.m);
+        let fp = self.fragment_programs[self.current_object]
+            .as_ref()
+            .expect("a frame with fragment programs has one per object");
+        let varyings = p.first(t.varyings, len);
+        let first = first.expect("a dependent read's first addresses");
+        let (direct, dependent) = (fp.direct_fetches(), fp.dependent_fetches());
+        let texels = p.words(t.addr.expect("a texel address stream"), len * direct);
+        let dependent_texels = p.words(t.dependent.expect("a dependent stream"), len * dependent);
+        let gather = |h: &mut StreamHost, stats: &mut FrameStats, index: StreamBinding, words| {
+            h.gather(
+                m.textures,
+                index,
+                m.texture_words,
+                Layout::words(),
+                words,
+                index,
+            );
+            stats.texel_words += words as u64;
+        };
+        h.call(first, &[("varyings", varyings), ("addr", texels)])?;
+        gather(h, self.stats, texels, len * direct);
+        h.call(
+            second,
+            &[
+                ("varyings", varyings),
+                ("texels", texels),
+                ("addr", dependent_texels),
+            ],
+        )?;
+        gather(h, self.stats, dependent_texels, len * dependent);
+        h.call(
+            last,
+            &[
+                ("varyings", varyings),
+                ("texels", dependent_texels),
+                ("colour", colour),
+            ],
+        )?;
         Ok(())
     }
 
@@ -1978,7 +2188,8 @@ fn finish_stats(s: &mut FrameStats, host: &StreamHost, desc: &MachineDesc, pp: &
     s.lrf_writes_per_cycle = lrf_written as f64 / cycles as f64;
     // Table 5.1's counting: a vertex's input words; a fragment's framebuffer words read
     // and written.
-    s.bytes_per_vertex = 4.0 * pp.words_per_vertex() as f64;
+    // A vertex texture's texel words count per vertex (the thesis's VERONA row does).
+    s.bytes_per_vertex = 4.0 * (pp.words_per_vertex() + pp.vertex_texel_words()) as f64;
     s.texel_bytes_per_fragment = 4.0 * s.texel_fetches as f64 / s.fragments.max(1) as f64;
     s.bytes_per_fragment = (4 * 2 * PIXEL_WORDS) as f64 + s.texel_bytes_per_fragment;
     s.specialisation = Specialisation {

@@ -105,6 +105,10 @@ pub struct FrameStats {
     pub texel_words: u64,
     /// Texel words the frame's real fragments asked for.
     pub texel_fetches: u64,
+    /// Texel words the vertex textures fetched (`bump_env`: 4 per shaded vertex, padding
+    /// vertices of a batch's last row included); `bytes_per_vertex` counts their 16 bytes
+    /// per vertex.
+    pub vertex_texel_fetches: u64,
     /// Arithmetic ops per core cycle over the frame, all clusters.
     pub ops_per_cycle: f64,
     /// Share of the frame's cycles a kernel was running, and running without a stall.

@@ -43,6 +43,7 @@ use imagine_units::desc::MachineDesc;
 
 use super::kernels::finish;
 use crate::kernel::{Kernel, KernelBuilder, LoopSpec, Perm, Ty, Value};
+use crate::kernels::bump_env;
 use crate::kernels::transform::{matrix_params, transform_point};
 use crate::kernels::vertex::normalize;
 use crate::kernels::{Vec3, dot};
@@ -69,6 +70,11 @@ pub enum VertexProgram {
     /// Marble: the clip position, white, and the object-space position and normal then
     /// zeros, `extras` words in all.
     Marble { extras: usize },
+    /// VERONA's `bump_env`: the second half of a vertex program split at its vertex
+    /// texture ([`crate::kernels::bump_env::vertex_program`]; `vtexaddr` and a gather come
+    /// first): the displaced clip position, the object's colour, then s, t and the
+    /// eye-space position, normal and tangent, then zeros, `extras` words in all.
+    BumpEnv { extras: usize },
     /// The general fixed-function program (`--no-specialize`): every vertex carries its
     /// position, normal and colour; lighting by `lights` lights with the specular term is
     /// always computed, and a parameter chooses it or the vertex colour (only the exponent
@@ -93,10 +99,22 @@ pub fn marbled(scene: &Scene) -> bool {
         .any(|o| matches!(scene.materials[o.material].shader, Shader::Marble(_)))
 }
 
-/// Extra words every shaded vertex of `scene` carries after its colour: 6 (shading position
-/// and normal) when an object is marble, else 2 (s, t) when one is textured, else none.
+/// Whether any object of `scene` is drawn with the `bump_env` shader.
+pub fn bump_mapped(scene: &Scene) -> bool {
+    scene
+        .objects
+        .iter()
+        .any(|o| matches!(scene.materials[o.material].shader, Shader::BumpEnv(_)))
+}
+
+/// Extra words every shaded vertex of `scene` carries after its colour: 11 (s, t, then the
+/// eye-space position, normal and tangent) when an object is `bump_env`, else 6 (shading
+/// position and normal) when one is marble, else 2 (s, t) when one is textured, else none.
+/// The first two words are s and t whenever an object is textured.
 pub fn extra_words(scene: &Scene) -> usize {
-    if marbled(scene) {
+    if bump_mapped(scene) {
+        bump_env::EXTRAS
+    } else if marbled(scene) {
         6
     } else if textured(scene) {
         2
@@ -157,6 +175,27 @@ impl VertexProgram {
                 per_vertex_colour: !object.mesh.colours.is_empty(),
                 extras,
             }),
+            Shader::BumpEnv(_) => {
+                if m.textures.len() != 1 {
+                    return Err(format!(
+                        "material `{}` is bump_env with {} textures: it takes exactly one, its \
+                         environment map",
+                        m.name,
+                        m.textures.len()
+                    ));
+                }
+                let n = object.mesh.positions.len();
+                if object.mesh.normals.len() != n || object.mesh.tangents.len() != n {
+                    return Err(format!(
+                        "object `{}` is bump_env but its mesh has {} normals and {} tangents \
+                         for {n} vertices",
+                        object.name,
+                        object.mesh.normals.len(),
+                        object.mesh.tangents.len(),
+                    ));
+                }
+                Ok(VertexProgram::BumpEnv { extras })
+            }
             Shader::Marble(_) => {
                 if object.mesh.normals.len() != object.mesh.positions.len() {
                     return Err(format!(
@@ -203,7 +242,9 @@ impl VertexProgram {
     pub fn name(&self) -> String {
         let base = self.base_name();
         match (self, self.extras()) {
-            (_, 0) | (VertexProgram::Marble { .. }, 6) => base,
+            (_, 0)
+            | (VertexProgram::Marble { .. }, 6)
+            | (VertexProgram::BumpEnv { .. }, bump_env::EXTRAS) => base,
             (_, 2) => format!("{base}_tex"),
             (_, n) => format!("{base}_x{n}"),
         }
@@ -215,7 +256,8 @@ impl VertexProgram {
         match self {
             VertexProgram::Unlit { extras, .. }
             | VertexProgram::Lit { extras, .. }
-            | VertexProgram::Marble { extras } => *extras,
+            | VertexProgram::Marble { extras }
+            | VertexProgram::BumpEnv { extras } => *extras,
             VertexProgram::General { .. } => 0,
         }
     }
@@ -224,7 +266,7 @@ impl VertexProgram {
     /// normal and writes zeros for the rest).
     fn record_extras(&self) -> usize {
         match self {
-            VertexProgram::Marble { .. } => 0,
+            VertexProgram::Marble { .. } | VertexProgram::BumpEnv { .. } => 0,
             _ => self.extras(),
         }
     }
@@ -255,6 +297,7 @@ impl VertexProgram {
                 format!("vertex_general{lights}_s{shininess}")
             }
             VertexProgram::Marble { .. } => "vertex_marble".into(),
+            VertexProgram::BumpEnv { .. } => "vertex_bump_env".into(),
         }
     }
 
@@ -262,14 +305,18 @@ impl VertexProgram {
     pub fn lit(&self) -> bool {
         !matches!(
             self,
-            VertexProgram::Unlit { .. } | VertexProgram::Marble { .. }
+            VertexProgram::Unlit { .. }
+                | VertexProgram::Marble { .. }
+                | VertexProgram::BumpEnv { .. }
         )
     }
 
     /// Lights it is built for, and whether with the specular term.
     pub fn lighting(&self) -> Option<(usize, bool)> {
         match self {
-            VertexProgram::Unlit { .. } | VertexProgram::Marble { .. } => None,
+            VertexProgram::Unlit { .. }
+            | VertexProgram::Marble { .. }
+            | VertexProgram::BumpEnv { .. } => None,
             VertexProgram::Lit {
                 lights, specular, ..
             } => Some((*lights, *specular)),
@@ -283,7 +330,9 @@ impl VertexProgram {
             VertexProgram::Lit { shininess, .. } | VertexProgram::General { shininess, .. } => {
                 *shininess
             }
-            VertexProgram::Unlit { .. } | VertexProgram::Marble { .. } => 0,
+            VertexProgram::Unlit { .. }
+            | VertexProgram::Marble { .. }
+            | VertexProgram::BumpEnv { .. } => 0,
         }
     }
 
@@ -296,6 +345,7 @@ impl VertexProgram {
                     ..
                 } => 3,
                 VertexProgram::General { .. } => 9,
+                VertexProgram::BumpEnv { .. } => bump_env::VERTEX_WORDS,
                 _ => 6,
             }
     }
@@ -306,6 +356,9 @@ impl VertexProgram {
         let mut names = vec!["r", "g", "b"];
         let extras: &[&'static str] = match self {
             VertexProgram::Marble { .. } => &["x", "y", "z", "nx", "ny", "nz"],
+            VertexProgram::BumpEnv { .. } => &[
+                "s", "t", "ex", "ey", "ez", "enx", "eny", "enz", "etx", "ety", "etz",
+            ],
             _ => &["s", "t"],
         };
         names.extend(extras.iter().take(self.extras()));
@@ -334,6 +387,14 @@ impl VertexProgram {
             VertexProgram::Lit { .. } | VertexProgram::Marble { .. } => {
                 out.extend(mesh.normals[v].map(f32::to_bits))
             }
+            VertexProgram::BumpEnv { .. } => {
+                let st = mesh.texcoords.get(v).copied().unwrap_or([0.0; 2]);
+                let words = mesh.normals[v]
+                    .into_iter()
+                    .chain(mesh.tangents[v])
+                    .chain(st);
+                out.extend(words.map(f32::to_bits))
+            }
             VertexProgram::General { .. } => {
                 let n = mesh.normals.get(v).copied().unwrap_or([0.0; 3]);
                 let c = mesh.colours.get(v).copied().unwrap_or(object.colour);
@@ -357,12 +418,18 @@ impl VertexProgram {
         w.extend(camera.view);
         w.extend(object.model);
         w.extend(camera.projection);
-        if let VertexProgram::Unlit {
-            per_vertex_colour: false,
-            ..
-        } = self
-        {
-            w.extend(object.colour);
+        match self {
+            VertexProgram::Unlit {
+                per_vertex_colour: false,
+                ..
+            } => w.extend(object.colour),
+            VertexProgram::BumpEnv { .. } => {
+                w.extend(object.colour);
+                if let Shader::BumpEnv(b) = scene.materials[object.material].shader {
+                    w.push(b.displacement);
+                }
+            }
+            _ => {}
         }
         let mut words: Vec<u32> = w.into_iter().map(f32::to_bits).collect();
         if let VertexProgram::General { .. } = self {
@@ -445,6 +512,18 @@ impl VertexProgram {
                 ..
             } => {
                 for &v in &state[48..51] {
+                    b.write(params_out, v);
+                }
+            }
+            VertexProgram::BumpEnv { .. } => {
+                for &v in &modelview[..12] {
+                    b.write(params_out, v);
+                }
+                for v in normal_matrix(&mut b, &modelview) {
+                    b.write(params_out, v);
+                }
+                // The object's colour and the displacement, passed through.
+                for &v in &passed_through[..4] {
                     b.write(params_out, v);
                 }
             }
@@ -561,6 +640,7 @@ impl VertexProgram {
             } => 3,
             VertexProgram::Lit { .. } => 12 + 9,
             VertexProgram::General { .. } => 12 + 9 + 1,
+            VertexProgram::BumpEnv { .. } => 12 + 9 + 3 + 1,
         }
     }
 
@@ -571,6 +651,7 @@ impl VertexProgram {
                 ..
             } => 3,
             VertexProgram::General { .. } => 1,
+            VertexProgram::BumpEnv { .. } => 4,
             _ => 0,
         }
     }
@@ -610,7 +691,9 @@ impl VertexProgram {
             } => 13 + 3 * usize::from(*specular) + extras,
             // The vertex colour travels too, for the last kernel's choice.
             VertexProgram::General { .. } => 13 + 3 + 3,
-            VertexProgram::Unlit { .. } | VertexProgram::Marble { .. } => 0,
+            VertexProgram::Unlit { .. }
+            | VertexProgram::Marble { .. }
+            | VertexProgram::BumpEnv { .. } => 0,
         }
     }
 
@@ -638,6 +721,9 @@ impl VertexProgram {
     fn kernels_with(&self, desc: &MachineDesc, split: (usize, usize)) -> Vec<Kernel> {
         if let VertexProgram::Marble { extras } = *self {
             return vec![self.build_marble(extras)];
+        }
+        if let VertexProgram::BumpEnv { extras } = *self {
+            return vec![bump_env::vertex_program(&self.name(), extras)];
         }
         let Some((_, specular)) = self.lighting() else {
             return vec![self.build_unlit()];
@@ -1011,7 +1097,13 @@ mod tests {
             extras: 0,
         };
         assert_eq!(flat.record_words(), 3);
+        let bump_env = VertexProgram::BumpEnv {
+            extras: bump_env::EXTRAS,
+        };
+        assert_eq!(bump_env.name(), "vertex_bump_env");
+        assert_eq!(bump_env.record_words(), bump_env::VERTEX_WORDS);
         let desc = MachineDesc::resolve("gold8").unwrap();
+        assert_eq!(bump_env.param_count(&desc), bump_env::VERTEX_PARAMS);
         for p in [
             lit,
             flat,
@@ -1019,6 +1111,7 @@ mod tests {
                 per_vertex_colour: true,
                 extras: 0,
             },
+            bump_env,
         ] {
             let k = p.build(&desc);
             let pb = p.perbegin(&desc);

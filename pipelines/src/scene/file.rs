@@ -85,6 +85,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("PIN", include_str!("../../../scenes/PIN.toml")),
     ("PIN-8", include_str!("../../../scenes/PIN-8.toml")),
     ("MARBLE", include_str!("../../../scenes/MARBLE.toml")),
+    ("VERONA", include_str!("../../../scenes/VERONA.toml")),
 ];
 
 /// The source tree's `scenes/` directory, where built-in scenes find their assets.
@@ -202,6 +203,7 @@ pub fn window_scene(old: super::Scene) -> model::Scene {
                 normals: Vec::new(),
                 colours: old.colours,
                 texcoords: Vec::new(),
+                tangents: Vec::new(),
                 triangles,
                 separate: true,
             },
@@ -379,6 +381,10 @@ struct MaterialFile {
     texture_mode: Option<TextureModeFile>,
     frequency: Option<f64>,
     turbulence_scale: Option<f64>,
+    displacement: Option<f64>,
+    bump_size: Option<u32>,
+    bump_cells: Option<u32>,
+    bump_scale: Option<f64>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -387,6 +393,8 @@ enum ShaderFile {
     Unlit,
     Lit,
     Marble,
+    #[serde(rename = "bump_env")]
+    BumpEnv,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -661,6 +669,17 @@ impl Cx {
             // Lit and marble materials shade with normals.
             let lit = materials[material].shader != model::Shader::Unlit;
             let object = self.object(i, o, material, lit, width, height, left, opts)?;
+            let bump_env = matches!(materials[material].shader, model::Shader::BumpEnv(_));
+            if bump_env && object.mesh.tangents.len() != object.mesh.positions.len() {
+                return Err(self.err(
+                    &format!("object[{i}].material"),
+                    format!(
+                        "`{}` is a `bump_env` material, which needs tangents: of the meshes \
+                         only the uv_sphere, banded_sphere and pin primitives carry them",
+                        materials[material].name
+                    ),
+                ));
+            }
             left -= object.mesh.triangles.len();
             objects.push(object);
         }
@@ -978,11 +997,94 @@ impl Cx {
         })
     }
 
+    /// A `bump_env` material's parameters (`None` for other shaders, which may not have
+    /// its keys): `displacement` (required, finite), `bump_size` (a power of two in
+    /// 2..=2048, default 256), `bump_cells` (1..=bump_size/2, default 8), `bump_scale`
+    /// (0..=8, default 1), and exactly one texture, the environment map, point-sampled.
+    fn bump_env(
+        &self,
+        i: usize,
+        m: &MaterialFile,
+        textures: &[usize],
+        scene_textures: &[model::Texture],
+    ) -> R<Option<model::BumpEnv>> {
+        let key = |k: &str| format!("material[{i}].{k}");
+        if !matches!(m.shader, ShaderFile::BumpEnv) {
+            let given = [
+                ("displacement", m.displacement.is_some()),
+                ("bump_size", m.bump_size.is_some()),
+                ("bump_cells", m.bump_cells.is_some()),
+                ("bump_scale", m.bump_scale.is_some()),
+            ];
+            if let Some((k, _)) = given.iter().find(|(_, given)| *given) {
+                return Err(self.err(&key(k), "only a `bump_env` material has it"));
+            }
+            return Ok(None);
+        }
+        let displacement = m.displacement.ok_or_else(|| {
+            self.err(
+                &key("displacement"),
+                "a `bump_env` material needs it (object-space distance at height 1)",
+            )
+        })?;
+        self.finite(&key("displacement"), &[displacement])?;
+        let bump_size = m.bump_size.unwrap_or(256);
+        if !(2..=2048).contains(&bump_size) || !bump_size.is_power_of_two() {
+            return Err(self.err(
+                &key("bump_size"),
+                format!("{bump_size} is not a power of two in 2..=2048"),
+            ));
+        }
+        let bump_cells = m.bump_cells.unwrap_or(8);
+        if !(1..=bump_size / 2).contains(&bump_cells) {
+            return Err(self.err(
+                &key("bump_cells"),
+                format!(
+                    "{bump_cells} is outside 1..={} (bump_size / 2)",
+                    bump_size / 2
+                ),
+            ));
+        }
+        let bump_scale = m.bump_scale.unwrap_or(1.0);
+        self.finite(&key("bump_scale"), &[bump_scale])?;
+        if !(0.0..=8.0).contains(&bump_scale) {
+            return Err(self.err(&key("bump_scale"), format!("{bump_scale} is outside 0..=8")));
+        }
+        match textures {
+            [t] if scene_textures[*t].filter == model::Filter::Nearest => {}
+            [t] => {
+                return Err(self.err(
+                    &key("textures"),
+                    format!(
+                        "the environment map `{}` must be point-sampled (filter = \"nearest\")",
+                        scene_textures[*t].name
+                    ),
+                ));
+            }
+            _ => {
+                return Err(self.err(
+                    &key("textures"),
+                    format!(
+                        "a `bump_env` material takes exactly one texture, its environment \
+                         (sphere) map; it names {}",
+                        textures.len()
+                    ),
+                ));
+            }
+        }
+        Ok(Some(model::BumpEnv {
+            displacement: displacement as f32,
+            bump_size,
+            bump_cells,
+            bump_scale: bump_scale as f32,
+        }))
+    }
+
     fn material(
         &self,
         i: usize,
         m: &MaterialFile,
-        textures: &[model::Texture],
+        scene_textures: &[model::Texture],
     ) -> R<model::Material> {
         let key = |k: &str| format!("material[{i}].{k}");
         let shininess = m.shininess.unwrap_or(0.0);
@@ -994,7 +1096,7 @@ impl Cx {
             .textures
             .iter()
             .map(|name| {
-                textures
+                scene_textures
                     .iter()
                     .position(|t| &t.name == name)
                     .ok_or_else(|| {
@@ -1002,7 +1104,7 @@ impl Cx {
                             &key("textures"),
                             format!(
                                 "no [[texture]] is named `{name}` (the textures are: {})",
-                                names(textures.iter().map(|t| t.name.as_str()))
+                                names(scene_textures.iter().map(|t| t.name.as_str()))
                             ),
                         )
                     })
@@ -1025,6 +1127,7 @@ impl Cx {
             m.turbulence_scale,
             model::Marble::DEFAULT.turbulence_scale,
         )?;
+        let bump_env = self.bump_env(i, m, &textures, scene_textures)?;
         if matches!(m.shader, ShaderFile::Marble) && !textures.is_empty() {
             return Err(self.err(
                 &key("textures"),
@@ -1040,6 +1143,7 @@ impl Cx {
                     frequency,
                     turbulence_scale,
                 }),
+                ShaderFile::BumpEnv => model::Shader::BumpEnv(bump_env.expect("checked")),
             },
             ambient: self.colour(&key("ambient"), m.ambient, 0.2)?,
             diffuse: self.colour(&key("diffuse"), m.diffuse, 0.8)?,
@@ -1556,6 +1660,100 @@ mod tests {
             (format!("{WINDOW}[pipeline]\nbatch = 6.5\n{BALL}"), vec!["pipeline.batch"]),
             (format!("{WINDOW}[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 0]\n{BALL}"), vec!["`camera.fov_y`", "missing"]),
             (format!("{WINDOW}[camera]\nmodelview = [1, 2]\northo = [-1, 1, -1, 1, -1, 1]\n{BALL}"), vec!["camera.modelview", "16"]),
+        ];
+        for (t, wants) in cases {
+            let mut wants = wants.clone();
+            wants.push("/nowhere/test.toml");
+            assert_error(text(&t), &wants);
+        }
+    }
+
+    /// A `bump_env` material: its environment map, the sphere it needs tangents on, then
+    /// the material keys in `material` (each case replaces the defaults).
+    fn bump_env_scene(material: &str, texture: &str, primitive: &str) -> String {
+        format!(
+            "{WINDOW}[[texture]]\nname = \"env\"\nprocedural = {{ kind = \"checker\" }}\n{texture}\
+             [[material]]\nname = \"b\"\nshader = \"bump_env\"\n{material}\
+             [[object]]\nprimitive = {primitive}\nmaterial = \"b\"\n"
+        )
+    }
+
+    #[test]
+    fn bump_env_materials_are_checked() {
+        let sphere = "{ kind = \"uv_sphere\", rings = 4, segments = 6 }";
+        let env = "textures = [\"env\"]\n";
+        let good = bump_env_scene(&format!("{env}displacement = 0.1\n"), "", sphere);
+        let s = text(&good).unwrap();
+        let Shader::BumpEnv(b) = s.materials[0].shader else {
+            panic!("{:?}", s.materials[0].shader);
+        };
+        assert_eq!(
+            (b.displacement, b.bump_size, b.bump_cells, b.bump_scale),
+            (0.1, 256, 8, 1.0)
+        );
+        let cases: Vec<(String, Vec<&str>)> = vec![
+            (
+                bump_env_scene(env, "", sphere),
+                vec!["`material[0].displacement`", "needs it"],
+            ),
+            (
+                bump_env_scene(&format!("{env}displacement = \"far\"\n"), "", sphere),
+                vec!["`material[0].displacement`"],
+            ),
+            (
+                bump_env_scene(&format!("{env}displacement = nan\n"), "", sphere),
+                vec!["`material[0].displacement`"],
+            ),
+            (
+                bump_env_scene(
+                    &format!("{env}displacement = 0.1\nbump_size = 100\n"),
+                    "",
+                    sphere,
+                ),
+                vec!["`material[0].bump_size`", "power of two"],
+            ),
+            (
+                bump_env_scene(
+                    &format!("{env}displacement = 0.1\nbump_size = 16\nbump_cells = 9\n"),
+                    "",
+                    sphere,
+                ),
+                vec!["`material[0].bump_cells`", "1..=8"],
+            ),
+            (
+                bump_env_scene(
+                    &format!("{env}displacement = 0.1\nbump_scale = -1\n"),
+                    "",
+                    sphere,
+                ),
+                vec!["`material[0].bump_scale`", "0..=8"],
+            ),
+            (
+                bump_env_scene("displacement = 0.1\n", "", sphere),
+                vec!["`material[0].textures`", "exactly one texture"],
+            ),
+            (
+                bump_env_scene(
+                    &format!("{env}displacement = 0.1\n"),
+                    "filter = \"linear\"\n",
+                    sphere,
+                ),
+                vec!["`material[0].textures`", "`env`", "nearest"],
+            ),
+            (
+                bump_env_scene(
+                    &format!("{env}displacement = 0.1\n"),
+                    "",
+                    "{ kind = \"icosphere\", subdivisions = 0 }",
+                ),
+                vec!["`object[0].material`", "tangents"],
+            ),
+            (
+                format!(
+                    "{WINDOW}[[material]]\nname = \"m\"\nshader = \"lit\"\ndisplacement = 0.1\n{BALL}"
+                ),
+                vec!["`material[0].displacement`", "only a `bump_env` material"],
+            ),
         ];
         for (t, wants) in cases {
             let mut wants = wants.clone();

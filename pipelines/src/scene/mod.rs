@@ -23,6 +23,7 @@
 //! (x + 0.5, y + 0.5); the depth buffer clears to 1.0 and the colour buffer to black.
 
 pub mod bpt;
+pub mod bump_map;
 pub mod file;
 pub mod mipmap;
 pub mod model;

@@ -127,6 +127,25 @@ pub enum Shader {
     /// MARBLE's procedural shader, per fragment: turbulence, a marble colour ramp, lit by
     /// the scene's first light (see `crate::kernels::turbulence`).
     Marble(Marble),
+    /// VERONA's shader: the object displaced and its normal bumped by a combined
+    /// displacement/bump map, coloured by a sphere-mapped environment texture read along
+    /// the reflection of the bumped normal (see `crate::kernels::bump_env`).
+    BumpEnv(BumpEnv),
+}
+
+/// The parameters of a `bump_env` material: the combined displacement/bump map it builds
+/// ([`crate::scene::bump_map`]) and how far the map's height moves the surface. Its one
+/// texture is the environment map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BumpEnv {
+    /// Object-space distance along the normal a height of 1 moves a vertex.
+    pub displacement: f32,
+    /// The map's side in texels (a power of two).
+    pub bump_size: u32,
+    /// Bumps across the map in s and in t.
+    pub bump_cells: u32,
+    /// The slope of the bumps in the tangent-space normal (0: a flat map).
+    pub bump_scale: f32,
 }
 
 /// The parameters of a `marble` material: `colour = ramp(sin(x·frequency +
@@ -196,6 +215,9 @@ pub struct Mesh {
     pub colours: Vec<[f32; 3]>,
     /// One per position, or empty.
     pub texcoords: Vec<[f32; 2]>,
+    /// One per position, or empty: unit `∂P/∂s`, the direction of increasing s (the
+    /// primitives of revolution carry them; `bump_env` needs them).
+    pub tangents: Vec<[f32; 3]>,
     /// Counter-clockwise front faces, in drawing order.
     pub triangles: Vec<[u32; 3]>,
     pub separate: bool,

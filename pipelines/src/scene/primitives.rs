@@ -57,7 +57,8 @@ pub fn icosphere(subdivisions: u32) -> Mesh {
 /// repeated so that texture coordinates run s = 0..1 round the sphere from +z towards +x
 /// and t = 0..1 from the south pole to the north), `2·rings·segments` triangles (those
 /// touching a pole have zero area, as a diced 200 × 200 sphere has 80,000 triangles),
-/// normals equal to the positions, counter-clockwise seen from outside.
+/// normals equal to the positions, tangents the unit `∂P/∂φ` `(cos φ, 0, −sin φ)`,
+/// counter-clockwise seen from outside.
 pub fn uv_sphere(rings: u32, segments: u32) -> Mesh {
     let mut m = Mesh::default();
     for i in 0..=rings {
@@ -72,6 +73,8 @@ pub fn uv_sphere(rings: u32, segments: u32) -> Mesh {
             let p = p.map(|c| c as f32);
             m.positions.push(p);
             m.normals.push(p);
+            m.tangents
+                .push([phi.cos(), 0.0, -phi.sin()].map(|c| c as f32));
             m.texcoords.push([
                 (f64::from(j) / f64::from(segments)) as f32,
                 (1.0 - f64::from(i) / f64::from(rings)) as f32,
@@ -142,6 +145,7 @@ pub fn separate(m: &Mesh) -> Mesh {
         normals: expand(&m.normals, &m.triangles),
         colours: expand(&m.colours, &m.triangles),
         texcoords: expand(&m.texcoords, &m.triangles),
+        tangents: expand(&m.tangents, &m.triangles),
         triangles: (0..m.triangles.len() as u32)
             .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
             .collect(),
@@ -283,7 +287,8 @@ struct ProfilePoint {
 /// of `segments` quads: band `k` has its own row of `segments` vertices at point `k` then
 /// its own row at point `k + 1` (`2·segments` vertices, `2·segments` triangles), quad `j`
 /// being `[U_j, L_j, L_{j+1}]`, `[U_j, L_{j+1}, U_{j+1}]` with `j + 1` taken mod
-/// `segments`. Angle φ_j = 2πj/segments from +z towards +x, s = j/segments.
+/// `segments`. Angle φ_j = 2πj/segments from +z towards +x, s = j/segments; the tangent
+/// is the unit `∂P/∂φ` direction `(cos φ, 0, −sin φ)` (defined at the poles too).
 fn banded_revolution(profile: &[ProfilePoint], segments: u32) -> Mesh {
     let mut m = Mesh::default();
     for band in profile.windows(2) {
@@ -294,6 +299,7 @@ fn banded_revolution(profile: &[ProfilePoint], segments: u32) -> Mesh {
                 let (s, c) = phi.sin_cos();
                 m.positions.push([p.r * s, p.y, p.r * c].map(|v| v as f32));
                 m.normals.push([p.nr * s, p.ny, p.nr * c].map(|v| v as f32));
+                m.tangents.push([c, 0.0, -s].map(|v| v as f32));
                 m.texcoords
                     .push([(f64::from(j) / f64::from(segments)) as f32, p.t as f32]);
             }
