@@ -40,9 +40,9 @@
 //! `sort32` and `mergefrag` are compiled only if a round needs them (and never for depth
 //! tests other than LESS, whose minimum they implement); fragment programs only when an
 //! object is textured or marble (then every object has one: see
-//! [`super::fragment_program`]; a marble frame loads Perlin's permutation table into the
-//! SRF once, before its first batch, and writes the marble parameters at each batch of a
-//! marble object). `--no-specialize` builds the
+//! [`super::fragment_program`]; a frame with a marble over Perlin's noise loads his
+//! permutation table into the SRF once, before its first batch, and a marble frame writes
+//! the marble parameters at each batch of a marble object). `--no-specialize` builds the
 //! general pipeline instead: every vertex carries position, normal or colour, specular
 //! lighting always, and every kernel compiled up front.
 
@@ -237,10 +237,10 @@ struct TexturingStreams {
     marble: Option<MarbleStreams>,
 }
 
-/// The marble program's permutation table (loaded once per frame) and parameters
-/// (written per batch of a marble object).
+/// The marble program's permutation table (Perlin's noise only; loaded once per frame)
+/// and parameters (written per batch of a marble object).
 struct MarbleStreams {
-    perm: StreamId,
+    perm: Option<StreamId>,
     params: StreamId,
 }
 
@@ -262,8 +262,10 @@ struct Sizes {
     direct_fetches: usize,
     direct_weights: usize,
     mipmapped: usize,
-    /// Whether an object is marble (the permutation table and its parameters in the SRF).
+    /// Whether an object is marble (its parameters in the SRF), and whether one is over
+    /// Perlin's noise (his permutation table in the SRF).
     marble: bool,
+    perlin_table: bool,
     /// Whether `xyrast` walks the boxes in primitive order (blending).
     ordered: bool,
 }
@@ -416,7 +418,9 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
                 weights5: per_fragment("mipmap_weights", texture::FILTER8_WEIGHTS * s.mipmapped),
                 filtered: per_fragment("filtered", s.mipmapped),
                 marble: s.marble.then(|| MarbleStreams {
-                    perm: p.stream("perm", words, turbulence::TABLE * c, always),
+                    perm: s
+                        .perlin_table
+                        .then(|| p.stream("perm", words, turbulence::TABLE * c, always)),
                     params: p.stream(
                         "marble_params",
                         words,
@@ -561,8 +565,8 @@ fn register_kernels(
                         fp.texaddr(varyings.fragment_words(), varyings.derivatives_at())?,
                     ))
                 };
-                let kernel = if fp.marble {
-                    turbulence::build_fragment(desc, varyings.fragment_words())?
+                let kernel = if let Some(noise) = fp.marble {
+                    turbulence::build_fragment(desc, varyings.fragment_words(), noise)?
                 } else {
                     fp.fragment(varyings.fragment_words())?
                 };
@@ -867,10 +871,13 @@ impl PipelinePlan {
             }
         }
         let programs = self.fragment_programs.iter().flatten();
-        if !programs.clone().any(|f| !f.marble && !f.units.is_empty()) {
+        if !programs
+            .clone()
+            .any(|f| f.marble.is_none() && !f.units.is_empty())
+        {
             out.push("textures".into());
         }
-        if !programs.clone().any(|f| f.marble) {
+        if !programs.clone().any(|f| f.marble.is_some()) {
             out.push("procedural noise".into());
         }
         if !self.shape.ordered() {
@@ -933,12 +940,19 @@ pub fn plan_pipeline(
         .map(|o| {
             let m = &scene.materials[o.material];
             (extras > 0).then(|| match m.shader {
-                Shader::Marble(_) => FragmentProgram::marble(),
+                Shader::Marble(marble) => FragmentProgram::marble(marble.noise),
                 _ => fragment_program::for_material(scene, &m.textures, m.texture_mode, &textures),
             })
         })
         .collect();
-    let marble = fragment_programs.iter().flatten().any(|f| f.marble);
+    let marble = fragment_programs
+        .iter()
+        .flatten()
+        .any(|f| f.marble.is_some());
+    let perlin_table = fragment_programs
+        .iter()
+        .flatten()
+        .any(|f| f.marble.is_some_and(|n| n.uses_table()));
     let varyings = Varyings {
         extras,
         derivatives: fragment_programs
@@ -1030,6 +1044,7 @@ pub fn plan_pipeline(
         direct_weights,
         mipmapped,
         marble,
+        perlin_table,
         ordered: kernels::in_primitive_order(scene.pipeline.blend),
     };
     let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
@@ -1178,7 +1193,12 @@ pub fn render_with(
     host.upload(&input.light_words, m.lights, 0, staging);
     // The textures' mipmap pyramids, built when the scene loaded.
     host.upload(&pp.textures.words, m.textures, 0, staging);
-    if s.texturing.as_ref().is_some_and(|t| t.marble.is_some()) {
+    let perm_stream = s
+        .texturing
+        .as_ref()
+        .and_then(|t| t.marble.as_ref())
+        .and_then(|ms| ms.perm);
+    if perm_stream.is_some() {
         host.upload(&perm_words, m.perm, 0, staging);
     }
     host.drain()?;
@@ -1214,9 +1234,9 @@ pub fn render_with(
     host.drain()?;
     let cleared = host.cycles();
 
-    // The frame. The marble program's table comes into the SRF first.
-    if let Some(marble) = s.texturing.as_ref().and_then(|t| t.marble.as_ref()) {
-        let perm = plan.first(marble.perm, perm_words.len());
+    // The frame. The Perlin marble program's table comes into the SRF first.
+    if let Some(perm) = perm_stream {
+        let perm = plan.first(perm, perm_words.len());
         host.load(m.perm, 0, Layout::words(), perm_words.len(), perm);
     }
     let mut frame = FrameRun {
@@ -1853,12 +1873,15 @@ impl FrameRun<'_> {
             )?;
         }
         let mut bindings = vec![("varyings", varyings)];
-        if let Some(ms) = t.marble.as_ref().filter(|_| fp.marble) {
+        if let (Some(ms), Some(noise)) = (t.marble.as_ref(), fp.marble) {
             let c = h.clusters();
-            bindings.extend([
-                ("perm", p.first(ms.perm, turbulence::TABLE * c)),
-                (PARAMS, p.first(ms.params, turbulence::SCALAR_PARAMS * c)),
-            ]);
+            if noise.uses_table() {
+                let perm = ms
+                    .perm
+                    .expect("a Perlin marble frame has the table's stream");
+                bindings.push(("perm", p.first(perm, turbulence::TABLE * c)));
+            }
+            bindings.push((PARAMS, p.first(ms.params, turbulence::SCALAR_PARAMS * c)));
         }
         bindings.extend(addr.map(|b| ("texels", b)));
         bindings.extend(weights.map(|b| ("weights", b)));

@@ -17,9 +17,11 @@
 //! * `tessellate` defaults to 20 (TEAPOT's OpenGL dicing), `basis` to `"bezier"`.
 //! * `cage` is refused: Catmull-Clark limit surfaces are not supported yet.
 //! * `shader = "marble"` (MARBLE's procedural shader, per fragment; no textures, and the
-//!   mesh needs normals, as for `lit`) takes two optional keys: `frequency` (default 4)
+//!   mesh needs normals, as for `lit`) takes three optional keys: `frequency` (default 4)
 //!   and `turbulence_scale` (default 5), in `sin(x·frequency +
-//!   turbulence(p)·turbulence_scale)` over object-space positions `p`; of the other
+//!   turbulence(p)·turbulence_scale)` over object-space positions `p`, and `noise`, the
+//!   noise under the turbulence: `"ward"` (default; Greg Ward's implementation of Perlin's
+//!   noise, the publication's) or `"perlin"` (Perlin's improved noise); of the other
 //!   material keys it uses the means of `ambient` and `specular` (see
 //!   `crate::opengl::render`'s notes on marble).
 //!
@@ -49,7 +51,7 @@ use glam::{DMat4, DVec3};
 use serde::Deserialize;
 
 use super::bpt::{self, Basis};
-use super::model::{self, Mesh, Space};
+use super::model::{self, Mesh, Noise, Space};
 use super::obj::{self, AssetError};
 use super::{IDENTITY, MAX_WINDOW, SceneError, primitives, window_to_clip};
 
@@ -376,6 +378,14 @@ struct MaterialFile {
     texture_mode: Option<TextureModeFile>,
     frequency: Option<f64>,
     turbulence_scale: Option<f64>,
+    noise: Option<NoiseFile>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum NoiseFile {
+    Ward,
+    Perlin,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -1012,6 +1022,13 @@ impl Cx {
             m.turbulence_scale,
             model::Marble::DEFAULT.turbulence_scale,
         )?;
+        let noise = match (m.shader, m.noise) {
+            (ShaderFile::Marble, None) => model::Marble::DEFAULT.noise,
+            (ShaderFile::Marble, Some(NoiseFile::Ward)) => Noise::Ward,
+            (ShaderFile::Marble, Some(NoiseFile::Perlin)) => Noise::Perlin,
+            (_, None) => Noise::default(),
+            (_, Some(_)) => return Err(self.err(&key("noise"), "only a `marble` material has it")),
+        };
         if matches!(m.shader, ShaderFile::Marble) && !textures.is_empty() {
             return Err(self.err(
                 &key("textures"),
@@ -1026,6 +1043,7 @@ impl Cx {
                 ShaderFile::Marble => model::Shader::Marble(model::Marble {
                     frequency,
                     turbulence_scale,
+                    noise,
                 }),
             },
             ambient: self.colour(&key("ambient"), m.ambient, 0.2)?,
