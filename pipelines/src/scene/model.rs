@@ -156,6 +156,14 @@ pub enum Noise {
 }
 
 impl Noise {
+    /// The name in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Noise::Ward => "ward",
+            Noise::Perlin => "perlin",
+        }
+    }
+
     /// Whether the shader reads Perlin's permutation table (a `perm` input stream).
     pub fn uses_table(self) -> bool {
         self == Noise::Perlin
