@@ -372,6 +372,7 @@ name = "stone"
 shader = "marble"
 frequency = 3.0
 turbulence_scale = 6.0
+noise = "NOISE"
 specular = [0.4, 0.4, 0.4]
 [[material]]
 name = "plastic"
@@ -390,13 +391,16 @@ translate = [1.6, -0.5, 0.5]
 scale = [0.5, 0.5, 0.5]
 "#;
 
+/// Both noises: Ward's (the default) and Perlin's improved noise.
 #[test]
 fn marble_matches_the_reference() {
-    let scene = parse("marble.toml", MARBLE);
-    let (frame, m) = draw(&scene, "gold8");
-    assert!(m.psnr_db >= 30.0, "PSNR {}", m.psnr_db);
-    assert!(m.coverage_mismatch_share < 0.001);
-    assert!(frame.stats.fragments > 1000, "the spheres cover pixels");
+    for noise in ["ward", "perlin"] {
+        let scene = parse("marble.toml", &MARBLE.replace("NOISE", noise));
+        let (frame, m) = draw(&scene, "gold8");
+        assert!(m.psnr_db >= 30.0, "{noise}: PSNR {}", m.psnr_db);
+        assert!(m.coverage_mismatch_share < 0.001, "{noise}");
+        assert!(frame.stats.fragments > 1000, "the spheres cover pixels");
+    }
 }
 
 /// Three translucent balls wearing the Tango icon (RGBA: its transparent background and

@@ -293,8 +293,140 @@ fn rsqrt(x: f32) -> f32 {
 
 const BINOMIAL_7: [f32; 8] = [1.0, 7.0, 21.0, 35.0, 35.0, 21.0, 7.0, 1.0];
 
+/// The noise of a marble: Perlin's over his (doubled) table, or Ward's.
+#[derive(Clone, Copy)]
+enum Noise<'a> {
+    Perlin(&'a [usize; 512]),
+    Ward,
+}
+
+// ---- Ward's noise, as the kernel evaluates it (see `kernels::ward_noise`) -------------
+
+/// `frand`'s integer `v` as fp32: `((s·(s·s·15731 + 789221) + 1376312589) & 0x7fffffff)`
+/// with `s = (seed << 13) ^ seed`, 32-bit wrapping.
+fn ward_v(seed: i32) -> f32 {
+    let s = (seed << 13) ^ seed;
+    let r = s
+        .wrapping_mul(s.wrapping_mul(s).wrapping_mul(15731).wrapping_add(789_221))
+        .wrapping_add(1_376_312_589);
+    (r & 0x7fff_ffff) as f32
+}
+
+/// `[hpoly1, hpoly2, hpoly3, hpoly4]` and `hpoly3 + hpoly4`, in the kernel's order.
+fn ward_hermite(t: f32) -> ([f32; 4], f32) {
+    let t2 = t * t;
+    let q = ((t + t) - 3.0) * t2;
+    let tm1 = t - 1.0;
+    let (h3, h4) = ((tm1 * tm1) * t, tm1 * t2);
+    ([q + 1.0, -q, h3, h4], h3 + h4)
+}
+
+fn ward_weighted(h: &[f32; 4], a: f32, b: f32, tangents: Option<(f32, f32)>) -> f32 {
+    let mut sum = h[0] * a + h[1] * b;
+    if let Some((c, d)) = tangents {
+        sum += h[2] * c;
+        sum += h[3] * d;
+    }
+    sum
+}
+
+/// Ward's noise in fp32, the kernel's evaluation: the interpolation of the `v`s, then
+/// `((1 + S_x) + S_y) + S_z − 2^−30·I`.
+fn ward_noise32(p: [f32; 3]) -> f32 {
+    let floor = p.map(|c| c.floor());
+    let cell = floor.map(|c| c as i32);
+    let ([hx, hy, hz], [sx, sy, sz]) = {
+        let w = std::array::from_fn::<_, 3, _>(|i| ward_hermite(p[i] - floor[i]));
+        (w.map(|(h, _)| h), w.map(|(_, s)| s))
+    };
+    const COEFFICIENTS: [[i32; 3]; 4] =
+        [[67, 59, 71], [73, 79, 83], [89, 97, 101], [103, 107, 109]];
+    // v[corner][random], corner bit 0 x, bit 1 y, bit 2 z.
+    let v: Vec<[f32; 4]> = (0..8)
+        .map(|corner: usize| {
+            std::array::from_fn(|random| {
+                let seed = (0..3).fold(0i32, |acc, axis| {
+                    let c = cell[axis].wrapping_add((corner >> axis & 1) as i32);
+                    acc.wrapping_add(COEFFICIENTS[random][axis].wrapping_mul(c))
+                });
+                ward_v(seed)
+            })
+        })
+        .collect();
+    let x: Vec<[f32; 3]> = [0, 2, 4, 6]
+        .iter()
+        .map(|&i| {
+            let (a, b) = (v[i], v[i | 1]);
+            [
+                ward_weighted(&hx, a[3], b[3], Some((a[0], b[0]))),
+                ward_weighted(&hx, a[1], b[1], None),
+                ward_weighted(&hx, a[2], b[2], None),
+            ]
+        })
+        .collect();
+    let y: Vec<[f32; 2]> = [0, 2]
+        .iter()
+        .map(|&j| {
+            let (a, b) = (x[j], x[j + 1]);
+            [
+                ward_weighted(&hy, a[0], b[0], Some((a[1], b[1]))),
+                ward_weighted(&hy, a[2], b[2], None),
+            ]
+        })
+        .collect();
+    let interpolated = ward_weighted(&hz, y[0][0], y[1][0], Some((y[0][1], y[1][1])));
+    (((1.0 + sx) + sy) + sz) + interpolated * -(1.0 / (1u32 << 30) as f32)
+}
+
+/// Ward's `noise3` as his code has it (recursive over the axes, each random in f64 from
+/// its exact integer), the value.
+fn textbook_ward_noise(p: [f64; 3]) -> f64 {
+    fn frand(seed: i32) -> f64 {
+        let s = (seed << 13) ^ seed;
+        let r = s
+            .wrapping_mul(s.wrapping_mul(s).wrapping_mul(15731).wrapping_add(789_221))
+            .wrapping_add(1_376_312_589);
+        1.0 - f64::from(r & 0x7fff_ffff) / 1_073_741_824.0
+    }
+    fn interpolate(f: &mut [f64; 4], i: usize, n: usize, lim: &[[i32; 2]; 3], arg: &[f64; 3]) {
+        if n == 0 {
+            let (x, y, z) = (lim[0][i & 1], lim[1][i >> 1 & 1], lim[2][i >> 2]);
+            let r = |a: i32, b: i32, c: i32| {
+                frand(
+                    a.wrapping_mul(x)
+                        .wrapping_add(b.wrapping_mul(y))
+                        .wrapping_add(c.wrapping_mul(z)),
+                )
+            };
+            *f = [
+                r(67, 59, 71),
+                r(73, 79, 83),
+                r(89, 97, 101),
+                r(103, 107, 109),
+            ];
+            return;
+        }
+        let n = n - 1;
+        let (mut f0, mut f1) = ([0.0; 4], [0.0; 4]);
+        interpolate(&mut f0, i, n, lim, arg);
+        interpolate(&mut f1, i | 1 << n, n, lim, arg);
+        let t = arg[n];
+        let (hp1, hp2) = ((2.0 * t - 3.0) * t * t + 1.0, (-2.0 * t + 3.0) * t * t);
+        let (hp3, hp4) = (((t - 2.0) * t + 1.0) * t, (t - 1.0) * t * t);
+        for j in 0..3 {
+            f[j] = f0[j] * hp1 + f1[j] * hp2;
+        }
+        f[3] = f0[3] * hp1 + f1[3] * hp2 + f0[n] * hp3 + f1[n] * hp4;
+    }
+    let lim = p.map(|c| [c.floor() as i32, c.floor() as i32 + 1]);
+    let arg: [f64; 3] = std::array::from_fn(|i| p[i] - p[i].floor());
+    let mut f = [0.0; 4];
+    interpolate(&mut f, 0, 3, &lim, &arg);
+    f[3]
+}
+
 /// The marble shader's colour for fragment `f`, as the kernel computes it.
-fn marble_reference(p: &[usize; 512], params: &[f32], f: &[f32]) -> [f32; 3] {
+fn marble_reference(noise_of: Noise, params: &[f32], f: &[f32]) -> [f32; 3] {
     let (frequency, scale) = (params[0], params[1]);
     let (light, half) = (
         [params[2], params[3], params[4]],
@@ -302,9 +434,17 @@ fn marble_reference(p: &[usize; 512], params: &[f32], f: &[f32]) -> [f32; 3] {
     );
     let (ambient, specular) = (params[8], params[9]);
     let mut turbulence = 0.0f32;
+    // Ward's octaves start from `0·|noise|` of the one before (+0: the same point).
+    let mut after = None;
     for octave in 0..4 {
         let s = (1 << octave) as f32;
-        let n = noise(p, f[0] * s, f[1] * s, f[2] * s).abs();
+        let q = [f[0] * s, f[1] * s, f[2] * s];
+        let n = match noise_of {
+            Noise::Perlin(p) => noise(p, q[0], q[1], q[2]),
+            Noise::Ward => ward_noise32(q.map(|c| after.map_or(c, |zero| c + zero))),
+        }
+        .abs();
+        after = Some(n * 0.0);
         turbulence = if octave == 0 { n } else { turbulence + n / s };
     }
     let u = sine(f[0] * frequency + turbulence * scale) * 0.5 + 0.5;
@@ -345,22 +485,31 @@ fn marble_reference(p: &[usize; 512], params: &[f32], f: &[f32]) -> [f32; 3] {
 
 #[test]
 fn turbulence_matches_reference() {
-    for name in MACHINES {
-        let desc = machine(name);
-        let c = desc.cluster.count;
-        let rows = if c == 1 { 16 } else { 2 };
-        let (inputs, out) = run("turbulence", &desc, rows, 13);
-        let table = doubled_table(&kernels::turbulence::table_of(&inputs.streams[1], c));
-        let params = floats(&inputs.params);
-        let n = inputs.streams[0].len() / 6;
-        let mut want = vec![0; 3 * n];
-        for e in 0..n {
-            let f = floats(&record(&inputs.streams[0], e, 6, c));
-            for (j, v) in marble_reference(&table, &params, &f).iter().enumerate() {
-                want[(e / c) * 3 * c + j * c + e % c] = v.to_bits();
+    for (kernel, perlin) in [("turbulence", false), ("turbulence_perlin", true)] {
+        for name in MACHINES {
+            let desc = machine(name);
+            let c = desc.cluster.count;
+            let rows = if c == 1 { 16 } else { 2 };
+            let (inputs, out) = run(kernel, &desc, rows, 13);
+            let table;
+            let noise = if perlin {
+                table = doubled_table(&kernels::turbulence::table_of(&inputs.streams[1], c));
+                Noise::Perlin(&table)
+            } else {
+                Noise::Ward
+            };
+            let params = floats(&inputs.params);
+            let n = inputs.streams[0].len() / 6;
+            let mut want = vec![0; 3 * n];
+            for e in 0..n {
+                let f = floats(&record(&inputs.streams[0], e, 6, c));
+                for (j, v) in marble_reference(noise, &params, &f).iter().enumerate() {
+                    want[(e / c) * 3 * c + j * c + e % c] = v.to_bits();
+                }
             }
+            let colours = out.last().expect("the colours");
+            assert_words(&format!("{kernel} on {name}"), colours, &want);
         }
-        assert_words(&format!("turbulence on {name}"), &out[2], &want);
     }
 }
 
@@ -368,26 +517,54 @@ fn turbulence_matches_reference() {
 /// turbulence kernel's record) and packs the shader's colour as RGBA8.
 #[test]
 fn marble_fragment_is_turbulence_packed() {
-    for name in MACHINES {
-        let desc = machine(name);
-        let c = desc.cluster.count;
-        let rows = if c == 1 { 16 } else { 2 };
-        let (inputs, out) = run("marble", &desc, rows, 17);
-        let table = doubled_table(&kernels::turbulence::table_of(&inputs.streams[1], c));
-        let params = floats(&inputs.params);
-        let k = kernels::turbulence::MARBLE_RECORD_WORDS;
-        let n = inputs.streams[0].len() / k;
-        let want: Vec<u32> = (0..n)
-            .map(|e| {
-                let f = floats(&record(&inputs.streams[0], e, k, c)[3..]);
-                let rgb = marble_reference(&table, &params, &f);
-                let byte = |ch: usize| ((rgb[ch] * 255.0 + 0.5) as u32) << (8 * ch);
-                0xFF00_0000 | byte(0) | byte(1) | byte(2)
-            })
-            .collect();
-        // One word per fragment: element order is the stream's.
-        assert_words(&format!("marble on {name}"), &out[2], &want);
+    for (kernel, perlin) in [("marble", false), ("marble_perlin", true)] {
+        for name in MACHINES {
+            let desc = machine(name);
+            let c = desc.cluster.count;
+            let rows = if c == 1 { 16 } else { 2 };
+            let (inputs, out) = run(kernel, &desc, rows, 17);
+            let table;
+            let noise = if perlin {
+                table = doubled_table(&kernels::turbulence::table_of(&inputs.streams[1], c));
+                Noise::Perlin(&table)
+            } else {
+                Noise::Ward
+            };
+            let params = floats(&inputs.params);
+            let k = kernels::turbulence::MARBLE_RECORD_WORDS;
+            let n = inputs.streams[0].len() / k;
+            let want: Vec<u32> = (0..n)
+                .map(|e| {
+                    let f = floats(&record(&inputs.streams[0], e, k, c)[3..]);
+                    let rgb = marble_reference(noise, &params, &f);
+                    let byte = |ch: usize| ((rgb[ch] * 255.0 + 0.5) as u32) << (8 * ch);
+                    0xFF00_0000 | byte(0) | byte(1) | byte(2)
+                })
+                .collect();
+            // One word per fragment: element order is the stream's.
+            let colour = out.last().expect("the colour");
+            assert_words(&format!("{kernel} on {name}"), colour, &want);
+        }
     }
+}
+
+/// The kernel's evaluation of Ward's noise (folded affine `frand`, fp32) against Ward's
+/// recursion in f64, and at lattice points the corner's value exactly as `frand` gives it.
+#[test]
+fn turbulence_noise_is_wards() {
+    let mut rng = imagine_units::arith::fp32::testgen::SplitMix64::new(21);
+    let mut worst = 0.0f64;
+    for _ in 0..5000 {
+        let v: [f32; 3] =
+            std::array::from_fn(|_| (rng.next_u32() as f32 / u32::MAX as f32) * 80.0 - 40.0);
+        let ours = f64::from(ward_noise32(v));
+        let ward = textbook_ward_noise(v.map(f64::from));
+        worst = worst.max((ours - ward).abs());
+        assert!(ward.abs() <= 2.0, "noise{v:?} = {ward} is out of range");
+    }
+    assert!(worst < 2e-5, "worst difference {worst}");
+    let at = textbook_ward_noise([3.0, -7.0, 12.0]);
+    assert!((f64::from(ward_noise32([3.0, -7.0, 12.0])) - at).abs() < 1e-6);
 }
 
 #[test]
@@ -404,7 +581,7 @@ fn turbulence_noise_is_perlins() {
     // The reference's weighted-sum interpolation agrees with Perlin's nested lerps (to
     // rounding), and both vanish on lattice points.
     let desc = machine("gold8");
-    let inputs = (find("turbulence").unwrap().inputs)(&desc, 1, 5);
+    let inputs = (find("turbulence_perlin").unwrap().inputs)(&desc, 1, 5);
     let table = doubled_table(&kernels::turbulence::table_of(
         &inputs.streams[1],
         desc.cluster.count,
@@ -645,13 +822,13 @@ fn library_kernels_name_what_the_machine_lacks() {
         }
     }
     for clusters in [3, 6, 12] {
-        let e = error("turbulence", &shaped(clusters, 256, 16));
+        let e = error("turbulence_perlin", &shaped(clusters, 256, 16));
         assert!(
-            e.contains("turbulence") && e.contains("dividing the 256"),
+            e.contains("turbulence_perlin") && e.contains("dividing the 256"),
             "{e}"
         );
     }
-    let e = error("turbulence", &shaped(8, 255, 16));
+    let e = error("turbulence_perlin", &shaped(8, 255, 16));
     assert!(e.contains("256 scratchpad words"), "{e}");
     let e = error("hash", &shaped(8, 8, 16));
     assert!(
@@ -664,7 +841,14 @@ fn library_kernels_name_what_the_machine_lacks() {
         "{e}"
     );
     // Kernels that serve any cluster count do.
-    for name in ["transform", "vertex", "prefix_sum", "compact", "hash"] {
+    for name in [
+        "transform",
+        "vertex",
+        "prefix_sum",
+        "compact",
+        "hash",
+        "turbulence",
+    ] {
         for clusters in [3, 6, 12, 64] {
             let desc = shaped(clusters, 256, 16);
             (find(name).unwrap().build)(&desc).unwrap_or_else(|e| panic!("{e}"));
@@ -694,7 +878,7 @@ fn the_compiler_gives_up_after_bounded_effort() {
     let mut desc = machine("gold8");
     desc.name = "two-codes".into();
     desc.cluster.condition_codes = 2;
-    let kernel = (find("turbulence").unwrap().build)(&desc).unwrap();
+    let kernel = (find("turbulence_perlin").unwrap().build)(&desc).unwrap();
     let e = imagine_pipelines::compile::compile(&kernel, &desc)
         .unwrap_err()
         .to_string();

@@ -434,11 +434,12 @@ fn a_frame_of_kernels_held_for_the_longest_minimum_time_finishes() {
     assert_eq!(f.pixels, quick.pixels);
 }
 
-/// Marble materials: their keys parse with defaults, only marble takes them, marble takes
-/// no textures, and a marble object needs normals (the error names it).
+/// Marble materials: their keys parse with defaults, only marble takes them, a bad `noise`
+/// names the file, key and choices, marble takes no textures, and a marble object needs
+/// normals (the error names it).
 #[test]
 fn marble_materials_are_checked_by_name() {
-    use imagine_pipelines::scene::model::{Marble, Shader};
+    use imagine_pipelines::scene::model::{Marble, Noise, Shader};
     let text = |material: &str| {
         format!(
             "[window]\nwidth = 16\nheight = 16\n\
@@ -462,14 +463,29 @@ fn marble_materials_are_checked_by_name() {
         panic!("marble")
     };
     assert_eq!((m.frequency, m.turbulence_scale), (2.5, 5.0));
+    // Ward's noise by default (the publication's), Perlin's on request.
+    assert_eq!(m.noise, Noise::Ward);
+    let s = parse("shader = \"marble\"\nnoise = \"perlin\"").unwrap();
+    let Shader::Marble(m) = s.materials[0].shader else {
+        panic!("marble")
+    };
+    assert_eq!(m.noise, Noise::Perlin);
     for (material, words) in [
         (
             "shader = \"lit\"\nfrequency = 2.0",
-            ["material[0].frequency", "marble"],
+            &["material[0].frequency", "marble"][..],
+        ),
+        (
+            "shader = \"lit\"\nnoise = \"ward\"",
+            &["m.toml", "material[0].noise", "marble"],
+        ),
+        (
+            "shader = \"marble\"\nnoise = \"simplex\"",
+            &["m.toml", "material[0].noise", "ward", "perlin"],
         ),
         (
             "shader = \"marble\"\ntextures = [\"t\"]",
-            ["material[0].textures", "no textures"],
+            &["material[0].textures", "no textures"],
         ),
     ] {
         let e = parse(material).unwrap_err().to_string();

@@ -267,8 +267,10 @@ pub fn describe(s: &Scene) -> Description {
         }
         if let Shader::Marble(marble) = m.shader {
             l += &format!(
-                ", frequency {}, turbulence_scale {}",
-                marble.frequency, marble.turbulence_scale
+                ", frequency {}, turbulence_scale {}, noise {}",
+                marble.frequency,
+                marble.turbulence_scale,
+                marble.noise.name()
             );
         }
         if let Shader::BumpEnv(b) = m.shader {

@@ -5,8 +5,11 @@
 //! Per fragment, at the object-space position `p` and normal `n` interpolated
 //! perspective-correctly from the corners:
 //!
-//! * `noise` is Perlin's improved noise (SIGGRAPH 2002) over Perlin's permutation
-//!   ([`PERLIN_PERMUTATION`], data shared with the machine): the fade
+//! * `noise` is the material's: Greg Ward's implementation of Perlin's noise ([`ward_noise`],
+//!   Graphics Gems II ch. VIII.10, as Radiance's `noise3.c` has it: Ward's recursion over
+//!   the axes with his Hermite cubics and his `frand` in 32-bit wrapping integers, the
+//!   value component, unscaled), or Perlin's improved noise (SIGGRAPH 2002) over Perlin's
+//!   permutation ([`PERLIN_PERMUTATION`], data shared with the machine): the fade
 //!   `6t⁵ − 15t⁴ + 10t³`, his 12 gradients, nested linear interpolation;
 //! * `turbulence = Σ_{i<4} |noise(2^i·p)| / 2^i`;
 //! * `u = (sin(x·frequency + turbulence·turbulence_scale) + 1) / 2` (the library `sin`);
@@ -18,7 +21,7 @@
 //!   specular colours).
 
 use imagine_pipelines::kernels::turbulence::{PERLIN_PERMUTATION, RAMP_COLOURS};
-use imagine_pipelines::scene::model::{self, Marble, Object};
+use imagine_pipelines::scene::model::{self, Marble, Noise, Object};
 
 use crate::reference::{V3, dot, normalize, widen};
 
@@ -26,6 +29,7 @@ use crate::reference::{V3, dot, normalize, widen};
 pub struct MarbleShading {
     frequency: f64,
     turbulence_scale: f64,
+    noise: Noise,
     light: V3,
     half: V3,
     ambient: f64,
@@ -39,6 +43,7 @@ impl MarbleShading {
         let model::Shader::Marble(Marble {
             frequency,
             turbulence_scale,
+            noise,
         }) = material.shader
         else {
             return None;
@@ -64,6 +69,7 @@ impl MarbleShading {
         Some(MarbleShading {
             frequency: f64::from(frequency),
             turbulence_scale: f64::from(turbulence_scale),
+            noise,
             light,
             half,
             ambient: mean(material.ambient),
@@ -76,7 +82,12 @@ impl MarbleShading {
         let turbulence: f64 = (0..4)
             .map(|octave| {
                 let scale = f64::from(1u32 << octave);
-                noise(p.map(|c| c * scale)).abs() / scale
+                let q = p.map(|c| c * scale);
+                let n = match self.noise {
+                    Noise::Ward => ward_noise(q),
+                    Noise::Perlin => noise(q),
+                };
+                n.abs() / scale
             })
             .sum();
         let u = ((p[0] * self.frequency + turbulence * self.turbulence_scale).sin() + 1.0) / 2.0;
@@ -123,6 +134,53 @@ fn solve(a: &[[f64; 3]; 3], b: V3) -> V3 {
         }
         det3(&m) / det
     })
+}
+
+/// Ward's `frand(s)`: `s = (s << 13) ^ s`, then `1 − ((s·(s·s·15731 + 789221) +
+/// 1376312589) & 0x7fffffff) / 2^30`, in 32-bit wrapping integers as the original's `long`.
+pub fn frand(seed: i32) -> f64 {
+    let s = (seed << 13) ^ seed;
+    let t = s
+        .wrapping_mul(s.wrapping_mul(s).wrapping_mul(15731).wrapping_add(789_221))
+        .wrapping_add(1_376_312_589);
+    1.0 - f64::from(t & 0x7fff_ffff) / 1_073_741_824.0
+}
+
+/// Ward's noise at `p` in f64: his `noise3` (the lattice cell, the offsets, then his
+/// recursive `interpolate(f, 0, 3)`), the value `f[D]`.
+pub fn ward_noise(p: V3) -> f64 {
+    let floor = p.map(f64::floor);
+    let corner = |c: usize, axis: usize| floor[axis] as i32 + ((c >> axis) & 1) as i32;
+    let offset: V3 = std::array::from_fn(|axis| p[axis] - floor[axis]);
+    // f[0..3]: the gradient (rand3a, rand3b, rand3c), f[3]: the value (rand3d).
+    fn interpolate(i: usize, n: usize, corner: &dyn Fn(usize, usize) -> i32, t: &V3) -> [f64; 4] {
+        if n == 0 {
+            let (x, y, z) = (corner(i, 0), corner(i, 1), corner(i, 2));
+            let seed = |a: i32, b: i32, c: i32| {
+                a.wrapping_mul(x)
+                    .wrapping_add(b.wrapping_mul(y))
+                    .wrapping_add(c.wrapping_mul(z))
+            };
+            return [
+                frand(seed(67, 59, 71)),
+                frand(seed(73, 79, 83)),
+                frand(seed(89, 97, 101)),
+                frand(seed(103, 107, 109)),
+            ];
+        }
+        let n = n - 1;
+        let f0 = interpolate(i, n, corner, t);
+        let f1 = interpolate(i | 1 << n, n, corner, t);
+        let t = t[n];
+        let hp1 = (2.0 * t - 3.0) * t * t + 1.0;
+        let hp2 = (-2.0 * t + 3.0) * t * t;
+        let hp3 = ((t - 2.0) * t + 1.0) * t;
+        let hp4 = (t - 1.0) * t * t;
+        let mut f: [f64; 4] = std::array::from_fn(|j| f0[j] * hp1 + f1[j] * hp2);
+        f[3] += f0[n] * hp3 + f1[n] * hp4;
+        f
+    }
+    interpolate(0, 3, &corner, &offset)[3]
 }
 
 /// Perlin's improved noise, his reference code in f64.
@@ -186,6 +244,40 @@ mod tests {
             let t = f64::from(i) * 0.137;
             let n = noise([t, 2.0 * t - 5.0, 0.5 * t + 1.3]);
             assert!(n.abs() <= 1.1, "{n}");
+        }
+    }
+
+    /// `frand`'s 32-bit wrap against values worked out independently (Python's unbounded
+    /// integers, reduced to signed 32 bits after each step).
+    #[test]
+    fn frand_wraps_at_32_bits() {
+        let v = |bits: f64| 1.0 - bits / 1_073_741_824.0;
+        // s = 0: only the offset.
+        assert_eq!(frand(0), v(1_376_312_589.0));
+        // s = 1: s' = 8193, s'² = 67125249, ·15731 wraps to −614662797, + 789221 =
+        // −613873576, ·8193 wraps to −59504552, + 1376312589 = 1316808037.
+        assert_eq!(frand(1), v(1_316_808_037.0));
+        assert_eq!(frand(12345), v(2_032_478_005.0));
+        // s = −1: s' = (−8192) ^ (−1) = 8191; the sum wraps negative and the mask drops the
+        // sign.
+        assert_eq!(frand(-1), v(107_238_581.0));
+        for seed in [-1, 12345, -987_654, i32::MAX, i32::MIN] {
+            let f = frand(seed);
+            assert!((-1.0..=1.0).contains(&f), "frand({seed}) = {f}");
+        }
+    }
+
+    #[test]
+    fn ward_noise_is_the_lattice_values_at_the_corners_and_bounded() {
+        // At a lattice point every offset is 0: hpoly1 = 1, the others 0, so the noise is
+        // that corner's rand3d.
+        let (x, y, z) = (3, -7, 12);
+        let want = frand(103 * x + 107 * y + 109 * z);
+        assert_eq!(ward_noise([3.0, -7.0, 12.0]), want);
+        for i in 0..1000 {
+            let t = f64::from(i) * 0.137;
+            let n = ward_noise([t, 2.0 * t - 5.0, 0.5 * t + 1.3]);
+            assert!(n.abs() <= 2.0, "{n}");
         }
     }
 

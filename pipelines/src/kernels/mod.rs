@@ -13,8 +13,8 @@
 //! |---|---|
 //! | [`transform`] | 4×4 matrix times a homogeneous position |
 //! | [`vertex`] | the SPHERE vertex program: transform plus three-light Blinn-Phong lighting |
-//! | [`turbulence`] | the MARBLE shader: four octaves of Perlin improved noise, marble colour ramp |
-//! | `marble` ([`turbulence::build_fragment`]) | `turbulence` as the OpenGL pipeline's fragment program: `irast`'s varyings in, packed RGBA8 out |
+//! | [`turbulence`] | the MARBLE shader: four octaves of Ward's noise ([`ward_noise`]), marble colour ramp; `turbulence_perlin` over Perlin's improved noise |
+//! | `marble` ([`turbulence::build_fragment`]) | `turbulence` as the OpenGL pipeline's fragment program: `irast`'s varyings in, packed RGBA8 out; `marble_perlin` over Perlin's improved noise |
 //! | [`prefix_sum`] | inclusive prefix sum of an int32 stream |
 //! | [`compact`] | keeps the fp32 words below a threshold, in order |
 //! | [`hash`] | the composite stamp test of the OpenGL pipeline (per-cluster 32×32 stamp) |
@@ -33,6 +33,7 @@ pub mod texture;
 pub mod transform;
 pub mod turbulence;
 pub mod vertex;
+pub mod ward_noise;
 
 use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
@@ -67,15 +68,27 @@ static LIBRARY: &[LibraryKernel] = &[
     },
     LibraryKernel {
         name: "turbulence",
-        description: "MARBLE shader: four octaves of Perlin improved noise and a marble ramp",
+        description: "MARBLE shader: four octaves of Ward's Perlin noise and a marble ramp",
         build: turbulence::build,
         inputs: turbulence::inputs,
+    },
+    LibraryKernel {
+        name: "turbulence_perlin",
+        description: "the MARBLE shader over Perlin's improved noise (permutation table in)",
+        build: turbulence::build_perlin,
+        inputs: turbulence::perlin_inputs,
     },
     LibraryKernel {
         name: "marble",
         description: "MARBLE fragment program: turbulence on irast's varyings, packed RGBA8 out",
         build: turbulence::build_marble,
         inputs: turbulence::marble_inputs,
+    },
+    LibraryKernel {
+        name: "marble_perlin",
+        description: "the MARBLE fragment program over Perlin's improved noise",
+        build: turbulence::build_marble_perlin,
+        inputs: turbulence::marble_perlin_inputs,
     },
     LibraryKernel {
         name: "prefix_sum",
@@ -273,4 +286,21 @@ pub(crate) fn dot(b: &mut crate::kernel::KernelBuilder, u: Vec3, v: Vec3) -> cra
     let sum = b.fadd(xx, yy);
     let zz = b.fmul(u[2], v[2]);
     b.fadd(sum, zz)
+}
+
+/// `floor(x)` (int32) and `x − floor(x)` (fp32): `ftoi32_trunc`, back to fp32, one less
+/// where that rounded up (negative non-integers); for |x| < 2^31.
+pub(crate) fn floor_and_offset(
+    b: &mut crate::kernel::KernelBuilder,
+    x: crate::kernel::Value,
+) -> (crate::kernel::Value, crate::kernel::Value) {
+    use crate::kernel::Ty;
+    let truncated = b.ftoi_trunc(x);
+    let truncated_f = b.itof(truncated);
+    let rounded_up = b.flt(x, truncated_f);
+    let rounded_up = b.cast(rounded_up, Ty::I32);
+    let floor = b.isub(truncated, rounded_up);
+    let floor_f = b.itof(floor);
+    let offset = b.fsub(x, floor_f);
+    (floor, offset)
 }

@@ -40,7 +40,7 @@ use crate::kernel::{
     Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Ty, Value,
 };
 use crate::scene::mipmap;
-use crate::scene::model::{Filter, TextureMode, Wrap};
+use crate::scene::model::{Filter, Noise, TextureMode, Wrap};
 
 /// Words `filter8` reads per mipmapped access: 8 texels, then the weights
 /// `α_1, β_1, α_2, β_2, f` (the two levels' bilinear fractions and the level fraction).
@@ -68,24 +68,25 @@ impl Unit {
     }
 }
 
-/// A textured material's fragment program, or (`marble`) the marble shader (built by
-/// [`super::turbulence::build_fragment`]), or (`bump_env`) VERONA's shader over its maps
-/// (built by [`super::bump_env`]: a dependent read, 3 kernels and 2 gathers).
+/// A textured material's fragment program, or (`marble`, with its noise) the marble
+/// shader (built by [`super::turbulence::build_fragment`]), or (`bump_env`) VERONA's
+/// shader over its maps (built by [`super::bump_env`]: a dependent read, 3 kernels and 2
+/// gathers).
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub struct FragmentProgram {
     pub units: Vec<Unit>,
     pub mode: TextureMode,
-    pub marble: bool,
+    pub marble: Option<Noise>,
     pub bump_env: Option<super::bump_env::Maps>,
 }
 
 impl FragmentProgram {
-    /// The marble shader's program.
-    pub fn marble() -> FragmentProgram {
+    /// The marble shader's program over `noise`.
+    pub fn marble(noise: Noise) -> FragmentProgram {
         FragmentProgram {
             units: Vec::new(),
             mode: TextureMode::Modulate,
-            marble: true,
+            marble: Some(noise),
             bump_env: None,
         }
     }
@@ -95,7 +96,7 @@ impl FragmentProgram {
         FragmentProgram {
             units: Vec::new(),
             mode: TextureMode::Modulate,
-            marble: false,
+            marble: None,
             bump_env: Some(maps),
         }
     }
@@ -149,8 +150,8 @@ impl FragmentProgram {
     /// A name unique to the program (its kernels are registered as `texaddr:…` and
     /// `fragment:…`).
     pub fn name(&self) -> String {
-        if self.marble {
-            return "marble".into();
+        if let Some(noise) = self.marble {
+            return super::turbulence::fragment_name(noise).into();
         }
         if let Some(maps) = &self.bump_env {
             return format!("bump_env_{}", maps.name());
@@ -582,7 +583,7 @@ fn example() -> FragmentProgram {
             unit(Filter::Trilinear, Wrap::Repeat, 256, 128, 4096),
         ],
         mode: TextureMode::Modulate,
-        marble: false,
+        marble: None,
         bump_env: None,
     }
 }

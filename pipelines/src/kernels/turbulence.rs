@@ -1,11 +1,14 @@
 //! `turbulence`: the MARBLE fragment shader — Perlin's marble (Perlin, "An Image
-//! Synthesizer", SIGGRAPH 1985) over Perlin's improved gradient noise (Perlin, "Improving
-//! Noise", SIGGRAPH 2002), lit per fragment, as in the MARBLE scene of Owens et al.,
-//! "Polygon Rendering on a Stream Architecture", Graphics Hardware 2000.
+//! Synthesizer", SIGGRAPH 1985) lit per fragment, as in the MARBLE scene of Owens et al.,
+//! "Polygon Rendering on a Stream Architecture", Graphics Hardware 2000, over one of two
+//! noises ([`Noise`]): Greg Ward's implementation of Perlin's noise (Graphics Gems II
+//! ch. VIII.10), the publication's and the default, built by [`super::ward_noise`]; or
+//! Perlin's improved gradient noise (Perlin, "Improving Noise", SIGGRAPH 2002), step 1
+//! below (the library's `turbulence_perlin` and `marble_perlin`).
 //!
 //! Inputs: `fragments`, records (x, y, z, nx, ny, nz) of shading positions and (not
-//! necessarily unit) normals; `perm`, Perlin's permutation table (256 words, a permutation
-//! of 0..256). Parameters, in order: `frequency` and `turbulence_scale` of the marble;
+//! necessarily unit) normals; with Perlin's noise `perm`, Perlin's permutation table (256
+//! words, a permutation of 0..256). Parameters, in order: `frequency` and `turbulence_scale` of the marble;
 //! `light_x, _y, _z`, the unit direction towards a directional light; `half_x, _y, _z`, the
 //! unit half vector of that light and a viewer at infinity; `ambient` and `specular`
 //! intensities; the eight control colours `ramp{i}_r, _g, _b` of the colour ramp. Output
@@ -25,7 +28,8 @@
 //!    the polynomial of Perlin's nested `lerp`s with more multiplies and fewer adds, to
 //!    suit a cluster's 3 adders and 2 multipliers.
 //! 2. `turbulence = Σ_{i=0..4} |noise(p·2^i)| / 2^i` (four octaves; the scalings by powers
-//!    of two are exact multiplies).
+//!    of two are exact multiplies; with Ward's noise each octave's point also adds
+//!    `0·|noise|` of the octave before: see the function `turbulence`).
 //! 3. `s = sin(x·frequency + turbulence·turbulence_scale)` by a polynomial: the argument is
 //!    reduced to `[−π, π]` by `k = round(a / 2π)` (Cody–Waite, with 2π split in two
 //!    parts), folded to `[−π/2, π/2]` (`sin(π − r) = sin r`), and the degree-9 odd Taylor
@@ -39,18 +43,19 @@
 //!    `colour = clamp(ramp(u)·(ambient + max(N·light, 0)) + specular·max(N·half, 0)^16,
 //!    0, 1)` per channel (exponent 16: four squarings).
 //!
-//! The permutation table lives in each cluster's scratchpad (words 0..256), loaded before
-//! the loop: the `perm` stream holds each table word `C` times, so each of 256 reads gives
+//! Perlin's permutation table lives in each cluster's scratchpad (words 0..256), loaded
+//! before the loop: the `perm` stream holds each table word `C` times, so each of 256 reads gives
 //! every cluster the same word, which it writes to its scratchpad (one read and one write
 //! per cycle; no word waits in an LRF).
 //!
 //! [`build_fragment`] is the same shader as the OpenGL pipeline's fragment program for
 //! `shader = "marble"` (library name `marble`): it reads `irast`'s varyings records
 //! (r, g, b, dropped; the object-space position and normal; any further words of the
-//! frame, dropped) and writes the packed RGBA8 colour. The pipeline feeds it Perlin's own
-//! permutation ([`PERLIN_PERMUTATION`]) from DRAM, and its parameters as
-//! [`crate::opengl::fragment_program`] describes. Its loop is 1031 arithmetic ops (663 on
-//! the adders, 368 on the multipliers) and 120 scratchpad reads per fragment.
+//! frame, dropped) and writes the packed RGBA8 colour. With Perlin's noise the pipeline
+//! feeds it Perlin's own permutation ([`PERLIN_PERMUTATION`]) from DRAM; its parameters
+//! are as [`crate::opengl::fragment_program`] describes. Its loop is, with Ward's noise,
+//! 2,075 arithmetic ops (1,252 on the adders, 823 on the multipliers) per fragment; with
+//! Perlin's, 1031 (663 and 368) and 120 scratchpad reads.
 //!
 //! `floor` is `ftoi32_trunc`, back to fp32 and one less where that rounded up (negative
 //! non-integers); it holds for |x| < 2^31. The loop body has no divide or square root.
@@ -60,11 +65,12 @@ use imagine_units::desc::MachineDesc;
 
 use imagine_units::ops::Op;
 
-use super::{finish, records_to_stream, uniform, uniform_words};
+use super::{finish, records_to_stream, uniform, uniform_words, ward_noise};
 use crate::kernel::{
     Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, StreamId, Ty,
     Value,
 };
+pub use crate::scene::model::Noise;
 
 /// Entries of the permutation table (scratchpad words `0..TABLE`).
 pub const TABLE: usize = 256;
@@ -97,8 +103,30 @@ pub const INV_TWO_PI: f32 = 0.159_154_94;
 /// The odd Taylor coefficients of sine: `x³`, `x⁵`, `x⁷`, `x⁹`.
 pub const SIN_COEFFICIENTS: [f32; 4] = [-1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0];
 
-/// Constants the noise code shares, created before the loop.
+/// Constants the shader shares, created before the loop.
 struct Constants {
+    one_f: Value,
+    noise: NoiseConstants,
+}
+
+enum NoiseConstants {
+    Perlin(PerlinConstants),
+    Ward(ward_noise::Constants),
+}
+
+impl Constants {
+    fn new(b: &mut KernelBuilder, noise: Noise) -> Self {
+        let one_f = b.f32(1.0);
+        let noise = match noise {
+            Noise::Perlin => NoiseConstants::Perlin(PerlinConstants::new(b, one_f)),
+            Noise::Ward => NoiseConstants::Ward(ward_noise::Constants::new(b)),
+        };
+        Constants { one_f, noise }
+    }
+}
+
+/// Constants of Perlin's improved noise.
+struct PerlinConstants {
     one_f: Value,
     six: Value,
     fifteen: Value,
@@ -113,11 +141,12 @@ struct Constants {
     top_12: Value,
 }
 
-impl Constants {
-    fn new(b: &mut KernelBuilder) -> Self {
+impl PerlinConstants {
+    /// `one_f` is the shader's (created first, as it always was).
+    fn new(b: &mut KernelBuilder, one_f: Value) -> Self {
         let int = |b: &mut KernelBuilder, bits: u32| b.constant(bits, Ty::I32);
-        Constants {
-            one_f: b.f32(1.0),
+        PerlinConstants {
+            one_f,
             six: b.f32(6.0),
             fifteen: b.f32(15.0),
             ten: b.f32(10.0),
@@ -134,19 +163,13 @@ impl Constants {
 }
 
 /// `floor(x) & 255` (int32) and `x − floor(x)` (fp32).
-fn cell_and_offset(b: &mut KernelBuilder, k: &Constants, x: Value) -> (Value, Value) {
-    let truncated = b.ftoi_trunc(x);
-    let truncated_f = b.itof(truncated);
-    let rounded_up = b.flt(x, truncated_f);
-    let rounded_up = b.cast(rounded_up, Ty::I32);
-    let floor = b.isub(truncated, rounded_up);
-    let floor_f = b.itof(floor);
-    let offset = b.fsub(x, floor_f);
+fn cell_and_offset(b: &mut KernelBuilder, k: &PerlinConstants, x: Value) -> (Value, Value) {
+    let (floor, offset) = super::floor_and_offset(b, x);
     (b.and(floor, k.index_mask), offset)
 }
 
 /// Perlin's fade curve `t·t·t·(t·(t·6 − 15) + 10)`.
-fn fade(b: &mut KernelBuilder, k: &Constants, t: Value) -> Value {
+fn fade(b: &mut KernelBuilder, k: &PerlinConstants, t: Value) -> Value {
     let a = b.fmul(t, k.six);
     let a = b.fsub(a, k.fifteen);
     let a = b.fmul(t, a);
@@ -161,7 +184,14 @@ fn fade(b: &mut KernelBuilder, k: &Constants, t: Value) -> Value {
 /// 0 and 1 of `h`. The low nibble is moved to the top four bits by a multiply, so the tests
 /// are unsigned compares; the negations flip the sign bit, moved there by multiplies
 /// (`imul_hi_u` by 2^31 is a right shift by one).
-fn grad(b: &mut KernelBuilder, k: &Constants, hash: Value, x: Value, y: Value, z: Value) -> Value {
+fn grad(
+    b: &mut KernelBuilder,
+    k: &PerlinConstants,
+    hash: Value,
+    x: Value,
+    y: Value,
+    z: Value,
+) -> Value {
     let nibble = b.imul(hash, k.nibble_to_top);
     let below_8 = b.iltu(nibble, k.top_8);
     let u = b.select(below_8, x, y);
@@ -181,7 +211,7 @@ fn grad(b: &mut KernelBuilder, k: &Constants, hash: Value, x: Value, y: Value, z
 }
 
 /// Perlin's improved noise at `(x, y, z)`, the table in scratchpad words 0..256.
-fn noise(b: &mut KernelBuilder, k: &Constants, [x, y, z]: [Value; 3]) -> Value {
+fn perlin_noise(b: &mut KernelBuilder, k: &PerlinConstants, [x, y, z]: [Value; 3]) -> Value {
     let (cx, x) = cell_and_offset(b, k, x);
     let (cy, y) = cell_and_offset(b, k, y);
     let (cz, z) = cell_and_offset(b, k, z);
@@ -236,8 +266,17 @@ fn noise(b: &mut KernelBuilder, k: &Constants, [x, y, z]: [Value; 3]) -> Value {
 }
 
 /// `Σ_{i<4} |noise(p·2^i)| / 2^i`.
+///
+/// With Ward's noise each octave after the first starts from the one before: its point
+/// is `p·2^i + 0·|noise|` of the octave before (`+0`, so the same point). The compiler's
+/// list scheduler orders ops by height, and Ward's 32 hash chains per octave all have more
+/// height than any octave's interpolation: without the dependency it would start all 128
+/// at once and leave their results waiting longer than the LRFs hold them (no schedule at
+/// any interval); with it, octaves follow each other within an iteration (the software
+/// pipeline overlaps iterations instead). One multiply and three adds per octave.
 fn turbulence(b: &mut KernelBuilder, k: &Constants, p: [Value; 3]) -> Value {
     let mut sum = None;
+    let mut after: Option<Value> = None;
     for octave in 0..OCTAVES {
         let scale = (1u32 << octave) as f32;
         let q = if octave == 0 {
@@ -246,8 +285,19 @@ fn turbulence(b: &mut KernelBuilder, k: &Constants, p: [Value; 3]) -> Value {
             let s = b.f32(scale);
             p.map(|c| b.fmul(c, s))
         };
-        let n = noise(b, k, q);
+        let q = match after {
+            Some(zero) => q.map(|c| b.fadd(c, zero)),
+            None => q,
+        };
+        let n = match &k.noise {
+            NoiseConstants::Perlin(k) => perlin_noise(b, k, q),
+            NoiseConstants::Ward(k) => ward_noise::noise(b, k, q),
+        };
         let magnitude = b.fabs(n);
+        if let NoiseConstants::Ward(_) = k.noise {
+            let zero = b.f32(0.0);
+            after = Some(b.fmul(magnitude, zero));
+        }
         sum = Some(match sum {
             None => magnitude,
             Some(sum) => {
@@ -338,9 +388,16 @@ pub(crate) fn reciprocal_sqrt(b: &mut KernelBuilder, length_squared: Value) -> V
     y
 }
 
-/// Needs a cluster count that divides the table's 256 entries (it loads the table in rows)
-/// and a scratchpad that holds the table.
-fn check_machine(desc: &MachineDesc, name: &str) -> Result<(), MachineRequirementError> {
+/// With Perlin's noise, needs a cluster count that divides the table's 256 entries (it
+/// loads the table in rows) and a scratchpad that holds the table; Ward's needs neither.
+fn check_machine(
+    desc: &MachineDesc,
+    name: &str,
+    noise: Noise,
+) -> Result<(), MachineRequirementError> {
+    if !noise.uses_table() {
+        return Ok(());
+    }
     let clusters = desc.cluster.count;
     let needs = Needs::new(name, desc);
     if !TABLE.is_multiple_of(clusters) {
@@ -366,9 +423,9 @@ struct Params {
     specular: Value,
 }
 
-/// Parameters, ramp colours and constants, and the table's load into the scratchpad: what
-/// comes before the loop.
-fn prologue(b: &mut KernelBuilder) -> (Params, Vec<[Value; 3]>, Constants) {
+/// Parameters, ramp colours and constants: what comes before the loop (with the table's
+/// load, [`load_table`], for Perlin's noise).
+fn prologue(b: &mut KernelBuilder, noise: Noise) -> (Params, Vec<[Value; 3]>, Constants) {
     let params = Params {
         frequency: b.param_f32("frequency"),
         turbulence_scale: b.param_f32("turbulence_scale"),
@@ -384,7 +441,7 @@ fn prologue(b: &mut KernelBuilder) -> (Params, Vec<[Value; 3]>, Constants) {
             RAMP_COLOURS[i].map(|c| b.f32(c * weight))
         })
         .collect();
-    let k = Constants::new(b);
+    let k = Constants::new(b, noise);
     (params, ramp, k)
 }
 
@@ -461,18 +518,34 @@ fn shade(
     })
 }
 
-/// The library kernel: `fragments` (x, y, z, nx, ny, nz) and `perm` in, `colours`
-/// (r, g, b) out. Needs a cluster count that divides the table's 256 entries (it loads the
-/// table in rows) and a scratchpad that holds the table.
+/// The library's `turbulence` (Ward's noise): `fragments` (x, y, z, nx, ny, nz) in,
+/// `colours` (r, g, b) out.
 pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
-    check_machine(desc, "turbulence")?;
-    let mut b = KernelBuilder::new("turbulence");
+    build_shader(desc, Noise::Ward)
+}
+
+/// The library's `turbulence_perlin`: [`build`] over Perlin's improved noise, its table on
+/// a second input, `perm`.
+pub fn build_perlin(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+    build_shader(desc, Noise::Perlin)
+}
+
+/// The shader on (x, y, z, nx, ny, nz) records (see [`check_machine`] for what it needs).
+fn build_shader(desc: &MachineDesc, noise: Noise) -> Result<Kernel, MachineRequirementError> {
+    let name = match noise {
+        Noise::Ward => "turbulence",
+        Noise::Perlin => "turbulence_perlin",
+    };
+    check_machine(desc, name, noise)?;
+    let mut b = KernelBuilder::new(name);
     let fragments = b.input("fragments");
-    let perm = b.input("perm");
+    let perm = noise.uses_table().then(|| b.input("perm"));
     let colours = b.output("colours");
-    let (params, ramp, k) = prologue(&mut b);
+    let (params, ramp, k) = prologue(&mut b, noise);
     let zero = b.f32(0.0);
-    load_table(&mut b, perm);
+    if let Some(perm) = perm {
+        load_table(&mut b, perm);
+    }
 
     b.begin_loop(LoopSpec::OverStream(fragments));
     let p: Vec3 = std::array::from_fn(|_| b.read_f32(fragments));
@@ -488,30 +561,42 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
 /// g, b, then x, y, z, nx, ny, nz.
 pub const MARBLE_RECORD_WORDS: usize = 9;
 
+/// The name of the fragment program of a `noise` marble (`marble`, `marble_perlin`).
+pub fn fragment_name(noise: Noise) -> &'static str {
+    match noise {
+        Noise::Ward => "marble",
+        Noise::Perlin => "marble_perlin",
+    }
+}
+
 /// `marble`: the shader as the OpenGL pipeline's fragment program (depth 0, no lookups).
 /// Per fragment it reads the `varyings` record `irast` writes (`record_words` words: r, g,
 /// b, which it drops, then the object-space shading position and normal, then any further
 /// words of the frame, dropped) and writes the packed RGBA8 `colour` (each channel
-/// `⌊255·c + ½⌋`, alpha 255) the composite expects. The table comes in on `perm` as for
-/// [`build`]; the parameters are [`build`]'s.
+/// `⌊255·c + ½⌋`, alpha 255) the composite expects. With Perlin's noise the table comes in
+/// on `perm` as for [`build_perlin`]; the parameters are [`build`]'s.
 pub fn build_fragment(
     desc: &MachineDesc,
     record_words: usize,
+    noise: Noise,
 ) -> Result<Kernel, MachineRequirementError> {
     assert!(
         record_words >= MARBLE_RECORD_WORDS,
         "r, g, b, position and normal"
     );
-    check_machine(desc, "marble")?;
-    let mut b = KernelBuilder::new("marble");
+    let name = fragment_name(noise);
+    check_machine(desc, name, noise)?;
+    let mut b = KernelBuilder::new(name);
     let varyings = b.input("varyings");
-    let perm = b.input("perm");
+    let perm = noise.uses_table().then(|| b.input("perm"));
     let colour_out = b.output("colour");
-    let (params, ramp, k) = prologue(&mut b);
+    let (params, ramp, k) = prologue(&mut b, noise);
     let zero = b.f32(0.0);
     let (half, scale) = (b.f32(0.5), b.f32(255.0));
     let alpha = b.word(0xFF00_0000);
-    load_table(&mut b, perm);
+    if let Some(perm) = perm {
+        load_table(&mut b, perm);
+    }
 
     b.begin_loop(LoopSpec::OverStream(varyings));
     let record: Vec<Value> = (0..record_words).map(|_| b.read_f32(varyings)).collect();
@@ -527,9 +612,15 @@ pub fn build_fragment(
     Ok(finish(b))
 }
 
-/// [`build_fragment`] for the record of a marble-only frame (the library's `marble`).
+/// [`build_fragment`] for the record of a marble-only frame (the library's `marble`, Ward's
+/// noise).
 pub fn build_marble(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
-    build_fragment(desc, MARBLE_RECORD_WORDS)
+    build_fragment(desc, MARBLE_RECORD_WORDS, Noise::Ward)
+}
+
+/// The library's `marble_perlin`: [`build_marble`] over Perlin's improved noise.
+pub fn build_marble_perlin(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+    build_fragment(desc, MARBLE_RECORD_WORDS, Noise::Perlin)
 }
 
 /// Perlin's permutation (the table of his reference implementation of improved noise),
@@ -584,11 +675,18 @@ fn unit_vector(rng: &mut SplitMix64) -> [f32; 3] {
     }
 }
 
-/// `rows × C` fragments in [-20, 20)³ (negative coordinates exercise `floor`) with normals
-/// of length 0.5 to 2, a random permutation table, a frequency in [0.5, 4), a turbulence
-/// scale in [1, 8), unit light and half vectors, ambient in [0, 0.3), specular in [0, 1)
-/// (the ramp colours are the kernel's constants).
+/// Inputs of [`build`]: [`perlin_inputs`] without the table.
 pub fn inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
+    let mut inputs = perlin_inputs(desc, rows, seed);
+    inputs.streams.remove(1);
+    inputs
+}
+
+/// Inputs of [`build_perlin`]: `rows × C` fragments in [-20, 20)³ (negative coordinates
+/// exercise `floor`) with normals of length 0.5 to 2, a random permutation table, a
+/// frequency in [0.5, 4), a turbulence scale in [1, 8), unit light and half vectors,
+/// ambient in [0, 0.3), specular in [0, 1) (the ramp colours are the kernel's constants).
+pub fn perlin_inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
     let mut rng = SplitMix64::new(seed);
     let records: Vec<Vec<u32>> = (0..rows * desc.cluster.count)
         .map(|_| {
@@ -617,11 +715,19 @@ pub fn inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
     }
 }
 
-/// Inputs of [`build_marble`]: [`inputs`]' fragments as `varyings` records (a random
-/// colour in [0, 1) first, which the kernel drops), the same table and parameters.
+/// Inputs of [`build_marble`]: [`marble_perlin_inputs`] without the table.
 pub fn marble_inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
+    let mut inputs = marble_perlin_inputs(desc, rows, seed);
+    inputs.streams.remove(1);
+    inputs
+}
+
+/// Inputs of [`build_marble_perlin`]: [`perlin_inputs`]' fragments as `varyings` records
+/// (a random colour in [0, 1) first, which the kernel drops), the same table and
+/// parameters.
+pub fn marble_perlin_inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
     let c = desc.cluster.count;
-    let mut inputs = inputs(desc, rows, seed);
+    let mut inputs = perlin_inputs(desc, rows, seed);
     let mut rng = SplitMix64::new(seed ^ 0x6D61_7262_6C65);
     let records: Vec<Vec<u32>> = super::stream_to_records(&inputs.streams[0], 6, c)
         .into_iter()

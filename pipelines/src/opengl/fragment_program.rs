@@ -7,10 +7,13 @@
 //! depth-0 program without lookups: one kernel, `marble`
 //! ([`crate::kernels::turbulence::build_fragment`]), the project's `turbulence` shader
 //! reading `irast`'s varyings (the object-space shading position and normal) and writing
-//! the packed colour. Its permutation table is Perlin's
+//! the packed colour. The material's `noise` chooses the kernel: `marble` over Ward's
+//! noise (no table: [`crate::kernels::ward_noise`]) or `marble_perlin` over Perlin's
+//! improved noise, whose permutation table is Perlin's
 //! ([`crate::kernels::turbulence::PERLIN_PERMUTATION`]), written by the host into DRAM
 //! when the scene loads (each word once per cluster, the layout the kernel reads) and
-//! loaded from there into the SRF once per frame. Its parameters ([`marble_params`]) are
+//! loaded from there into the SRF once per frame (only in frames with a Perlin marble).
+//! Its parameters ([`marble_params`]) are
 //! the material's `frequency` and `turbulence_scale`, lighting in object space from the
 //! scene's first light and the camera, treated as the shader's directional light and
 //! viewer at infinity: with `o` the object's origin in the world, `l` the light's
@@ -132,7 +135,7 @@ pub fn for_material(
     FragmentProgram {
         units,
         mode,
-        marble: false,
+        marble: None,
         bump_env: None,
     }
 }

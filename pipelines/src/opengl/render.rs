@@ -40,13 +40,14 @@
 //! `sort32` and `mergefrag` are compiled only if a round needs them (and never for depth
 //! tests other than LESS, whose minimum they implement); fragment programs only when an
 //! object is textured, marble or `bump_env` (then every object has one: see
-//! [`super::fragment_program`]; a marble frame loads Perlin's permutation table into the
-//! SRF once, before its first batch, and writes the marble parameters at each batch of a
-//! marble object). A `bump_env` object's vertex program is split at its vertex texture:
-//! `vtexaddr` runs as soon as the batch's vertices are loaded, its texels are gathered
-//! over its addresses, and the rest of the program is deferred as any vertex program; its
-//! fragment program is a dependent read, `bumpaddr`, a gather, `envaddr`, a gather and
-//! `fragment` ([`crate::kernels::bump_env`]). `--no-specialize` builds the
+//! [`super::fragment_program`]; a frame with a marble over Perlin's noise loads his
+//! permutation table into the SRF once, before its first batch, and a marble frame writes
+//! the marble parameters at each batch of a marble object). A `bump_env` object's vertex
+//! program is split at its vertex texture: `vtexaddr` runs as soon as the batch's vertices
+//! are loaded, its texels are gathered over its addresses, and the rest of the program is
+//! deferred as any vertex program; its fragment program is a dependent read, `bumpaddr`, a
+//! gather, `envaddr`, a gather and `fragment` ([`crate::kernels::bump_env`]).
+//! `--no-specialize` builds the
 //! general pipeline instead: every vertex carries position, normal or colour, specular
 //! lighting always, and every kernel compiled up front.
 
@@ -258,10 +259,10 @@ struct TexturingStreams {
     marble: Option<MarbleStreams>,
 }
 
-/// The marble program's permutation table (loaded once per frame) and parameters
-/// (written per batch of a marble object).
+/// The marble program's permutation table (Perlin's noise only; loaded once per frame)
+/// and parameters (written per batch of a marble object).
 struct MarbleStreams {
-    perm: StreamId,
+    perm: Option<StreamId>,
     params: StreamId,
 }
 
@@ -283,8 +284,10 @@ struct Sizes {
     direct_fetches: usize,
     direct_weights: usize,
     mipmapped: usize,
-    /// Whether an object is marble (the permutation table and its parameters in the SRF).
+    /// Whether an object is marble (its parameters in the SRF), and whether one is over
+    /// Perlin's noise (his permutation table in the SRF).
     marble: bool,
+    perlin_table: bool,
     /// Whether `xyrast` walks the boxes in primitive order (blending).
     ordered: bool,
     /// The most dependent texel fetches of any fragment program.
@@ -450,7 +453,9 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
                 filtered: per_fragment("filtered", s.mipmapped),
                 dependent: per_fragment("dependent_addr", s.dependent_fetches),
                 marble: s.marble.then(|| MarbleStreams {
-                    perm: p.stream("perm", words, turbulence::TABLE * c, always),
+                    perm: s
+                        .perlin_table
+                        .then(|| p.stream("perm", words, turbulence::TABLE * c, always)),
                     params: p.stream(
                         "marble_params",
                         words,
@@ -631,8 +636,8 @@ fn register_kernels(
                         fp.texaddr(varyings.fragment_words(), varyings.derivatives_at())?,
                     ))
                 };
-                let kernel = if fp.marble {
-                    turbulence::build_fragment(desc, varyings.fragment_words())?
+                let kernel = if let Some(noise) = fp.marble {
+                    turbulence::build_fragment(desc, varyings.fragment_words(), noise)?
                 } else {
                     fp.fragment(varyings.fragment_words())?
                 };
@@ -978,11 +983,11 @@ impl PipelinePlan {
         let programs = self.fragment_programs.iter().flatten();
         if !programs
             .clone()
-            .any(|f| !f.marble && (!f.units.is_empty() || f.bump_env.is_some()))
+            .any(|f| f.marble.is_none() && (!f.units.is_empty() || f.bump_env.is_some()))
         {
             out.push("textures".into());
         }
-        if !programs.clone().any(|f| f.marble) {
+        if !programs.clone().any(|f| f.marble.is_some()) {
             out.push("procedural noise".into());
         }
         if !self.shape.ordered() {
@@ -1058,14 +1063,21 @@ pub fn plan_pipeline(
         .map(|o| {
             let m = &scene.materials[o.material];
             (extras > 0).then(|| match m.shader {
-                Shader::Marble(_) => FragmentProgram::marble(),
+                Shader::Marble(marble) => FragmentProgram::marble(marble.noise),
                 Shader::BumpEnv(_) => fragment_program::for_bump_env(scene, o.material, &textures)
                     .expect("the scene file checked a bump_env material's one texture"),
                 _ => fragment_program::for_material(scene, &m.textures, m.texture_mode, &textures),
             })
         })
         .collect();
-    let marble = fragment_programs.iter().flatten().any(|f| f.marble);
+    let marble = fragment_programs
+        .iter()
+        .flatten()
+        .any(|f| f.marble.is_some());
+    let perlin_table = fragment_programs
+        .iter()
+        .flatten()
+        .any(|f| f.marble.is_some_and(|n| n.uses_table()));
     let varyings = Varyings {
         extras,
         derivatives: fragment_programs
@@ -1171,6 +1183,7 @@ pub fn plan_pipeline(
         direct_weights,
         mipmapped,
         marble,
+        perlin_table,
         ordered: kernels::in_primitive_order(scene.pipeline.blend),
         dependent_fetches,
         vertex_texels,
@@ -1317,7 +1330,12 @@ pub fn render_with(
     host.upload(&input.light_words, m.lights, 0, staging);
     // The textures' mipmap pyramids, built when the scene loaded.
     host.upload(&pp.textures.words, m.textures, 0, staging);
-    if s.texturing.as_ref().is_some_and(|t| t.marble.is_some()) {
+    let perm_stream = s
+        .texturing
+        .as_ref()
+        .and_then(|t| t.marble.as_ref())
+        .and_then(|ms| ms.perm);
+    if perm_stream.is_some() {
         host.upload(&perm_words, m.perm, 0, staging);
     }
     host.drain()?;
@@ -1353,9 +1371,9 @@ pub fn render_with(
     host.drain()?;
     let cleared = host.cycles();
 
-    // The frame. The marble program's table comes into the SRF first.
-    if let Some(marble) = s.texturing.as_ref().and_then(|t| t.marble.as_ref()) {
-        let perm = plan.first(marble.perm, perm_words.len());
+    // The frame. The Perlin marble program's table comes into the SRF first.
+    if let Some(perm) = perm_stream {
+        let perm = plan.first(perm, perm_words.len());
         host.load(m.perm, 0, Layout::words(), perm_words.len(), perm);
     }
     let mut frame = FrameRun {
@@ -2024,12 +2042,15 @@ impl FrameRun<'_> {
             )?;
         }
         let mut bindings = vec![("varyings", varyings)];
-        if let Some(ms) = t.marble.as_ref().filter(|_| fp.marble) {
+        if let (Some(ms), Some(noise)) = (t.marble.as_ref(), fp.marble) {
             let c = h.clusters();
-            bindings.extend([
-                ("perm", p.first(ms.perm, turbulence::TABLE * c)),
-                (PARAMS, p.first(ms.params, turbulence::SCALAR_PARAMS * c)),
-            ]);
+            if noise.uses_table() {
+                let perm = ms
+                    .perm
+                    .expect("a Perlin marble frame has the table's stream");
+                bindings.push(("perm", p.first(perm, turbulence::TABLE * c)));
+            }
+            bindings.push((PARAMS, p.first(ms.params, turbulence::SCALAR_PARAMS * c)));
         }
         bindings.extend(addr.map(|b| ("texels", b)));
         bindings.extend(weights.map(|b| ("weights", b)));

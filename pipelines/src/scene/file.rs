@@ -18,9 +18,11 @@
 //! * `tessellate` defaults to 20 (TEAPOT's OpenGL dicing), `basis` to `"bezier"`.
 //! * `cage` is refused: Catmull-Clark limit surfaces are not supported yet.
 //! * `shader = "marble"` (MARBLE's procedural shader, per fragment; no textures, and the
-//!   mesh needs normals, as for `lit`) takes two optional keys: `frequency` (default 4)
+//!   mesh needs normals, as for `lit`) takes three optional keys: `frequency` (default 4)
 //!   and `turbulence_scale` (default 5), in `sin(x·frequency +
-//!   turbulence(p)·turbulence_scale)` over object-space positions `p`; of the other
+//!   turbulence(p)·turbulence_scale)` over object-space positions `p`, and `noise`, the
+//!   noise under the turbulence: `"ward"` (default; Greg Ward's implementation of Perlin's
+//!   noise, the publication's) or `"perlin"` (Perlin's improved noise); of the other
 //!   material keys it uses the means of `ambient` and `specular` (see
 //!   `crate::opengl::render`'s notes on marble).
 //!
@@ -50,7 +52,7 @@ use glam::{DMat4, DVec3};
 use serde::Deserialize;
 
 use super::bpt::{self, Basis};
-use super::model::{self, Mesh, Space};
+use super::model::{self, Mesh, Noise, Space};
 use super::obj::{self, AssetError};
 use super::{IDENTITY, MAX_WINDOW, SceneError, primitives, window_to_clip};
 
@@ -385,6 +387,14 @@ struct MaterialFile {
     bump_size: Option<u32>,
     bump_cells: Option<u32>,
     bump_scale: Option<f64>,
+    noise: Option<NoiseFile>,
+}
+
+#[derive(Deserialize, Clone, Copy)]
+#[serde(rename_all = "lowercase")]
+enum NoiseFile {
+    Ward,
+    Perlin,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -1128,6 +1138,13 @@ impl Cx {
             model::Marble::DEFAULT.turbulence_scale,
         )?;
         let bump_env = self.bump_env(i, m, &textures, scene_textures)?;
+        let noise = match (m.shader, m.noise) {
+            (ShaderFile::Marble, None) => model::Marble::DEFAULT.noise,
+            (ShaderFile::Marble, Some(NoiseFile::Ward)) => Noise::Ward,
+            (ShaderFile::Marble, Some(NoiseFile::Perlin)) => Noise::Perlin,
+            (_, None) => Noise::default(),
+            (_, Some(_)) => return Err(self.err(&key("noise"), "only a `marble` material has it")),
+        };
         if matches!(m.shader, ShaderFile::Marble) && !textures.is_empty() {
             return Err(self.err(
                 &key("textures"),
@@ -1142,6 +1159,7 @@ impl Cx {
                 ShaderFile::Marble => model::Shader::Marble(model::Marble {
                     frequency,
                     turbulence_scale,
+                    noise,
                 }),
                 ShaderFile::BumpEnv => model::Shader::BumpEnv(bump_env.expect("checked")),
             },

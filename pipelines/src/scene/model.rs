@@ -149,18 +149,47 @@ pub struct BumpEnv {
 }
 
 /// The parameters of a `marble` material: `colour = ramp(sin(x·frequency +
-/// turbulence(p)·turbulence_scale))` over object-space positions `p`.
+/// turbulence(p)·turbulence_scale))` over object-space positions `p`, the turbulence over
+/// `noise`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Marble {
     pub frequency: f32,
     pub turbulence_scale: f32,
+    pub noise: Noise,
 }
 
 impl Marble {
     pub const DEFAULT: Marble = Marble {
         frequency: 4.0,
         turbulence_scale: 5.0,
+        noise: Noise::Ward,
     };
+}
+
+/// The noise under the marble's turbulence (a `marble` material's `noise`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Noise {
+    /// Greg Ward's implementation of Perlin's noise (`crate::kernels::ward_noise`), the one the
+    /// publication's MARBLE used.
+    #[default]
+    Ward,
+    /// Perlin's improved noise (2002) over his permutation table in the scratchpad.
+    Perlin,
+}
+
+impl Noise {
+    /// The name in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Noise::Ward => "ward",
+            Noise::Perlin => "perlin",
+        }
+    }
+
+    /// Whether the shader reads Perlin's permutation table (a `perm` input stream).
+    pub fn uses_table(self) -> bool {
+        self == Noise::Perlin
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
