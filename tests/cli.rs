@@ -852,13 +852,13 @@ fn machine_shapes_the_kernels_cannot_serve_are_named() {
             "c6",
             "[cluster]\ncount = 6",
             "kernel `assemble_clip` needs a power-of-two cluster count (machine `c6` has 6 clusters)",
-            "kernel `turbulence_perlin` needs a cluster count dividing the 256 entries",
+            "kernel `turbulence` needs a cluster count dividing the 256 entries",
         ),
         (
             "c12",
             "[cluster]\ncount = 12",
             "kernel `assemble_clip` needs a power-of-two cluster count (machine `c12` has 12 clusters)",
-            "kernel `turbulence_perlin` needs a cluster count dividing the 256 entries",
+            "kernel `turbulence` needs a cluster count dividing the 256 entries",
         ),
         (
             "c64",
@@ -876,7 +876,7 @@ fn machine_shapes_the_kernels_cannot_serve_are_named() {
             "sp16",
             "[scratchpad]\nwords = 16",
             "kernel `xyrast` needs 27 scratchpad words",
-            "kernel `turbulence_perlin` needs 256 scratchpad words",
+            "kernel `turbulence` needs 256 scratchpad words",
         ),
     ] {
         let file = machine_file(name, table);

@@ -391,16 +391,25 @@ translate = [1.6, -0.5, 0.5]
 scale = [0.5, 0.5, 0.5]
 "#;
 
-/// Both noises: Ward's (the default) and Perlin's improved noise.
+/// Perlin's improved noise (the default).
 #[test]
 fn marble_matches_the_reference() {
-    for noise in ["ward", "perlin"] {
-        let scene = parse("marble.toml", &MARBLE.replace("NOISE", noise));
-        let (frame, m) = draw(&scene, "gold8");
-        assert!(m.psnr_db >= 30.0, "{noise}: PSNR {}", m.psnr_db);
-        assert!(m.coverage_mismatch_share < 0.001, "{noise}");
-        assert!(frame.stats.fragments > 1000, "the spheres cover pixels");
-    }
+    marble_matches_the_reference_over("perlin");
+}
+
+/// Ward's noise, the publication's (its kernel takes the compiler about 4 minutes).
+#[test]
+#[ignore = "Ward's marble compiles for minutes: cargo test --release -- --ignored"]
+fn marble_ward_matches_the_reference() {
+    marble_matches_the_reference_over("ward");
+}
+
+fn marble_matches_the_reference_over(noise: &str) {
+    let scene = parse("marble.toml", &MARBLE.replace("NOISE", noise));
+    let (frame, m) = draw(&scene, "gold8");
+    assert!(m.psnr_db >= 30.0, "{noise}: PSNR {}", m.psnr_db);
+    assert!(m.coverage_mismatch_share < 0.001, "{noise}");
+    assert!(frame.stats.fragments > 1000, "the spheres cover pixels");
 }
 
 /// Three translucent balls wearing the Tango icon (RGBA: its transparent background and

@@ -485,7 +485,18 @@ fn marble_reference(noise_of: Noise, params: &[f32], f: &[f32]) -> [f32; 3] {
 
 #[test]
 fn turbulence_matches_reference() {
-    for (kernel, perlin) in [("turbulence", false), ("turbulence_perlin", true)] {
+    turbulence_matches_reference_over("turbulence", true);
+}
+
+/// Ward's noise: its kernel takes the compiler about 4 minutes a machine.
+#[test]
+#[ignore = "Ward's turbulence compiles for minutes: cargo test --release -- --ignored"]
+fn turbulence_ward_matches_reference() {
+    turbulence_matches_reference_over("turbulence_ward", false);
+}
+
+fn turbulence_matches_reference_over(kernel: &str, perlin: bool) {
+    {
         for name in MACHINES {
             let desc = machine(name);
             let c = desc.cluster.count;
@@ -517,7 +528,18 @@ fn turbulence_matches_reference() {
 /// turbulence kernel's record) and packs the shader's colour as RGBA8.
 #[test]
 fn marble_fragment_is_turbulence_packed() {
-    for (kernel, perlin) in [("marble", false), ("marble_perlin", true)] {
+    marble_fragment_is_turbulence_packed_over("marble", true);
+}
+
+/// Over Ward's noise (minutes of compiling a machine).
+#[test]
+#[ignore = "Ward's marble compiles for minutes: cargo test --release -- --ignored"]
+fn marble_ward_fragment_is_turbulence_packed() {
+    marble_fragment_is_turbulence_packed_over("marble_ward", false);
+}
+
+fn marble_fragment_is_turbulence_packed_over(kernel: &str, perlin: bool) {
+    {
         for name in MACHINES {
             let desc = machine(name);
             let c = desc.cluster.count;
@@ -581,7 +603,7 @@ fn turbulence_noise_is_perlins() {
     // The reference's weighted-sum interpolation agrees with Perlin's nested lerps (to
     // rounding), and both vanish on lattice points.
     let desc = machine("gold8");
-    let inputs = (find("turbulence_perlin").unwrap().inputs)(&desc, 1, 5);
+    let inputs = (find("turbulence").unwrap().inputs)(&desc, 1, 5);
     let table = doubled_table(&kernels::turbulence::table_of(
         &inputs.streams[1],
         desc.cluster.count,
@@ -822,13 +844,13 @@ fn library_kernels_name_what_the_machine_lacks() {
         }
     }
     for clusters in [3, 6, 12] {
-        let e = error("turbulence_perlin", &shaped(clusters, 256, 16));
+        let e = error("turbulence", &shaped(clusters, 256, 16));
         assert!(
-            e.contains("turbulence_perlin") && e.contains("dividing the 256"),
+            e.contains("turbulence") && e.contains("dividing the 256"),
             "{e}"
         );
     }
-    let e = error("turbulence_perlin", &shaped(8, 255, 16));
+    let e = error("turbulence", &shaped(8, 255, 16));
     assert!(e.contains("256 scratchpad words"), "{e}");
     let e = error("hash", &shaped(8, 8, 16));
     assert!(
@@ -847,7 +869,7 @@ fn library_kernels_name_what_the_machine_lacks() {
         "prefix_sum",
         "compact",
         "hash",
-        "turbulence",
+        "turbulence_ward",
     ] {
         for clusters in [3, 6, 12, 64] {
             let desc = shaped(clusters, 256, 16);
@@ -878,7 +900,7 @@ fn the_compiler_gives_up_after_bounded_effort() {
     let mut desc = machine("gold8");
     desc.name = "two-codes".into();
     desc.cluster.condition_codes = 2;
-    let kernel = (find("turbulence_perlin").unwrap().build)(&desc).unwrap();
+    let kernel = (find("turbulence").unwrap().build)(&desc).unwrap();
     let e = imagine_pipelines::compile::compile(&kernel, &desc)
         .unwrap_err()
         .to_string();

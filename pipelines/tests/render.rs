@@ -463,13 +463,13 @@ fn marble_materials_are_checked_by_name() {
         panic!("marble")
     };
     assert_eq!((m.frequency, m.turbulence_scale), (2.5, 5.0));
-    // Ward's noise by default (the publication's), Perlin's on request.
-    assert_eq!(m.noise, Noise::Ward);
-    let s = parse("shader = \"marble\"\nnoise = \"perlin\"").unwrap();
+    // Perlin's improved noise by default, Ward's (the publication's) on request.
+    assert_eq!(m.noise, Noise::Perlin);
+    let s = parse("shader = \"marble\"\nnoise = \"ward\"").unwrap();
     let Shader::Marble(m) = s.materials[0].shader else {
         panic!("marble")
     };
-    assert_eq!(m.noise, Noise::Perlin);
+    assert_eq!(m.noise, Noise::Ward);
     for (material, words) in [
         (
             "shader = \"lit\"\nfrequency = 2.0",

@@ -13,8 +13,8 @@
 //! |---|---|
 //! | [`transform`] | 4×4 matrix times a homogeneous position |
 //! | [`vertex`] | the SPHERE vertex program: transform plus three-light Blinn-Phong lighting |
-//! | [`turbulence`] | the MARBLE shader: four octaves of Ward's noise ([`ward_noise`]), marble colour ramp; `turbulence_perlin` over Perlin's improved noise |
-//! | `marble` ([`turbulence::build_fragment`]) | `turbulence` as the OpenGL pipeline's fragment program: `irast`'s varyings in, packed RGBA8 out; `marble_perlin` over Perlin's improved noise |
+//! | [`turbulence`] | the MARBLE shader: four octaves of Perlin improved noise, marble colour ramp; `turbulence_ward` over Ward's noise ([`ward_noise`]) |
+//! | `marble` ([`turbulence::build_fragment`]) | `turbulence` as the OpenGL pipeline's fragment program: `irast`'s varyings in, packed RGBA8 out; `marble_ward` over Ward's noise |
 //! | [`prefix_sum`] | inclusive prefix sum of an int32 stream |
 //! | [`compact`] | keeps the fp32 words below a threshold, in order |
 //! | [`hash`] | the composite stamp test of the OpenGL pipeline (per-cluster 32×32 stamp) |
@@ -68,27 +68,27 @@ static LIBRARY: &[LibraryKernel] = &[
     },
     LibraryKernel {
         name: "turbulence",
-        description: "MARBLE shader: four octaves of Ward's Perlin noise and a marble ramp",
-        build: turbulence::build,
-        inputs: turbulence::inputs,
-    },
-    LibraryKernel {
-        name: "turbulence_perlin",
-        description: "the MARBLE shader over Perlin's improved noise (permutation table in)",
+        description: "MARBLE shader: four octaves of Perlin improved noise and a marble ramp",
         build: turbulence::build_perlin,
         inputs: turbulence::perlin_inputs,
     },
     LibraryKernel {
-        name: "marble",
-        description: "MARBLE fragment program: turbulence on irast's varyings, packed RGBA8 out",
-        build: turbulence::build_marble,
-        inputs: turbulence::marble_inputs,
+        name: "turbulence_ward",
+        description: "the MARBLE shader over Ward's Perlin noise (the publication's; slow to compile)",
+        build: turbulence::build,
+        inputs: turbulence::inputs,
     },
     LibraryKernel {
-        name: "marble_perlin",
-        description: "the MARBLE fragment program over Perlin's improved noise",
+        name: "marble",
+        description: "MARBLE fragment program: turbulence on irast's varyings, packed RGBA8 out",
         build: turbulence::build_marble_perlin,
         inputs: turbulence::marble_perlin_inputs,
+    },
+    LibraryKernel {
+        name: "marble_ward",
+        description: "the MARBLE fragment program over Ward's Perlin noise (slow to compile)",
+        build: turbulence::build_marble,
+        inputs: turbulence::marble_inputs,
     },
     LibraryKernel {
         name: "prefix_sum",

@@ -7,9 +7,9 @@
 //! depth-0 program without lookups: one kernel, `marble`
 //! ([`crate::kernels::turbulence::build_fragment`]), the project's `turbulence` shader
 //! reading `irast`'s varyings (the object-space shading position and normal) and writing
-//! the packed colour. The material's `noise` chooses the kernel: `marble` over Ward's
-//! noise (no table: [`crate::kernels::ward_noise`]) or `marble_perlin` over Perlin's
-//! improved noise, whose permutation table is Perlin's
+//! the packed colour. The material's `noise` chooses the kernel: `marble_ward` over Ward's
+//! noise (no table: [`crate::kernels::ward_noise`]) or `marble` over Perlin's improved
+//! noise, whose permutation table is Perlin's
 //! ([`crate::kernels::turbulence::PERLIN_PERMUTATION`]), written by the host into DRAM
 //! when the scene loads (each word once per cluster, the layout the kernel reads) and
 //! loaded from there into the SRF once per frame (only in frames with a Perlin marble).

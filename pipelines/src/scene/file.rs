@@ -21,8 +21,9 @@
 //!   mesh needs normals, as for `lit`) takes three optional keys: `frequency` (default 4)
 //!   and `turbulence_scale` (default 5), in `sin(x·frequency +
 //!   turbulence(p)·turbulence_scale)` over object-space positions `p`, and `noise`, the
-//!   noise under the turbulence: `"ward"` (default; Greg Ward's implementation of Perlin's
-//!   noise, the publication's) or `"perlin"` (Perlin's improved noise); of the other
+//!   noise under the turbulence: `"perlin"` (default; Perlin's improved noise) or `"ward"`
+//!   (Greg Ward's implementation of Perlin's noise, the publication's, whose kernel the
+//!   compiler takes minutes to schedule); of the other
 //!   material keys it uses the means of `ambient` and `specular` (see
 //!   `crate::opengl::render`'s notes on marble).
 //!
