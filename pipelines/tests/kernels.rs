@@ -496,31 +496,25 @@ fn turbulence_ward_matches_reference() {
 }
 
 fn turbulence_matches_reference_over(kernel: &str, perlin: bool) {
-    {
-        for name in MACHINES {
-            let desc = machine(name);
-            let c = desc.cluster.count;
-            let rows = if c == 1 { 16 } else { 2 };
-            let (inputs, out) = run(kernel, &desc, rows, 13);
-            let table;
-            let noise = if perlin {
-                table = doubled_table(&kernels::turbulence::table_of(&inputs.streams[1], c));
-                Noise::Perlin(&table)
-            } else {
-                Noise::Ward
-            };
-            let params = floats(&inputs.params);
-            let n = inputs.streams[0].len() / 6;
-            let mut want = vec![0; 3 * n];
-            for e in 0..n {
-                let f = floats(&record(&inputs.streams[0], e, 6, c));
-                for (j, v) in marble_reference(noise, &params, &f).iter().enumerate() {
-                    want[(e / c) * 3 * c + j * c + e % c] = v.to_bits();
-                }
+    for name in MACHINES {
+        let desc = machine(name);
+        let c = desc.cluster.count;
+        let rows = if c == 1 { 16 } else { 2 };
+        let (inputs, out) = run(kernel, &desc, rows, 13);
+        let table =
+            perlin.then(|| doubled_table(&kernels::turbulence::table_of(&inputs.streams[1], c)));
+        let noise = table.as_ref().map_or(Noise::Ward, Noise::Perlin);
+        let params = floats(&inputs.params);
+        let n = inputs.streams[0].len() / 6;
+        let mut want = vec![0; 3 * n];
+        for e in 0..n {
+            let f = floats(&record(&inputs.streams[0], e, 6, c));
+            for (j, v) in marble_reference(noise, &params, &f).iter().enumerate() {
+                want[(e / c) * 3 * c + j * c + e % c] = v.to_bits();
             }
-            let colours = out.last().expect("the colours");
-            assert_words(&format!("{kernel} on {name}"), colours, &want);
         }
+        let colours = out.last().expect("the colours");
+        assert_words(&format!("{kernel} on {name}"), colours, &want);
     }
 }
 
@@ -539,34 +533,28 @@ fn marble_ward_fragment_is_turbulence_packed() {
 }
 
 fn marble_fragment_is_turbulence_packed_over(kernel: &str, perlin: bool) {
-    {
-        for name in MACHINES {
-            let desc = machine(name);
-            let c = desc.cluster.count;
-            let rows = if c == 1 { 16 } else { 2 };
-            let (inputs, out) = run(kernel, &desc, rows, 17);
-            let table;
-            let noise = if perlin {
-                table = doubled_table(&kernels::turbulence::table_of(&inputs.streams[1], c));
-                Noise::Perlin(&table)
-            } else {
-                Noise::Ward
-            };
-            let params = floats(&inputs.params);
-            let k = kernels::turbulence::MARBLE_RECORD_WORDS;
-            let n = inputs.streams[0].len() / k;
-            let want: Vec<u32> = (0..n)
-                .map(|e| {
-                    let f = floats(&record(&inputs.streams[0], e, k, c)[3..]);
-                    let rgb = marble_reference(noise, &params, &f);
-                    let byte = |ch: usize| ((rgb[ch] * 255.0 + 0.5) as u32) << (8 * ch);
-                    0xFF00_0000 | byte(0) | byte(1) | byte(2)
-                })
-                .collect();
-            // One word per fragment: element order is the stream's.
-            let colour = out.last().expect("the colour");
-            assert_words(&format!("{kernel} on {name}"), colour, &want);
-        }
+    for name in MACHINES {
+        let desc = machine(name);
+        let c = desc.cluster.count;
+        let rows = if c == 1 { 16 } else { 2 };
+        let (inputs, out) = run(kernel, &desc, rows, 17);
+        let table =
+            perlin.then(|| doubled_table(&kernels::turbulence::table_of(&inputs.streams[1], c)));
+        let noise = table.as_ref().map_or(Noise::Ward, Noise::Perlin);
+        let params = floats(&inputs.params);
+        let k = kernels::turbulence::MARBLE_RECORD_WORDS;
+        let n = inputs.streams[0].len() / k;
+        let want: Vec<u32> = (0..n)
+            .map(|e| {
+                let f = floats(&record(&inputs.streams[0], e, k, c)[3..]);
+                let rgb = marble_reference(noise, &params, &f);
+                let byte = |ch: usize| ((rgb[ch] * 255.0 + 0.5) as u32) << (8 * ch);
+                0xFF00_0000 | byte(0) | byte(1) | byte(2)
+            })
+            .collect();
+        // One word per fragment: element order is the stream's.
+        let colour = out.last().expect("the colour");
+        assert_words(&format!("{kernel} on {name}"), colour, &want);
     }
 }
 
