@@ -89,9 +89,9 @@ const CHUNK: usize = 96;
 
 /// Triangles per batch unless the scene or the options say otherwise: on gold8 the fastest
 /// for SPHERE, MARBLE and ADVS-8 of 64, 128 and 152 (larger batches need more scissor
-/// tiles split to fit their fragments). ADVS-1, PIN and PIN-8 run faster at 112, 128 and
-/// 80, which their scene files ask for (`pipeline.batch`): the thesis, too, sized each
-/// scene's batch by profiling (Table 5.1).
+/// tiles split to fit their fragments). ADVS-1, PIN, PIN-8 and VERONA run faster at 112,
+/// 128, 80 and 32, which their scene files ask for (`pipeline.batch`): the thesis, too,
+/// sized each scene's batch by profiling (Table 5.1).
 pub const DEFAULT_BATCH: usize = 64;
 
 /// Words of `xyrast`'s tickets stream: its iteration count is the busiest cluster's runs,
