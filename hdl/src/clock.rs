@@ -97,6 +97,13 @@ pub struct Clocks {
     domains: Vec<ClockDomain>,
     /// Per domain, the index of its next half-period edge (even: rising, odd: falling).
     next_half: Vec<u64>,
+    /// Per domain, the time of that edge in picoseconds (rounded down) and the remainder
+    /// of the division that gives it, kept by adding one half-period at a time (a 128-bit
+    /// division per edge cost more than the rest of the scheduler).
+    next_ps: Vec<u64>,
+    next_ps_rem: Vec<u64>,
+    /// Per domain, `PS_PER_S / 2f` as quotient and remainder.
+    half_period_ps: Vec<(u64, u64)>,
     /// Per domain, the number of rising edges so far.
     cycles: Vec<u64>,
     time_ps: u64,
@@ -119,9 +126,19 @@ impl Clocks {
             }
         }
         let n = domains.len();
+        let half_period_ps = domains
+            .iter()
+            .map(|d| {
+                let denom = 2 * d.freq_hz as u128;
+                ((PS_PER_S / denom) as u64, (PS_PER_S % denom) as u64)
+            })
+            .collect();
         Ok(Clocks {
             domains,
             next_half: vec![0; n],
+            next_ps: vec![0; n],
+            next_ps_rem: vec![0; n],
+            half_period_ps,
             cycles: vec![0; n],
             time_ps: 0,
         })
@@ -164,6 +181,30 @@ impl Clocks {
         (half as u128 * PS_PER_S / (2 * self.domains[d].freq_hz as u128)) as u64
     }
 
+    /// Sets domain `d`'s next half-period edge to `half`.
+    fn set_half(&mut self, d: usize, half: u64) {
+        let denom = 2 * self.domains[d].freq_hz as u128;
+        let num = half as u128 * PS_PER_S;
+        self.next_half[d] = half;
+        self.next_ps[d] = (num / denom) as u64;
+        self.next_ps_rem[d] = (num % denom) as u64;
+    }
+
+    /// Moves domain `d`'s next edge on by one half-period: `next_ps` grows by
+    /// `PS_PER_S / 2f`, exactly, carrying the remainder.
+    #[inline]
+    fn step_half(&mut self, d: usize) {
+        let denom = 2 * self.domains[d].freq_hz;
+        let (q, r) = self.half_period_ps[d];
+        self.next_half[d] += 1;
+        self.next_ps[d] += q;
+        self.next_ps_rem[d] += r;
+        if self.next_ps_rem[d] >= denom {
+            self.next_ps_rem[d] -= denom;
+            self.next_ps[d] += 1;
+        }
+    }
+
     /// Advances to the next instant at which any clock has an edge.
     pub fn next_edge(&mut self) -> Edge {
         // Edge time of domain i is next_half[i] / (2 f_i); compare a/fa < b/fb as a·fb < b·fa.
@@ -174,7 +215,7 @@ impl Clocks {
             }
         }
         let mut edge = Edge {
-            time_ps: self.half_edge_ps(first, self.next_half[first]),
+            time_ps: self.next_ps[first],
             rising: DomainSet::default(),
             falling: DomainSet::default(),
         };
@@ -194,7 +235,7 @@ impl Clocks {
                 } else {
                     edge.falling.insert(d);
                 }
-                self.next_half[i] += 1;
+                self.step_half(i);
             }
         }
         self.time_ps = edge.time_ps;
@@ -204,8 +245,10 @@ impl Clocks {
     /// Skips every pending falling edge, so the next [`next_edge`](Self::next_edge) is a
     /// rising one. Without a waveform to draw, falling edges change nothing.
     pub fn skip_falling_edges(&mut self) {
-        for h in &mut self.next_half {
-            *h += *h & 1;
+        for d in 0..self.next_half.len() {
+            if self.next_half[d] & 1 == 1 {
+                self.step_half(d);
+            }
         }
     }
 
@@ -251,7 +294,7 @@ impl Clocks {
         };
         for (i, (c, at_t)) in target.into_iter().enumerate() {
             self.cycles[i] = c;
-            self.next_half[i] = 2 * c - at_t as u64;
+            self.set_half(i, 2 * c - at_t as u64);
         }
         self.time_ps = self.half_edge_ps(d.0 as usize, 2 * (cycles - 1));
         true
@@ -346,6 +389,34 @@ mod tests {
         // Rising edges per domain stay in the exact 4:3 ratio (within one edge).
         let (a, b) = (clocks.cycles(DomainId(0)), clocks.cycles(DomainId(1)));
         assert!((a * 3).abs_diff(b * 4) <= 4, "{a} {b}");
+    }
+
+    #[test]
+    fn edge_times_kept_by_addition_equal_the_exact_division() {
+        let mut clocks = Clocks::new(vec![
+            ClockDomain::mhz("core", 500),
+            ClockDomain::mhz("dram", 167),
+            ClockDomain::new("odd", 333_333_337),
+        ])
+        .unwrap();
+        for k in 0..200_000 {
+            if k % 3 == 0 {
+                clocks.skip_falling_edges();
+            }
+            let e = clocks.next_edge();
+            for d in 0..3 {
+                assert_eq!(
+                    clocks.next_ps[d],
+                    clocks.half_edge_ps(d, clocks.next_half[d]),
+                    "domain {d} after edge {k}"
+                );
+            }
+            let first = (0..3)
+                .filter(|&d| e.rising.contains(DomainId(d as u8)) || e.falling.contains(DomainId(d as u8)))
+                .map(|d| clocks.half_edge_ps(d, clocks.next_half[d] - 1))
+                .collect::<Vec<_>>();
+            assert!(first.iter().all(|&t| t == e.time_ps), "edge {k}");
+        }
     }
 
     #[test]

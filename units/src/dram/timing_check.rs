@@ -164,12 +164,16 @@ impl TimingChecker {
         }
     }
 
+    /// The first cycle in which an empty command bus is flagged (a refresh overdue):
+    /// observing `None` before it changes nothing.
+    pub fn quiet_until(&self) -> u64 {
+        (self.refreshes + self.missed + 2) * self.p.t_refi
+    }
+
     /// Checks the bus in `cycle`: `cmd` is the command it carries, if any.
     pub fn observe(&mut self, cycle: u64, cmd: Option<Command>) {
-        let p = self.p.clone();
         // The refresh interval: by the end of interval k+1 the k-th refresh must be done.
-        let deadline = (self.refreshes + self.missed + 2) * p.t_refi;
-        if cycle >= deadline {
+        if cycle >= self.quiet_until() {
             self.missed += 1;
             self.flag(
                 cycle,
@@ -178,11 +182,12 @@ impl TimingChecker {
                 format!(
                     "{} refreshes by cycle {cycle}, {} were due",
                     self.refreshes,
-                    cycle / p.t_refi
+                    cycle / self.p.t_refi
                 ),
             );
         }
         let Some(cmd) = cmd else { return };
+        let p = self.p.clone();
         self.commands += 1;
         let t = cycle;
         let bl = p.burst as u64;
