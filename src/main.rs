@@ -41,6 +41,9 @@ enum Command {
     Dram(commands::dram::DramArgs),
     /// Run the demonstration design (a pipelined MAC crossing into the DRAM clock domain)
     Demo(commands::demo::DemoArgs),
+    /// Time whole frames: simulated cycles per host second, host seconds per frame, compile
+    /// time cold and from the cache
+    Bench(commands::bench::BenchArgs),
 }
 
 /// Output into a closed pipe (`imagine kernel show vertex --microcode | head -1`) ends the
@@ -65,6 +68,7 @@ fn main() -> ExitCode {
         Command::Scene(c) => commands::scene::run(c),
         Command::Dram(a) => commands::dram::run(a),
         Command::Demo(a) => commands::demo::run(a),
+        Command::Bench(a) => commands::bench::frames(a),
     };
     match result {
         Ok(code) => code,

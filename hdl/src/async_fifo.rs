@@ -30,9 +30,6 @@ pub(crate) struct AsyncFifoState<T> {
     read_ptr_sync: VecDeque<u64>,
     pushed: Option<T>,
     popped: bool,
-    /// Every synchroniser stage holds the pointer it samples, so an edge with no push and
-    /// no pop changes nothing.
-    synced: bool,
     ids: [SignalId; 2],
 }
 
@@ -60,7 +57,6 @@ pub(crate) fn new_async_fifo<T: 'static>(
         read_ptr_sync: VecDeque::from(vec![0; sync_stages]),
         pushed: None,
         popped: false,
-        synced: true,
         ids,
     }));
     (
@@ -85,7 +81,11 @@ impl<T> AsyncFifoState<T> {
     /// Empty, nothing pushed or popped this cycle, and every synchroniser stage holding
     /// the pointer it samples: an edge of either clock changes nothing.
     fn is_settled(&self) -> bool {
-        self.items.is_empty() && self.pushed.is_none() && !self.popped && self.synced
+        self.items.is_empty()
+            && self.pushed.is_none()
+            && !self.popped
+            && self.write_ptr_sync.iter().all(|&p| p == self.write_ptr)
+            && self.read_ptr_sync.iter().all(|&p| p == self.read_ptr)
     }
 }
 
@@ -152,9 +152,6 @@ impl<T: Clone> AsyncFifoRx<T> {
 
 impl<T> Channel for AsyncFifoState<T> {
     fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError> {
-        if self.synced && self.pushed.is_none() && !self.popped {
-            return Ok(());
-        }
         // Sample both pointers before either side updates them.
         let (write_ptr, read_ptr) = (self.write_ptr, self.read_ptr);
         if rising.contains(self.write_domain) {
@@ -177,20 +174,11 @@ impl<T> Channel for AsyncFifoState<T> {
                 self.write_ptr_sync.push_back(write_ptr);
             }
         }
-        self.synced = self.write_ptr_sync.iter().all(|&p| p == self.write_ptr)
-            && self.read_ptr_sync.iter().all(|&p| p == self.read_ptr);
         Ok(())
     }
 
     fn domain(&self) -> DomainId {
         self.write_domain
-    }
-
-    fn domains(&self) -> DomainSet {
-        let mut set = DomainSet::default();
-        set.insert(self.write_domain);
-        set.insert(self.read_domain);
-        set
     }
 
     fn trace(&self, t: &mut Trace) {

@@ -412,7 +412,9 @@ mod tests {
                 );
             }
             let first = (0..3)
-                .filter(|&d| e.rising.contains(DomainId(d as u8)) || e.falling.contains(DomainId(d as u8)))
+                .filter(|&d| {
+                    e.rising.contains(DomainId(d as u8)) || e.falling.contains(DomainId(d as u8))
+                })
                 .map(|d| clocks.half_edge_ps(d, clocks.next_half[d] - 1))
                 .collect::<Vec<_>>();
             assert!(first.iter().all(|&t| t == e.time_ps), "edge {k}");

@@ -39,12 +39,6 @@ pub trait Channel {
     fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError>;
     /// The domain whose cycle count locates this channel's errors.
     fn domain(&self) -> DomainId;
-    /// The domains whose edges this channel commits on (a crossing has two).
-    fn domains(&self) -> DomainSet {
-        let mut set = DomainSet::default();
-        set.insert(self.domain());
-        set
-    }
     fn trace(&self, t: &mut Trace);
 }
 
@@ -247,10 +241,6 @@ fn positive(path: &str, what: &str, v: usize) -> Result<(), DesignError> {
 /// Runs a design.
 pub struct Sim {
     design: Design,
-    /// Per module and per channel (in their order), the domains whose edges drive it:
-    /// fixed once built, so not asked of each block at each edge.
-    module_domains: Vec<DomainId>,
-    channel_domains: Vec<DomainSet>,
     /// Domains other than the core's that hold no module.
     quiet: u64,
     #[cfg(feature = "probes")]
@@ -265,16 +255,8 @@ impl Sim {
         for m in &design.modules {
             busy |= 1 << m.domain().0;
         }
-        let module_domains = design.modules.iter().map(|m| m.domain()).collect();
-        let channel_domains = design
-            .channels
-            .iter()
-            .map(|c| c.borrow().domains())
-            .collect();
         Sim {
             design,
-            module_domains,
-            channel_domains,
             quiet: !busy,
             #[cfg(feature = "probes")]
             trace: None,
@@ -320,8 +302,6 @@ impl Sim {
     pub fn reverse_eval_order(&mut self) {
         self.design.modules.reverse();
         self.design.channels.reverse();
-        self.module_domains.reverse();
-        self.channel_domains.reverse();
     }
 
     /// The modules of type `M`, for inspecting their state.
@@ -445,16 +425,17 @@ impl Sim {
             let cycle = clocks.cycles(d).saturating_sub(1);
             e.in_cycle(&clocks.domains()[d.0 as usize].name, cycle)
         };
-        let modules = self.design.modules.iter_mut().zip(&self.module_domains);
-        for (m, &d) in modules.filter(|(_, d)| rising.contains(**d)) {
-            m.eval().map_err(|e| stamp(e, d))?;
+        for m in self.design.modules.iter_mut() {
+            if rising.contains(m.domain()) {
+                m.eval().map_err(|e| stamp(e, m.domain()))?;
+            }
         }
-        let modules = self.design.modules.iter_mut().zip(&self.module_domains);
-        for (m, _) in modules.filter(|(_, d)| rising.contains(**d)) {
-            m.commit();
+        for m in self.design.modules.iter_mut() {
+            if rising.contains(m.domain()) {
+                m.commit();
+            }
         }
-        let channels = self.design.channels.iter().zip(&self.channel_domains);
-        for (c, _) in channels.filter(|(_, d)| d.0 & rising.0 != 0) {
+        for c in &self.design.channels {
             let mut c = c.borrow_mut();
             c.commit(rising).map_err(|e| stamp(e, c.domain()))?;
         }

@@ -161,6 +161,9 @@ pub struct RenderOptions {
     /// Step the simulation through idle time instead of jumping over it (the same frame
     /// and statistics either way; tests compare the two).
     pub step_idle: bool,
+    /// Evaluate and commit the design's blocks in the reverse of their order (the same
+    /// frame, cycle for cycle, by the two-phase contract; tests prove it).
+    pub reverse_eval_order: bool,
     /// The most triangles per batch, instead of the scene's `pipeline.batch` or
     /// [`DEFAULT_BATCH`].
     pub batch: Option<usize>,
@@ -182,6 +185,7 @@ impl Default for RenderOptions {
             cache: CompileCache::disabled(),
             max_cycles: MAX_RUN_CYCLES,
             step_idle: false,
+            reverse_eval_order: false,
             batch: None,
         }
     }
@@ -1305,6 +1309,9 @@ pub fn render_with(
     };
     let mut host = StreamHost::new(desc, lib, dram, on_start, options.max_cycles)?;
     processor::processor_mut(host.sim_mut()).set_skip_idle(!options.step_idle);
+    if options.reverse_eval_order {
+        host.sim_mut().reverse_eval_order();
+    }
     let mut stats = FrameStats {
         scene: scene.name.clone(),
         machine: desc.name.clone(),

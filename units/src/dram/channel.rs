@@ -102,13 +102,6 @@ pub struct DramChannel {
     stats: ChannelStats,
     record: Option<Vec<TraceRequest>>,
     arriving: Option<TraceRequest>,
-    /// Nothing pending, in flight or on the buses (set at the edge): until cycle
-    /// `quiet_until` a cycle in which no request can enter only counts (see
-    /// [`settle`](Self::settle)).
-    quiet: bool,
-    quiet_until: u64,
-    /// This cycle is such a quiet one.
-    quiet_now: bool,
     ids: Probes,
 }
 
@@ -177,9 +170,6 @@ impl DramChannel {
             stats: ChannelStats::default(),
             record: cfg.record.then(Vec::new),
             arriving: None,
-            quiet: false,
-            quiet_until: 0,
-            quiet_now: false,
             ids,
             p,
         }
@@ -277,7 +267,6 @@ impl DramChannel {
         self.popped_return = false;
         self.cycle += n;
         self.stats.cycles = self.cycle;
-        self.settle();
     }
 
     /// Everything that evolves (tests compare a run that skipped idle cycles with one
@@ -344,39 +333,6 @@ impl DramChannel {
         }
     }
 
-    /// Whether a request can enter this cycle.
-    fn request_waiting(&self) -> bool {
-        match &self.input {
-            ChannelInput::Local(rx) => rx.available() > 0,
-            ChannelInput::Crossing(rx) => rx.can_pop(),
-        }
-    }
-
-    /// Sets [`quiet`](Self::quiet) at the edge: with nothing pending, in flight or on the
-    /// buses, `eval` and `commit` only clear the data bus and the scheduler's last
-    /// decision and count the cycle — until a refresh falls due (the scheduler decides) or
-    /// is overdue (the checker flags), or a request arrives.
-    fn settle(&mut self) {
-        let until = self.scheduler.quiet_until();
-        self.quiet = until.is_some()
-            && self.bus_q.is_none()
-            && self.reads.is_empty()
-            && self.returns.is_empty()
-            && self.sdram.is_drained();
-        self.quiet_until = until.unwrap_or(0).min(self.checker.quiet_until());
-    }
-
-    /// A quiet cycle's `eval` and `commit`: exactly what the full ones leave.
-    fn quiet_cycle(&mut self) {
-        self.sdram.quiet_cycle();
-        self.scheduler.quiet_cycle();
-        self.popped_return = false;
-        self.arriving = None;
-        self.bus_d = None;
-        self.cycle += 1;
-        self.stats.cycles = self.cycle;
-    }
-
     fn error(&self, what: &str, msg: String) -> ContractError {
         ContractError::at(&format!("{}.{what}", self.path), Violation::Other(msg))
     }
@@ -389,10 +345,6 @@ impl Module for DramChannel {
 
     fn eval(&mut self) -> Result<(), ContractError> {
         let cycle = self.cycle;
-        self.quiet_now = self.quiet && cycle < self.quiet_until && !self.request_waiting();
-        if self.quiet_now {
-            return Ok(());
-        }
         // 1. The SDRAM and the checker act on the command on the bus.
         let bus = self.bus_q;
         let (cmd, data) = match &bus {
@@ -501,10 +453,6 @@ impl Module for DramChannel {
     }
 
     fn commit(&mut self) {
-        if self.quiet_now {
-            self.quiet_cycle();
-            return;
-        }
         let cycle = self.cycle;
         if let Some(b) = self.bus_q {
             match b.cmd {
@@ -547,7 +495,6 @@ impl Module for DramChannel {
         self.bus_q = self.bus_d.take();
         self.cycle += 1;
         self.stats.cycles = self.cycle;
-        self.settle();
     }
 
     fn trace(&self, t: &mut Trace) {

@@ -55,9 +55,6 @@ pub struct Entry {
     pub tag: Tag,
     /// DRAM cycle it entered the buffer.
     pub arrival: u64,
-    /// Older pending references to the same burst: a column access waits while any is
-    /// left (kept as references arrive and leave, not searched for each cycle).
-    older_same_burst: u16,
 }
 
 /// What the address arbiter chose this cycle.
@@ -116,14 +113,8 @@ pub struct Scheduler {
     policy: Policy,
     p: DramParams,
     capacity: usize,
-    /// Pending references, in slots that do not move; `order` lists the occupied slots
-    /// in arrival order (a reference leaving the middle moves a few bytes, not entries).
-    slots: Vec<Entry>,
-    order: Vec<u16>,
-    free: Vec<u16>,
-    /// `views` describes the pending references and open rows as they are (cleared
-    /// whenever either changes).
-    views_valid: bool,
+    /// Pending references in arrival order.
+    entries: Vec<Entry>,
     next_seq: u64,
     // The scheduler's view of the banks and the bus, in command-bus cycles.
     open: Vec<Option<u16>>,
@@ -170,10 +161,7 @@ impl Scheduler {
         Scheduler {
             policy,
             capacity,
-            slots: Vec::with_capacity(capacity),
-            order: Vec::with_capacity(capacity),
-            free: Vec::new(),
-            views_valid: false,
+            entries: Vec::with_capacity(capacity),
             next_seq: 0,
             open: vec![None; banks],
             ready_act: vec![0; banks],
@@ -200,12 +188,12 @@ impl Scheduler {
 
     /// Pending references.
     pub fn depth(&self) -> usize {
-        self.order.len()
+        self.entries.len()
     }
 
     /// Whether a reference can enter this cycle (committed occupancy).
     pub fn has_room(&self) -> bool {
-        self.order.len() < self.capacity
+        self.entries.len() < self.capacity
     }
 
     /// A reference arriving this cycle (call only when [`has_room`](Self::has_room)).
@@ -230,7 +218,7 @@ impl Scheduler {
     /// overdue and no timing constraint still running.
     pub fn idle_skippable(&self, cycle: u64) -> bool {
         let bus = cycle + 1;
-        self.order.is_empty()
+        self.entries.is_empty()
             && self.incoming.is_none()
             && matches!(self.decision, Decision::None)
             && self.open.iter().all(Option::is_none)
@@ -269,24 +257,6 @@ impl Scheduler {
         (issued, Some(last_bus))
     }
 
-    /// With no reference pending or arriving, the first cycle whose `eval` may decide a
-    /// command (the next refresh falls due); before it every cycle decides nothing and
-    /// changes only what [`quiet_cycle`](Self::quiet_cycle) sets. `None` while references
-    /// are pending.
-    pub fn quiet_until(&self) -> Option<u64> {
-        (self.order.is_empty()
-            && self.incoming.is_none()
-            && matches!(self.decision, Decision::None))
-        .then(|| ((self.refreshes + 1) * self.p.t_refi).saturating_sub(1))
-    }
-
-    /// A cycle before [`quiet_until`](Self::quiet_until) with no reference arriving: what
-    /// `eval` then `commit` leave.
-    pub fn quiet_cycle(&mut self) {
-        self.last = Decision::None;
-        self.last_rank = 0;
-    }
-
     fn refresh_due(&self, bus: u64) -> bool {
         bus >= (self.refreshes + 1) * self.p.t_refi
     }
@@ -299,7 +269,7 @@ impl Scheduler {
             Decision::None
         } else if self.refresh_due(bus) {
             self.refresh_decision(bus)
-        } else if self.order.is_empty() {
+        } else if self.entries.is_empty() {
             Decision::None
         } else {
             self.gather();
@@ -313,7 +283,7 @@ impl Scheduler {
     }
 
     fn issued(&self) -> Option<Issued> {
-        let e = |i: usize| *self.entry(i);
+        let e = |i: usize| self.entries[i];
         let bank = |b: usize| u4::new(b as u8);
         match self.decision {
             Decision::None => None,
@@ -368,33 +338,20 @@ impl Scheduler {
         }
     }
 
-    /// The pending reference of age rank `i` (0 oldest).
-    #[inline]
-    fn entry(&self, i: usize) -> &Entry {
-        &self.slots[self.order[i] as usize]
-    }
-
-    /// Fills the per-bank views from the pending references (unless they are current).
+    /// Fills the per-bank views from the pending references.
     fn gather(&mut self) {
-        if self.views_valid {
-            return;
-        }
-        self.views_valid = true;
         let los = self.policy == Policy::LoadOverStore;
         for v in self.views.iter_mut() {
             *v = BankView::default();
         }
-        for (i, &slot) in self.order.iter().enumerate() {
-            let e = &self.slots[slot as usize];
+        for (i, e) in self.entries.iter().enumerate() {
             let v = &mut self.views[e.bank];
             if self.open[e.bank] == Some(e.row) {
                 v.hit = true;
             } else {
                 let better = match v.oldest_miss {
                     None => true,
-                    Some((j, _)) => {
-                        los && self.slots[self.order[j] as usize].write && !e.write
-                    }
+                    Some((j, _)) => los && self.entries[j].write && !e.write,
                 };
                 if better {
                     v.oldest_miss = Some((i, e.row));
@@ -405,7 +362,7 @@ impl Scheduler {
 
     /// The next operation entry `i` needs.
     fn next_op(&self, i: usize) -> Op {
-        let e = self.entry(i);
+        let e = &self.entries[i];
         match self.open[e.bank] {
             Some(r) if r == e.row => Op::Column,
             Some(_) => Op::Precharge,
@@ -415,11 +372,12 @@ impl Scheduler {
 
     /// An older pending reference addresses the same burst.
     fn hazard(&self, i: usize) -> bool {
-        self.entry(i).older_same_burst > 0
+        let a = self.entries[i].burst_addr;
+        self.entries[..i].iter().any(|e| e.burst_addr == a)
     }
 
     fn ready(&self, op: Op, i: usize, bus: u64, read_room: bool) -> bool {
-        let e = self.entry(i);
+        let e = &self.entries[i];
         let b = e.bank;
         match op {
             Op::Column => {
@@ -436,7 +394,7 @@ impl Scheduler {
     }
 
     fn decision_for(&self, op: Op, i: usize) -> Decision {
-        let e = self.entry(i);
+        let e = &self.entries[i];
         match op {
             Op::Column => Decision::Column(i),
             Op::Precharge => Decision::Precharge(e.bank),
@@ -454,12 +412,12 @@ impl Scheduler {
     }
 
     fn first_ready(&self, bus: u64, read_room: bool) -> Decision {
-        for i in 0..self.order.len() {
+        for i in 0..self.entries.len() {
             let op = self.next_op(i);
             let allowed = match op {
                 Op::Column => !self.hazard(i),
                 // Open-row precharging: never close a row someone still hits.
-                Op::Precharge => !self.views[self.entry(i).bank].hit,
+                Op::Precharge => !self.views[self.entries[i].bank].hit,
                 Op::Activate => true,
             };
             if allowed && self.ready(op, i, bus, read_room) {
@@ -486,7 +444,7 @@ impl Scheduler {
     fn column_arbiter(&self, bus: u64, read_room: bool) -> Option<Decision> {
         let los = self.policy == Policy::LoadOverStore;
         let mut best: Option<usize> = None;
-        for i in 0..self.order.len() {
+        for i in 0..self.entries.len() {
             if !matches!(self.next_op(i), Op::Column)
                 || !self.ready(Op::Column, i, bus, read_room)
                 || self.hazard(i)
@@ -495,7 +453,7 @@ impl Scheduler {
             }
             match best {
                 None => best = Some(i),
-                Some(j) if los && self.entry(j).write && !self.entry(i).write => best = Some(i),
+                Some(j) if los && self.entries[j].write && !self.entries[i].write => best = Some(i),
                 _ => {}
             }
             if !los {
@@ -515,7 +473,7 @@ impl Scheduler {
                 Some(_) => {
                     let wanted = !v.hit && (closed || v.oldest_miss.is_some());
                     if wanted && bus >= self.ready_pre[b] {
-                        let age = v.oldest_miss.map_or(u64::MAX, |(i, _)| self.entry(i).seq);
+                        let age = v.oldest_miss.map_or(u64::MAX, |(i, _)| self.entries[i].seq);
                         Some((age, Decision::Precharge(b)))
                     } else {
                         None
@@ -523,7 +481,7 @@ impl Scheduler {
                 }
                 None => match v.oldest_miss {
                     Some((i, row)) if bus >= self.ready_act[b] && bus >= self.next_act_any => {
-                        Some((self.entry(i).seq, Decision::Activate(b, row)))
+                        Some((self.entries[i].seq, Decision::Activate(b, row)))
                     }
                     _ => None,
                 },
@@ -541,21 +499,14 @@ impl Scheduler {
     /// the arriving reference.
     pub fn commit(&mut self, cycle: u64) {
         let bus = cycle + 1;
-        self.last_rank = 0;
-        if !matches!(self.decision, Decision::None | Decision::Refresh) {
-            self.views_valid = false;
-        }
-        let removed = match self.decision {
-            Decision::Column(i) => Some(self.remove(i)),
-            _ => None,
-        };
         let p = &self.p;
         let burst = p.burst as u64;
+        self.last_rank = 0;
         match self.decision {
             Decision::None => {}
             Decision::Column(i) => {
                 self.last_rank = i;
-                let e = removed.expect("removed above");
+                let e = self.entries.remove(i);
                 let b = e.bank;
                 if e.write {
                     self.next_write = bus + burst;
@@ -592,61 +543,23 @@ impl Scheduler {
         self.last = self.decision;
         self.decision = Decision::None;
         if let Some((r, loc, cycle)) = self.incoming.take() {
-            let burst_addr = r.byte_addr / self.p.burst_bytes();
-            let older_same_burst = self
-                .order
-                .iter()
-                .filter(|&&s| self.slots[s as usize].burst_addr == burst_addr)
-                .count() as u16;
-            self.insert(Entry {
+            self.entries.push(Entry {
                 seq: self.next_seq,
                 write: r.write,
                 bank: loc.bank.value() as usize,
                 row: loc.row,
                 column: loc.column.value(),
-                burst_addr,
+                burst_addr: r.byte_addr / self.p.burst_bytes(),
                 data: r.data,
                 tag: r.tag,
                 arrival: cycle,
-                older_same_burst,
             });
             self.next_seq += 1;
-            self.views_valid = false;
         }
-    }
-
-    /// Appends the youngest pending reference.
-    fn insert(&mut self, e: Entry) {
-        let slot = match self.free.pop() {
-            Some(s) => {
-                self.slots[s as usize] = e;
-                s
-            }
-            None => {
-                self.slots.push(e);
-                (self.slots.len() - 1) as u16
-            }
-        };
-        self.order.push(slot);
-    }
-
-    /// Takes out the pending reference of age rank `i`; the younger ones to its burst
-    /// have one older reference fewer to wait for.
-    fn remove(&mut self, i: usize) -> Entry {
-        let slot = self.order.remove(i);
-        self.free.push(slot);
-        let e = self.slots[slot as usize];
-        for &s in &self.order[i..] {
-            let y = &mut self.slots[s as usize];
-            if y.burst_addr == e.burst_addr {
-                y.older_same_burst -= 1;
-            }
-        }
-        e
     }
 
     pub fn trace(&self, t: &mut Trace, cycle: u64) {
-        t.value(self.ids.depth, self.order.len() as u64);
+        t.value(self.ids.depth, self.entries.len() as u64);
         t.value(self.ids.decision, self.last.code());
         t.value(self.ids.entry, self.last_rank as u64);
         t.value(self.ids.refresh, self.refresh_due(cycle + 1) as u64);

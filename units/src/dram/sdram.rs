@@ -131,20 +131,6 @@ impl Sdram {
         self.due.len()
     }
 
-    /// Whether no read data is due on the data bus (banks may be open): a cycle without a
-    /// command then only clears the data bus ([`quiet_cycle`](Self::quiet_cycle)).
-    pub fn is_drained(&self) -> bool {
-        self.due.is_empty()
-    }
-
-    /// A cycle without a command when [`is_drained`](Self::is_drained): what `eval` then
-    /// `commit` leave.
-    pub fn quiet_cycle(&mut self) {
-        debug_assert!(self.is_drained());
-        self.dq = None;
-        self.dq_q = None;
-    }
-
     /// Whether idle cycles change nothing here: no read data due, every bank closed.
     pub fn is_quiet(&self) -> bool {
         self.due.is_empty()

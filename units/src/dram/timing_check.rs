@@ -164,16 +164,15 @@ impl TimingChecker {
         }
     }
 
-    /// The first cycle in which an empty command bus is flagged (a refresh overdue):
-    /// observing `None` before it changes nothing.
-    pub fn quiet_until(&self) -> u64 {
+    /// The first cycle in which a refresh is overdue: by the end of interval k+1 the k-th
+    /// refresh must be done.
+    fn refresh_deadline(&self) -> u64 {
         (self.refreshes + self.missed + 2) * self.p.t_refi
     }
 
     /// Checks the bus in `cycle`: `cmd` is the command it carries, if any.
     pub fn observe(&mut self, cycle: u64, cmd: Option<Command>) {
-        // The refresh interval: by the end of interval k+1 the k-th refresh must be done.
-        if cycle >= self.quiet_until() {
+        if cycle >= self.refresh_deadline() {
             self.missed += 1;
             self.flag(
                 cycle,
