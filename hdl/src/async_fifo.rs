@@ -25,9 +25,9 @@ pub(crate) struct AsyncFifoState<T> {
     /// Total pushes and pops committed so far (the binary pointers).
     write_ptr: u64,
     read_ptr: u64,
-    /// Synchroniser chains: the last entry is the value visible in the other domain.
-    write_ptr_sync: VecDeque<u64>,
-    read_ptr_sync: VecDeque<u64>,
+    /// The synchroniser chains carrying each pointer into the other domain.
+    write_ptr_sync: Synchroniser,
+    read_ptr_sync: Synchroniser,
     pushed: Option<T>,
     popped: bool,
     ids: [SignalId; 2],
@@ -53,8 +53,8 @@ pub(crate) fn new_async_fifo<T: 'static>(
         items: VecDeque::with_capacity(capacity),
         write_ptr: 0,
         read_ptr: 0,
-        write_ptr_sync: VecDeque::from(vec![0; sync_stages]),
-        read_ptr_sync: VecDeque::from(vec![0; sync_stages]),
+        write_ptr_sync: Synchroniser::new(sync_stages),
+        read_ptr_sync: Synchroniser::new(sync_stages),
         pushed: None,
         popped: false,
         ids,
@@ -66,17 +66,51 @@ pub(crate) fn new_async_fifo<T: 'static>(
     )
 }
 
+/// A chain of `stages` flip-flops sampling a pointer at each edge of the receiving clock,
+/// held as what the chain's contents are a function of: the newest sample (the value the
+/// receiving side sees) and how many of the newest samples equal it, up to `stages` (all
+/// of them do once it reaches `stages`). Shifting a chain each edge cost more than the
+/// rest of the FIFO.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Synchroniser {
+    stages: usize,
+    newest: u64,
+    equal: usize,
+}
+
+impl Synchroniser {
+    fn new(stages: usize) -> Self {
+        Synchroniser {
+            stages,
+            newest: 0,
+            equal: stages,
+        }
+    }
+
+    /// An edge: the chain shifts in `pointer`.
+    #[inline]
+    fn sample(&mut self, pointer: u64) {
+        if pointer == self.newest {
+            self.equal = (self.equal + 1).min(self.stages);
+        } else {
+            self.newest = pointer;
+            self.equal = 1;
+        }
+    }
+
+    /// Whether every stage holds `pointer`.
+    #[inline]
+    fn holds_only(&self, pointer: u64) -> bool {
+        self.newest == pointer && self.equal == self.stages
+    }
+}
+
 impl<T> AsyncFifoState<T> {
     fn write_level(&self) -> usize {
-        (self.write_ptr - self.read_ptr_sync.back().copied().unwrap_or(self.read_ptr)) as usize
+        (self.write_ptr - self.read_ptr_sync.newest) as usize
     }
     fn read_level(&self) -> usize {
-        (self
-            .write_ptr_sync
-            .back()
-            .copied()
-            .unwrap_or(self.write_ptr)
-            - self.read_ptr) as usize
+        (self.write_ptr_sync.newest - self.read_ptr) as usize
     }
     /// Empty, nothing pushed or popped this cycle, and every synchroniser stage holding
     /// the pointer it samples: an edge of either clock changes nothing.
@@ -84,8 +118,8 @@ impl<T> AsyncFifoState<T> {
         self.items.is_empty()
             && self.pushed.is_none()
             && !self.popped
-            && self.write_ptr_sync.iter().all(|&p| p == self.write_ptr)
-            && self.read_ptr_sync.iter().all(|&p| p == self.read_ptr)
+            && self.write_ptr_sync.holds_only(self.write_ptr)
+            && self.read_ptr_sync.holds_only(self.read_ptr)
     }
 }
 
@@ -152,6 +186,14 @@ impl<T: Clone> AsyncFifoRx<T> {
 
 impl<T> Channel for AsyncFifoState<T> {
     fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError> {
+        if self.pushed.is_none()
+            && !self.popped
+            && self.write_ptr_sync.holds_only(self.write_ptr)
+            && self.read_ptr_sync.holds_only(self.read_ptr)
+        {
+            // Nothing moves and every synchroniser holds the pointer it samples.
+            return Ok(());
+        }
         // Sample both pointers before either side updates them.
         let (write_ptr, read_ptr) = (self.write_ptr, self.read_ptr);
         if rising.contains(self.write_domain) {
@@ -159,20 +201,14 @@ impl<T> Channel for AsyncFifoState<T> {
                 self.items.push_back(v);
                 self.write_ptr += 1;
             }
-            if !self.read_ptr_sync.is_empty() {
-                self.read_ptr_sync.pop_front();
-                self.read_ptr_sync.push_back(read_ptr);
-            }
+            self.read_ptr_sync.sample(read_ptr);
         }
         if rising.contains(self.read_domain) {
             if std::mem::take(&mut self.popped) {
                 self.items.pop_front();
                 self.read_ptr += 1;
             }
-            if !self.write_ptr_sync.is_empty() {
-                self.write_ptr_sync.pop_front();
-                self.write_ptr_sync.push_back(write_ptr);
-            }
+            self.write_ptr_sync.sample(write_ptr);
         }
         Ok(())
     }

@@ -647,18 +647,21 @@ impl Machine {
         {
             return Ok(false);
         }
-        let mut need_in = [0usize; crate::desc::MAX_KERNEL_STREAMS];
-        let mut need_out = [0usize; crate::desc::MAX_KERNEL_STREAMS];
+        // Words per stream this cycle (u32: a cycle moves at most a few words per cluster,
+        // and the arrays are cleared every cycle).
+        let mut need_in = [0u32; crate::desc::MAX_KERNEL_STREAMS];
+        let mut need_out = [0u32; crate::desc::MAX_KERNEL_STREAMS];
+        let lanes = self.lanes as u32;
         for s in inst.sin.iter().flatten().filter(|s| live.live(s.stage)) {
             need_in[s.stream as usize] += match s.cond {
-                None => self.lanes,
-                Some(cc) => self.cc.read(cc)?.iter().filter(|&&b| b).count(),
+                None => lanes,
+                Some(cc) => self.cc.read(cc)?.iter().filter(|&&b| b).count() as u32,
             };
         }
         if let Some(s) = inst.sout.filter(|s| live.live(s.stage)) {
             need_out[s.stream as usize] += match s.cond {
-                None => self.lanes,
-                Some(cc) => self.cc.read(cc)?.iter().filter(|&&b| b).count(),
+                None => lanes,
+                Some(cc) => self.cc.read(cc)?.iter().filter(|&&b| b).count() as u32,
             };
         }
         // Results due this cycle that go to output streams.
@@ -668,7 +671,7 @@ impl Machine {
                     for d in dests.iter().flatten() {
                         if let Dest::Stream { stream } = d {
                             need_out[*stream as usize] +=
-                                mask.map_or(self.lanes, |m| m.iter().filter(|&&b| b).count());
+                                mask.map_or(lanes, |m| m.iter().filter(|&&b| b).count() as u32);
                         }
                     }
                     Ok(())
@@ -679,6 +682,7 @@ impl Machine {
             .enumerate()
             .take(kernel.program.streams.len())
         {
+            let need = need as usize;
             if need == 0 {
                 continue;
             }
@@ -701,7 +705,7 @@ impl Machine {
             .enumerate()
             .take(kernel.program.streams.len())
         {
-            if need > 0 && need > self.srf.space(stream) {
+            if need > 0 && need as usize > self.srf.space(stream) {
                 return Ok(true);
             }
         }

@@ -229,6 +229,9 @@ pub struct StreamController {
     /// has changed. (Footprints are fixed, so this changes only when entries come or go:
     /// the host model need not compare every pair of entries every cycle.)
     unblocked: Option<Vec<bool>>,
+    /// The last [`pick`](Self::pick): the units it saw free and its answer, kept while the
+    /// scoreboard stays as it was (most cycles nothing comes, goes or issues).
+    last_pick: Option<(UnitsFree, Picked)>,
     sb_cap: usize,
     min_kernel: u64,
     host_words_per_cycle: usize,
@@ -237,6 +240,20 @@ pub struct StreamController {
     resident: Vec<usize>,
     stats: ScStats,
 }
+
+/// The units an instruction could issue on this cycle (address generator `a` free: bit
+/// `a` of `ags`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct UnitsFree {
+    ags: u64,
+    clusters: bool,
+    loader: bool,
+    host: bool,
+}
+
+/// The oldest entry that may issue (its instruction and unit), and whether some entry was
+/// ready with its unit busy.
+type Picked = (Option<(usize, Unit)>, bool);
 
 /// What an [`idle`](StreamController::idle) controller counts each cycle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -267,6 +284,7 @@ impl StreamController {
             queue_cap: desc.stream_controller.queue_entries,
             scoreboard: Vec::new(),
             unblocked: None,
+            last_pick: None,
             sb_cap: desc.stream_controller.scoreboard_entries,
             min_kernel: desc.stream_controller.min_kernel_cycles,
             host_words_per_cycle: desc.stream_controller.host_words_per_cycle,
@@ -403,7 +421,24 @@ impl StreamController {
         clusters_free: bool,
         loader_free: bool,
         host_free: bool,
-    ) -> (Option<(usize, Unit)>, bool) {
+    ) -> Picked {
+        let free = UnitsFree {
+            ags: (0..ags).fold(0u64, |m, a| m | (u64::from(free_ag(a)) << a)),
+            clusters: clusters_free,
+            loader: loader_free,
+            host: host_free,
+        };
+        if let Some((seen, picked)) = self.last_pick
+            && seen == free
+        {
+            return picked;
+        }
+        let picked = self.pick_among(free);
+        self.last_pick = Some((free, picked));
+        picked
+    }
+
+    fn pick_among(&mut self, free: UnitsFree) -> Picked {
         let mut unit_busy = false;
         let board = &self.scoreboard;
         let unblocked = self.unblocked.get_or_insert_with(|| {
@@ -421,13 +456,12 @@ impl StreamController {
             }
             let instr = &self.records[e.id].instr;
             let unit = match instr {
-                StreamInstr::Memory(_) => {
-                    (0..ags).find(|&a| free_ag(a)).map(Unit::AddressGenerator)
-                }
-                StreamInstr::Kernel { .. } => clusters_free.then_some(Unit::Clusters),
-                StreamInstr::LoadMicrocode { .. } => loader_free.then_some(Unit::MicrocodeLoader),
+                StreamInstr::Memory(_) => (free.ags != 0)
+                    .then(|| Unit::AddressGenerator(free.ags.trailing_zeros() as usize)),
+                StreamInstr::Kernel { .. } => free.clusters.then_some(Unit::Clusters),
+                StreamInstr::LoadMicrocode { .. } => free.loader.then_some(Unit::MicrocodeLoader),
                 StreamInstr::WriteSrf { .. } | StreamInstr::ReadSrf { .. } => {
-                    host_free.then_some(Unit::HostInterface)
+                    free.host.then_some(Unit::HostInterface)
                 }
             };
             match unit {
@@ -447,6 +481,7 @@ impl StreamController {
             r.unit = Some(is.unit);
             if let Some(e) = self.scoreboard.iter_mut().find(|e| e.id == is.id) {
                 e.running = true;
+                self.last_pick = None;
             }
         }
         if self.scoreboard.len() < self.sb_cap {
@@ -459,6 +494,7 @@ impl StreamController {
                     running: false,
                 });
                 self.unblocked = None;
+                self.last_pick = None;
             }
         } else if !self.queue.is_empty() {
             self.stats.scoreboard_full_cycles += 1;
@@ -476,6 +512,7 @@ impl StreamController {
         self.records[id].completed = Some(cycle);
         self.scoreboard.retain(|e| e.id != id);
         self.unblocked = None;
+        self.last_pick = None;
     }
 
     /// Makes room for and records program `p` in the microcode store; `in_use` is the

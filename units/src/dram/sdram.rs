@@ -12,7 +12,7 @@
 //!
 //! Probes: `bankN.state`, `bankN.row` (see `bank`), `dq_valid` and `dq` (the data bus).
 
-use std::collections::{HashMap, VecDeque};
+use std::collections::VecDeque;
 
 use imagine_hdl::{Scope, SignalId, SignalKind, Trace};
 
@@ -26,7 +26,9 @@ pub struct Sdram {
     columns: usize,
     burst: usize,
     cl: u64,
-    store: HashMap<usize, Box<[u32]>>,
+    /// Per (bank, row), its words once written: indexed, not hashed (each word read or
+    /// written looks its row up).
+    store: Vec<Option<Box<[u32]>>>,
     /// Read words due on the data bus: (cycle, word), in cycle order.
     due: VecDeque<(u64, u32)>,
     /// The data bus this cycle and at the last edge (for probes).
@@ -45,7 +47,7 @@ impl Sdram {
             columns: p.columns,
             burst: p.burst,
             cl: p.cl,
-            store: HashMap::new(),
+            store: vec![None; p.banks * p.rows],
             due: VecDeque::new(),
             dq: None,
             dq_q: None,
@@ -66,8 +68,8 @@ impl Sdram {
 
     /// The word at (bank, row, column), as stored now.
     pub fn peek(&self, bank: usize, row: u16, column: usize) -> u32 {
-        self.store
-            .get(&self.key(bank, row))
+        self.store[self.key(bank, row)]
+            .as_ref()
             .map_or(0, |r| r[column])
     }
 
@@ -75,9 +77,7 @@ impl Sdram {
     pub fn poke(&mut self, bank: usize, row: u16, column: usize, v: u32) {
         let key = self.key(bank, row);
         let columns = self.columns;
-        self.store
-            .entry(key)
-            .or_insert_with(|| vec![0; columns].into_boxed_slice())[column] = v;
+        self.store[key].get_or_insert_with(|| vec![0; columns].into_boxed_slice())[column] = v;
     }
 
     /// Executes the command on the bus in `cycle` (write data in `data`); returns the word on
@@ -152,8 +152,12 @@ impl Sdram {
     /// runs' states).
     #[cfg(test)]
     pub(crate) fn debug_state(&self) -> String {
-        let mut rows: Vec<_> = self.store.iter().collect();
-        rows.sort_by_key(|&(k, _)| *k);
+        let rows: Vec<_> = self
+            .store
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| r.is_some())
+            .collect();
         format!(
             "{:?} {:?} {:?} {:?} {rows:?}",
             self.banks, self.due, self.dq, self.dq_q
