@@ -186,12 +186,13 @@ impl<T: Clone> AsyncFifoRx<T> {
 
 impl<T> Channel for AsyncFifoState<T> {
     fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError> {
-        if self.pushed.is_none()
-            && !self.popped
-            && self.write_ptr_sync.holds_only(self.write_ptr)
-            && self.read_ptr_sync.holds_only(self.read_ptr)
-        {
-            // Nothing moves and every synchroniser holds the pointer it samples.
+        // A side whose clock does not rise, or that neither moves a value nor has a
+        // synchroniser still catching up, changes nothing at this edge.
+        let write_quiet = !rising.contains(self.write_domain)
+            || (self.pushed.is_none() && self.read_ptr_sync.holds_only(self.read_ptr));
+        let read_quiet = !rising.contains(self.read_domain)
+            || (!self.popped && self.write_ptr_sync.holds_only(self.write_ptr));
+        if write_quiet && read_quiet {
             return Ok(());
         }
         // Sample both pointers before either side updates them.

@@ -241,6 +241,9 @@ fn positive(path: &str, what: &str, v: usize) -> Result<(), DesignError> {
 /// Runs a design.
 pub struct Sim {
     design: Design,
+    /// Per module (in their order), the domain whose edges drive it: fixed once built, so
+    /// not asked of each module at each edge.
+    module_domains: Vec<DomainId>,
     /// Domains other than the core's that hold no module.
     quiet: u64,
     #[cfg(feature = "probes")]
@@ -255,8 +258,10 @@ impl Sim {
         for m in &design.modules {
             busy |= 1 << m.domain().0;
         }
+        let module_domains = design.modules.iter().map(|m| m.domain()).collect();
         Sim {
             design,
+            module_domains,
             quiet: !busy,
             #[cfg(feature = "probes")]
             trace: None,
@@ -302,6 +307,7 @@ impl Sim {
     pub fn reverse_eval_order(&mut self) {
         self.design.modules.reverse();
         self.design.channels.reverse();
+        self.module_domains.reverse();
     }
 
     /// The modules of type `M`, for inspecting their state.
@@ -425,13 +431,14 @@ impl Sim {
             let cycle = clocks.cycles(d).saturating_sub(1);
             e.in_cycle(&clocks.domains()[d.0 as usize].name, cycle)
         };
-        for m in self.design.modules.iter_mut() {
-            if rising.contains(m.domain()) {
-                m.eval().map_err(|e| stamp(e, m.domain()))?;
+        let modules = &mut self.design.modules;
+        for (m, &d) in modules.iter_mut().zip(&self.module_domains) {
+            if rising.contains(d) {
+                m.eval().map_err(|e| stamp(e, d))?;
             }
         }
-        for m in self.design.modules.iter_mut() {
-            if rising.contains(m.domain()) {
+        for (m, &d) in modules.iter_mut().zip(&self.module_domains) {
+            if rising.contains(d) {
                 m.commit();
             }
         }
