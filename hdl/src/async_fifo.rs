@@ -71,6 +71,10 @@ impl<T> AsyncFifoState<T> {
         (self.write_ptr - self.read_ptr_sync.back().copied().unwrap_or(self.read_ptr)) as usize
     }
     fn read_level(&self) -> usize {
+        #[cfg(feature = "inject-bugs")]
+        if crate::inject::active(crate::inject::Bug::CdcZeroStageSynchroniser) {
+            return (self.write_ptr - self.read_ptr) as usize;
+        }
         (self
             .write_ptr_sync
             .back()
