@@ -64,7 +64,7 @@ pub struct RunArgs {
 
 /// `imagine verify BLOCK ...`: the arguments after the block's name.
 #[derive(Parser)]
-#[command(no_binary_name = true)]
+#[command(name = "imagine verify BLOCK", no_binary_name = true)]
 struct BlockArgs {
     #[command(flatten)]
     run: RunArgs,

@@ -128,7 +128,7 @@ impl Bench {
             ..
         } = self;
         let x = &mut crossings[i];
-        if k % 64 == 0 {
+        if k.is_multiple_of(64) {
             x.push_rate = rng.pick(&[95, 60, 10]);
         }
         let room = x.room(k);
@@ -198,7 +198,7 @@ impl Bench {
             ..
         } = self;
         let x = &mut crossings[i];
-        if j % 64 == 0 {
+        if j.is_multiple_of(64) {
             x.pop_rate = rng.pick(&[95, 60, 10]);
         }
         let ready = x.ready(j);

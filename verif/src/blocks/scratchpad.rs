@@ -79,7 +79,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     let mut cycle = 0u64;
     while sb.transactions < config.transactions || !reads.is_empty() || !writes.is_empty() {
         let driving = sb.transactions < config.transactions;
-        if driving && cycle % 97 == 0 {
+        if driving && cycle.is_multiple_of(97) {
             // Kernels with and without conditional streams come and go.
             reserved = if rng.chance(50) {
                 buffers.min(words - 1)
