@@ -1086,3 +1086,39 @@ fn output_into_a_closed_pipe_ends_quietly() {
         assert!(err.is_empty(), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn verify_lists_and_runs_every_block() {
+    let out = stdout(&imagine(&["verify", "list"]));
+    for block in ["lrf", "scratchpad", "fu", "alu", "comm", "cdc"] {
+        assert!(out.contains(block), "{out}");
+    }
+    let o = imagine(&[
+        "verify",
+        "all",
+        "--machine",
+        "gold1",
+        "--transactions",
+        "200",
+    ]);
+    let out = stdout(&o);
+    assert!(o.status.success(), "{out}");
+    assert!(out.trim_end().ends_with("6 passed, 0 failed"), "{out}");
+    let o = imagine(&["verify", "comm", "--machine", "gold8", "--seed", "3"]);
+    assert!(
+        o.status.success() && stdout(&o).contains("PASS"),
+        "{}",
+        stdout(&o)
+    );
+    let o = imagine(&["verify", "all", "--transactions", "100", "--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(json["failed"], 0);
+}
+
+#[test]
+fn verify_refuses_bad_blocks_machines_and_counts() {
+    assert_clear_error(&["verify", "nosuch"]);
+    assert_clear_error(&["verify", "lrf", "--transactions", "0"]);
+    assert_clear_error(&["verify", "all", "--machine", "nosuch"]);
+    assert_clear_error(&["verify", "cdc", "--seed", "x"]);
+}

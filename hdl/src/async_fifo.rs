@@ -6,9 +6,14 @@
 //! modelled as counts, which gives the same values once synchronised.
 //!
 //! The writer sees occupancy through the delayed read pointer and the reader through the
-//! delayed write pointer, so both are conservative: a full FIFO frees up only
-//! `sync_stages` write-domain edges after a pop. When both clocks rise at the same instant
-//! each synchroniser samples the other side's pointer as it was before that edge.
+//! delayed write pointer, so both are conservative. When both clocks rise at the same
+//! instant each synchroniser samples the other side's pointer as it was before that edge.
+//!
+//! As modelled, each side sees the newest sample of the other's pointer, so a change is
+//! visible one edge of the receiving clock later whatever `sync_stages` is; the chain's
+//! length only decides when the FIFO counts as settled. Hardware would take `sync_stages`
+//! edges. Kept as it is: the latency is part of every cycle count the project has
+//! published, and changing it is a model change of its own.
 
 use std::cell::RefCell;
 use std::collections::VecDeque;
@@ -110,6 +115,10 @@ impl<T> AsyncFifoState<T> {
         (self.write_ptr - self.read_ptr_sync.newest) as usize
     }
     fn read_level(&self) -> usize {
+        #[cfg(feature = "inject-bugs")]
+        if crate::inject::active(crate::inject::Bug::CdcZeroStageSynchroniser) {
+            return (self.write_ptr - self.read_ptr) as usize;
+        }
         (self.write_ptr_sync.newest - self.read_ptr) as usize
     }
     /// Empty, nothing pushed or popped this cycle, and every synchroniser stage holding

@@ -17,6 +17,8 @@ pub mod clock;
 pub mod demo;
 pub mod error;
 pub mod fifo;
+#[cfg(feature = "inject-bugs")]
+pub mod inject;
 pub mod pipe;
 pub mod probe;
 pub mod recorder;

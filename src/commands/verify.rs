@@ -1,11 +1,15 @@
-//! `imagine verify`: hardware blocks against golden models.
+//! `imagine verify`: hardware blocks against golden models — the fp32 ops against
+//! TestFloat vectors, and every registered block testbench (`imagine_verif::blocks`) on any
+//! machine description.
 
 use std::io::{self, Write};
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
-use clap::Subcommand;
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand};
 use imagine_units::arith::fp32::FpMode;
+use imagine_units::desc::MachineDesc;
+use imagine_verif::blocks::{self, BLOCKS, Config, Report};
 use imagine_verif::testfloat::{FpuOp, check_stream_with_mode};
 
 #[derive(Subcommand)]
@@ -28,6 +32,42 @@ pub enum VerifyCommand {
         #[arg(long, default_value_t = 20)]
         show: usize,
     },
+    /// List the block testbenches (`imagine verify BLOCK` runs one)
+    List,
+    /// Run every block testbench: a summary table, `N passed, M failed`
+    All {
+        #[command(flatten)]
+        run: RunArgs,
+        /// The summary as JSON
+        #[arg(long)]
+        json: bool,
+    },
+    /// A block testbench by name: `imagine verify lrf [--machine M] [--seed S]
+    /// [--transactions N]` (see `imagine verify list`)
+    #[command(external_subcommand)]
+    Block(Vec<String>),
+}
+
+/// How a block testbench runs.
+#[derive(Args, Clone, Debug)]
+pub struct RunArgs {
+    /// A built-in machine (gold8, gold1, gold32, ...) or a machine description file
+    #[arg(long, default_value = "gold8")]
+    machine: String,
+    /// Stimulus seed (a failure prints the seed that replays it)
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Transactions to drive into each block
+    #[arg(long, default_value_t = 2000)]
+    transactions: u64,
+}
+
+/// `imagine verify BLOCK ...`: the arguments after the block's name.
+#[derive(Parser)]
+#[command(name = "imagine verify BLOCK", no_binary_name = true)]
+struct BlockArgs {
+    #[command(flatten)]
+    run: RunArgs,
 }
 
 pub fn run(c: VerifyCommand) -> Result<ExitCode> {
@@ -48,5 +88,137 @@ pub fn run(c: VerifyCommand) -> Result<ExitCode> {
                 ExitCode::FAILURE
             })
         }
+        VerifyCommand::List => {
+            for b in BLOCKS {
+                println!("{:<12} {}", b.name, b.about);
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        VerifyCommand::All { run, json } => all(&run, json),
+        VerifyCommand::Block(words) => {
+            let (name, rest) = words.split_first().context("no block named")?;
+            let Some(block) = blocks::find(name) else {
+                bail!("unknown block `{name}`; `imagine verify list` names the blocks");
+            };
+            let args = match BlockArgs::try_parse_from(rest) {
+                Ok(a) => a,
+                Err(e) => e.exit(),
+            };
+            let (desc, config) = prepare(&args.run)?;
+            let report = labelled(blocks::run_block(block, &desc, &config), &args.run);
+            print_report(&report);
+            Ok(exit_code(report.passed()))
+        }
     }
+}
+
+/// The machine and run configuration, or an error naming the bad option.
+fn prepare(run: &RunArgs) -> Result<(MachineDesc, Config)> {
+    if run.transactions == 0 {
+        bail!("--transactions must be at least 1");
+    }
+    let desc =
+        MachineDesc::resolve(&run.machine).with_context(|| format!("--machine {}", run.machine))?;
+    let config = Config {
+        seed: run.seed,
+        transactions: run.transactions,
+    };
+    Ok((desc, config))
+}
+
+/// The report names the machine as the user gave it, so its replay line can be pasted.
+fn labelled(mut report: Report, run: &RunArgs) -> Report {
+    report.machine = run.machine.clone();
+    report
+}
+
+fn exit_code(passed: bool) -> ExitCode {
+    if passed {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    }
+}
+
+fn print_report(r: &Report) {
+    let sb = &r.scoreboard;
+    println!(
+        "{} on {} (seed {}): {} transactions, {} checks, {} mismatches, coverage {}/{} bins, {:.3} s",
+        r.block,
+        r.machine,
+        r.seed,
+        sb.transactions,
+        sb.checks,
+        sb.mismatches,
+        r.coverage.reached(),
+        r.coverage.total(),
+        r.host_time.as_secs_f64()
+    );
+    for (bin, hits) in r.coverage.bins() {
+        println!("  {bin:<48} {hits:>8}");
+    }
+    match r.first_mismatch() {
+        Some(m) => println!("FAIL {m}"),
+        None if r.passed() => println!("PASS"),
+        None => println!("FAIL no transaction was driven"),
+    }
+}
+
+fn all(run: &RunArgs, json: bool) -> Result<ExitCode> {
+    let (desc, config) = prepare(run)?;
+    let reports: Vec<Report> = BLOCKS
+        .iter()
+        .map(|b| labelled(blocks::run_block(b, &desc, &config), run))
+        .collect();
+    let failed = reports.iter().filter(|r| !r.passed()).count();
+    let passed = reports.len() - failed;
+    if json {
+        let rows: Vec<_> = reports
+            .iter()
+            .map(|r| {
+                serde_json::json!({
+                    "block": r.block,
+                    "machine": r.machine,
+                    "seed": r.seed,
+                    "transactions": r.scoreboard.transactions,
+                    "checks": r.scoreboard.checks,
+                    "mismatches": r.scoreboard.mismatches,
+                    "first_mismatch": r.scoreboard.first.as_ref().map(|m| serde_json::json!({
+                        "cycle": m.cycle, "what": m.what, "expected": m.expected, "got": m.got,
+                    })),
+                    "coverage": r.coverage.bins().iter()
+                        .map(|(bin, hits)| serde_json::json!({"bin": bin, "hits": hits}))
+                        .collect::<Vec<_>>(),
+                    "coverage_reached": r.coverage.reached(),
+                    "coverage_total": r.coverage.total(),
+                    "host_seconds": r.host_time.as_secs_f64(),
+                    "passed": r.passed(),
+                })
+            })
+            .collect();
+        let summary = serde_json::json!({"blocks": rows, "passed": passed, "failed": failed});
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+        return Ok(exit_code(failed == 0));
+    }
+    println!(
+        "{:<12} {:>12} {:>10} {:>9} {:>9}",
+        "block", "transactions", "mismatches", "coverage", "host s"
+    );
+    for r in &reports {
+        println!(
+            "{:<12} {:>12} {:>10} {:>9} {:>9.3}",
+            r.block,
+            r.scoreboard.transactions,
+            r.scoreboard.mismatches,
+            format!("{}/{}", r.coverage.reached(), r.coverage.total()),
+            r.host_time.as_secs_f64()
+        );
+    }
+    for r in &reports {
+        if let Some(m) = r.first_mismatch() {
+            println!("FAIL {m}");
+        }
+    }
+    println!("{passed} passed, {failed} failed");
+    Ok(exit_code(failed == 0))
 }

@@ -70,6 +70,14 @@ impl CommUnit {
         for c in 0..self.lanes {
             let c32 = c as u32;
             self.sources[c] = match perm {
+                #[cfg(feature = "inject-bugs")]
+                Permutation::Rotate(k)
+                    if imagine_hdl::inject::active(
+                        imagine_hdl::inject::Bug::CommRotatesBackwards,
+                    ) =>
+                {
+                    (c32 + n - k as u32 % n) % n
+                }
                 Permutation::Rotate(k) => (c32 + k as u32) % n,
                 Permutation::Xor(k) => (c32 ^ k as u32) % n,
                 Permutation::Broadcast(k) => k as u32 % n,

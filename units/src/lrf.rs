@@ -184,6 +184,14 @@ impl Lrf {
             self.words_read += self.lanes as u64;
         }
         if let Some(e) = p.last_write {
+            #[cfg(feature = "inject-bugs")]
+            if p.last_read == Some(e)
+                && imagine_hdl::inject::active(
+                    imagine_hdl::inject::Bug::LrfDropsWriteOnSameEntryRead,
+                )
+            {
+                return;
+            }
             self.words_written += if self.write_masked {
                 self.write_mask.iter().filter(|&&m| m).count() as u64
             } else {

@@ -217,7 +217,16 @@ impl Scratchpad {
     pub fn commit(&mut self) {
         // A write issued with latency L becomes visible to reads L cycles after its issue, so
         // it lands at the edge before the cycle in which its delay line releases it.
-        if let (Some(a), Some(d)) = (self.write_addrs.due_next(), self.write_data.due_next()) {
+        #[cfg(feature = "inject-bugs")]
+        let landing =
+            if imagine_hdl::inject::active(imagine_hdl::inject::Bug::ScratchpadWriteLandsLate) {
+                (self.write_addrs.current(), self.write_data.current())
+            } else {
+                (self.write_addrs.due_next(), self.write_data.due_next())
+            };
+        #[cfg(not(feature = "inject-bugs"))]
+        let landing = (self.write_addrs.due_next(), self.write_data.due_next());
+        if let (Some(a), Some(d)) = landing {
             for c in 0..self.lanes {
                 if a.mask[c] {
                     self.data[a.values[c] as usize * self.lanes + c] = d.values[c];

@@ -1,6 +1,7 @@
 //! imagine-verif: golden models, testbenches, reference renderer and image metrics
 //! (ARCHITECTURE §6).
 
+pub mod blocks;
 pub mod bump_env;
 pub mod image;
 pub mod marble;

@@ -122,6 +122,14 @@ impl<K: PipelinedKind> Pipelined<K> {
         if lat == 0 {
             return Err(wrong_class(&self.path, is.op, K::CLASS));
         }
+        #[cfg(feature = "inject-bugs")]
+        let lat = if lat < self.max_latency
+            && imagine_hdl::inject::active(imagine_hdl::inject::Bug::PipelineShortOpsOneCycleLate)
+        {
+            lat + 1
+        } else {
+            lat
+        };
         let (a, b, c) = operands(&self.path, self.lanes, &is)?;
         let s = self.ring.slot_after(lat);
         if self.ring.slots[s].valid {
@@ -137,6 +145,17 @@ impl<K: PipelinedKind> Pipelined<K> {
             &mut self.values[range.clone()],
             &mut self.flags[range],
         );
+        #[cfg(feature = "inject-bugs")]
+        if is.op == Op::Add16x2
+            && imagine_hdl::inject::active(imagine_hdl::inject::Bug::PackedAddCarriesAcrossLanes)
+        {
+            for (v, (&x, &y)) in self.values[s * n..(s + 1) * n]
+                .iter_mut()
+                .zip(a.iter().zip(b))
+            {
+                *v = x.wrapping_add(y);
+            }
+        }
         self.ring.slots[s] = Slot {
             valid: true,
             op: is.op,
