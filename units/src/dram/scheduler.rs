@@ -272,11 +272,13 @@ impl Scheduler {
         } else if self.entries.is_empty() {
             Decision::None
         } else {
-            self.gather();
             match self.policy {
                 Policy::InOrder => self.in_order(bus, read_room),
                 Policy::FirstReady => self.first_ready(bus, read_room),
-                _ => self.by_class(bus, read_room),
+                _ => {
+                    self.gather();
+                    self.by_class(bus, read_room)
+                }
             }
         };
         self.issued()
@@ -414,17 +416,26 @@ impl Scheduler {
     fn first_ready(&self, bus: u64, read_room: bool) -> Decision {
         for i in 0..self.entries.len() {
             let op = self.next_op(i);
+            // Timing first: it is one comparison, the rules below search the buffer.
+            if !self.ready(op, i, bus, read_room) {
+                continue;
+            }
             let allowed = match op {
                 Op::Column => !self.hazard(i),
                 // Open-row precharging: never close a row someone still hits.
-                Op::Precharge => !self.views[self.entries[i].bank].hit,
+                Op::Precharge => !self.row_hit(self.entries[i].bank),
                 Op::Activate => true,
             };
-            if allowed && self.ready(op, i, bus, read_room) {
+            if allowed {
                 return self.decision_for(op, i);
             }
         }
         Decision::None
+    }
+
+    /// Some pending reference hits bank `b`'s open row.
+    fn row_hit(&self, b: usize) -> bool {
+        self.open[b].is_some_and(|row| self.entries.iter().any(|e| e.bank == b && e.row == row))
     }
 
     /// Column-first or row-first over the column arbiter, the precharge managers and the

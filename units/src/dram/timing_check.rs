@@ -143,6 +143,7 @@ impl TimingChecker {
     }
 
     /// Requires `now - since >= min` when `since` happened.
+    #[inline]
     fn gap(
         &mut self,
         now: u64,
@@ -155,13 +156,27 @@ impl TimingChecker {
         if let Some(s) = since
             && now < s + min
         {
-            self.flag(
-                now,
-                bank,
-                rule,
-                format!("{what}: {} cycles after cycle {s}, need {min}", now - s),
-            );
+            self.too_soon(now, s, min, bank, rule, what);
         }
+    }
+
+    /// Flags a [`gap`](Self::gap) too short; out of line, so the check stays small.
+    #[cold]
+    #[inline(never)]
+    fn too_soon(
+        &mut self,
+        now: u64,
+        since: u64,
+        min: u64,
+        bank: Option<usize>,
+        rule: &'static str,
+        what: &str,
+    ) {
+        let detail = format!(
+            "{what}: {} cycles after cycle {since}, need {min}",
+            now - since
+        );
+        self.flag(now, bank, rule, detail);
     }
 
     /// The first cycle in which a refresh is overdue: by the end of interval k+1 the k-th
