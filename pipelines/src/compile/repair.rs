@@ -41,7 +41,8 @@ use super::schedule::Slots;
 enum Src {
     /// A loop op's result (this iteration's, or the previous one's for a carried value).
     Loop { op: usize, carried: bool },
-    /// A value made before the loop and kept in its entry throughout.
+    /// A value made before the loop and kept in its entry throughout (numbered densely
+    /// among the loop's earlier operands).
     Earlier(usize),
 }
 
@@ -56,6 +57,9 @@ struct LOp {
     /// (slot, operands swapped) choices.
     options: Vec<(usize, bool)>,
     args: Vec<(Src, Input)>,
+    /// Where each argument is read on each choice: `[(slot * 2 + swap) * args + i]` (the
+    /// search asks millions of times).
+    arg_locs: Vec<Loc>,
     /// Destinations fixed by other regions.
     seeded: Vec<Loc>,
     /// Its entries are held for the whole loop (a carried value).
@@ -218,8 +222,7 @@ impl Rng {
 }
 
 /// The problem: the loop's ops, dependences and readers.
-struct Problem<'a> {
-    slots: &'a Slots,
+struct Problem {
     ii: i64,
     reach: i64,
     ops: Vec<LOp>,
@@ -231,13 +234,15 @@ struct Problem<'a> {
     res: Resources,
     /// Locations: the LRFs, then the condition codes.
     nloc: usize,
+    /// Values made before the loop that it reads.
+    earlier: usize,
     cap: Vec<i32>,
     /// Per FU slot, per row: which latency may issue there (see [`latency_plan`]); empty
     /// for a slot of a class without a plan.
     rows: Vec<Vec<Row>>,
 }
 
-impl<'a> Problem<'a> {
+impl Problem {
     /// The search's view of the loop's `ops` at interval `ii`; `None` if the search
     /// cannot schedule them (a conditional stream, an op with no unit to go to).
     fn new(
@@ -246,15 +251,16 @@ impl<'a> Problem<'a> {
         edges: &[Edge],
         ii: i64,
         reach: i64,
-        slots: &'a Slots,
+        slots: &Slots,
         desc: &MachineDesc,
-    ) -> Option<Problem<'a>> {
+    ) -> Option<Problem> {
         let n = ops.len();
         let mut local = vec![usize::MAX; g.ops.len()];
         for (i, &o) in ops.iter().enumerate() {
             local[o] = i;
         }
         let mut lops = Vec::with_capacity(n);
+        let mut earlier: HashMap<usize, usize> = HashMap::new();
         for &o in ops {
             let op = &g.ops[o];
             let (issue, align) = match op.kind {
@@ -287,9 +293,20 @@ impl<'a> Problem<'a> {
                         op: local[q],
                         carried: true,
                     },
-                    Source::Earlier(q) => Src::Earlier(q),
+                    Source::Earlier(q) => {
+                        let next = earlier.len();
+                        Src::Earlier(*earlier.entry(q).or_insert(next))
+                    }
                 };
                 args.push((src, a.input));
+            }
+            let choices = options.iter().map(|&(k, _)| k + 1).max().unwrap_or(1) * 2;
+            let mut arg_locs = vec![Loc::Cc; choices * op.args.len()];
+            for &(k, swap) in &options {
+                for (i, a) in op.args.iter().enumerate() {
+                    arg_locs[(k * 2 + usize::from(swap)) * op.args.len() + i] =
+                        slots.operand_loc(op.kind, k, swap, a);
+                }
             }
             lops.push(LOp {
                 kind: op.kind,
@@ -298,6 +315,7 @@ impl<'a> Problem<'a> {
                 align,
                 options,
                 args,
+                arg_locs,
                 seeded: op.seeded.clone(),
                 // A loop mov that a value before the loop initialises holds a carried value.
                 permanent: g.ops.iter().any(|x| x.tie == Some(o)),
@@ -356,7 +374,6 @@ impl<'a> Problem<'a> {
             }
         }
         Some(Problem {
-            slots,
             ii,
             reach,
             ops: lops,
@@ -365,13 +382,14 @@ impl<'a> Problem<'a> {
             readers,
             res: Resources::new(slots),
             nloc: slots.lrfs() + 1,
+            earlier: earlier.len(),
             cap,
             rows,
         })
     }
 }
 
-impl Problem<'_> {
+impl Problem {
     /// The issue slot op `u` holds at cycle `t` on `slot` (as an index into the usage
     /// table), if it holds exactly one.
     fn primary(&self, u: usize, t: i64, slot: usize) -> Option<usize> {
@@ -407,12 +425,8 @@ impl Problem<'_> {
     }
     /// Where op `u`, on `slot` with operands swapped or not, reads argument `i`.
     fn arg_loc(&self, u: usize, i: usize, slot: usize, swap: bool) -> Loc {
-        let (_, input) = self.ops[u].args[i];
-        let a = super::graph::Arg {
-            src: Source::Local(0),
-            input,
-        };
-        self.slots.operand_loc(self.ops[u].kind, slot, swap, &a)
+        let op = &self.ops[u];
+        op.arg_locs[(slot * 2 + usize::from(swap)) * op.args.len() + i]
     }
     fn row(&self, t: i64) -> usize {
         t.rem_euclid(self.ii) as usize
@@ -420,8 +434,8 @@ impl Problem<'_> {
 }
 
 /// The search state: every op's place and the tallies the cost is made of.
-struct State<'a, 'p> {
-    p: &'p Problem<'a>,
+struct State<'p> {
+    p: &'p Problem,
     placed: Vec<bool>,
     t: Vec<i64>,
     slot: Vec<usize>,
@@ -438,7 +452,13 @@ struct State<'a, 'p> {
     live: Vec<Vec<i32>>,
     /// Entries held for the whole loop per location.
     kept: Vec<i32>,
-    kept_pairs: HashMap<(usize, Loc), u32>,
+    /// Readers per (earlier value, location).
+    kept_pairs: Vec<u32>,
+    /// Ejection chains searched so far, and per op the last search that reached it and
+    /// the move that displaced it there (see [`Self::search_chain`]).
+    chain_search: u32,
+    chain_seen: Vec<u32>,
+    chain_parent: Vec<Move>,
     /// Weight of the waits against [`SCALE`].
     wait_weight: i64,
     over: i64,
@@ -453,8 +473,8 @@ const SEEDED: u32 = 1 << 20;
 /// An op's place: (op, cycle, slot, swap).
 type Move = (usize, i64, usize, bool);
 
-impl<'a, 'p> State<'a, 'p> {
-    fn new(p: &'p Problem<'a>) -> Self {
+impl<'p> State<'p> {
+    fn new(p: &'p Problem) -> Self {
         let n = p.ops.len();
         let rows = p.ii as usize;
         let mut dests: Vec<Vec<(Loc, u32)>> = vec![Vec::new(); n];
@@ -475,7 +495,10 @@ impl<'a, 'p> State<'a, 'p> {
             dests,
             live: vec![vec![0; rows]; p.nloc],
             kept: vec![0; p.nloc],
-            kept_pairs: HashMap::new(),
+            kept_pairs: vec![0; p.earlier * p.nloc],
+            chain_search: 0,
+            chain_seen: vec![0; n],
+            chain_parent: vec![(0, 0, 0, false); n],
             wait_weight: SCALE,
             over: 0,
             dest_over: 0,
@@ -588,6 +611,80 @@ impl<'a, 'p> State<'a, 'p> {
     /// Adds or removes everything value `x` (placed) costs: its write ports, destinations
     /// beyond two, its entries' lifetimes, its readers' lifetime limits.
     fn value(&mut self, x: usize, d: i32) {
+        self.value_but_lifetimes(x, d);
+        let p = self.p;
+        if !p.ops[x].permanent {
+            let w = self.t[x] + p.ops[x].lat;
+            for j in 0..self.dests[x].len() {
+                let l = self.dests[x][j].0;
+                let r = self.live_end(x, l, w);
+                self.interval(p.loc_index(l), w, r, d);
+            }
+        }
+    }
+
+    /// The end of each lifetime of the placed operands of op `u` (`affected`, `u`
+    /// excepted): (value, location, end).
+    fn operand_lifetimes(&self, u: usize, affected: &[usize]) -> Vec<(usize, Loc, i64)> {
+        let p = self.p;
+        let mut ends = Vec::new();
+        for &x in affected {
+            if x == u || !self.placed[x] || p.ops[x].permanent {
+                continue;
+            }
+            let w = self.t[x] + p.ops[x].lat;
+            for &(l, _) in &self.dests[x] {
+                ends.push((x, l, self.live_end(x, l, w)));
+            }
+        }
+        ends
+    }
+
+    /// Brings the lifetimes of op `u`'s operands from `before` (see
+    /// [`Self::operand_lifetimes`]) to what they are now that `u` moved: only the cycles
+    /// between the old and the new end change (an operand's landing stays), so a long
+    /// lifetime costs no more than a short one.
+    fn update_operand_lifetimes(
+        &mut self,
+        u: usize,
+        affected: &[usize],
+        before: &[(usize, Loc, i64)],
+    ) {
+        let p = self.p;
+        let mut matched = vec![false; before.len()];
+        for &x in affected {
+            if x == u || !self.placed[x] || p.ops[x].permanent {
+                continue;
+            }
+            let w = self.t[x] + p.ops[x].lat;
+            for j in 0..self.dests[x].len() {
+                let l = self.dests[x][j].0;
+                let k = p.loc_index(l);
+                let r = self.live_end(x, l, w);
+                match before.iter().position(|&(y, m, _)| (y, m) == (x, l)) {
+                    Some(i) => {
+                        matched[i] = true;
+                        let old = before[i].2;
+                        if r > old {
+                            self.interval(k, old, r, 1);
+                        } else if r < old {
+                            self.interval(k, r, old, -1);
+                        }
+                    }
+                    None => self.interval(k, w, r, 1),
+                }
+            }
+        }
+        for (i, &(x, l, r)) in before.iter().enumerate() {
+            if !matched[i] {
+                let w = self.t[x] + p.ops[x].lat;
+                self.interval(p.loc_index(l), w, r, -1);
+            }
+        }
+    }
+
+    /// [`Self::value`] but for the lifetimes of its entries.
+    fn value_but_lifetimes(&mut self, x: usize, d: i32) {
         let p = self.p;
         let op = &p.ops[x];
         let w = self.t[x] + op.lat;
@@ -595,13 +692,8 @@ impl<'a, 'p> State<'a, 'p> {
         let n = self.dests[x].len() as i64;
         self.dest_over += i64::from(d) * (n - 2).max(0);
         for j in 0..self.dests[x].len() {
-            let l = self.dests[x][j].0;
-            if let Loc::Lrf(lrf) = l {
+            if let Loc::Lrf(lrf) = self.dests[x][j].0 {
                 self.use_res(row, p.res.port(lrf), d, x);
-            }
-            if !op.permanent {
-                let r = self.live_end(x, l, w);
-                self.interval(p.loc_index(l), w, r, d);
             }
         }
         for j in 0..p.readers[x].len() {
@@ -679,7 +771,7 @@ impl<'a, 'p> State<'a, 'p> {
                     }
                 }
                 Src::Earlier(x) => {
-                    let c = self.kept_pairs.entry((x, l)).or_insert(0);
+                    let c = &mut self.kept_pairs[x * p.nloc + p.loc_index(l)];
                     if d > 0 {
                         *c += 1;
                         if *c == 1 {
@@ -904,25 +996,30 @@ impl<'a, 'p> State<'a, 'p> {
 
     /// Takes op `u` out of the schedule.
     fn detach(&mut self, u: usize, affected: &[usize]) {
+        let before = self.operand_lifetimes(u, affected);
         for &x in affected {
-            if self.placed[x] {
+            if x == u {
                 self.value(x, -1);
+            } else if self.placed[x] {
+                self.value_but_lifetimes(x, -1);
             }
         }
         self.op(u, -1);
         self.placed[u] = false;
         for &x in affected {
             if x != u && self.placed[x] {
-                self.value(x, 1);
+                self.value_but_lifetimes(x, 1);
             }
         }
+        self.update_operand_lifetimes(u, affected, &before);
     }
 
     /// Puts op `u` (out of the schedule) at cycle `t` on `slot`.
     fn attach(&mut self, u: usize, t: i64, slot: usize, swap: bool, affected: &[usize]) {
+        let before = self.operand_lifetimes(u, affected);
         for &x in affected {
             if x != u && self.placed[x] {
-                self.value(x, -1);
+                self.value_but_lifetimes(x, -1);
             }
         }
         self.t[u] = t;
@@ -931,10 +1028,13 @@ impl<'a, 'p> State<'a, 'p> {
         self.placed[u] = true;
         self.op(u, 1);
         for &x in affected {
-            if self.placed[x] {
+            if x == u {
                 self.value(x, 1);
+            } else if self.placed[x] {
+                self.value_but_lifetimes(x, 1);
             }
         }
+        self.update_operand_lifetimes(u, affected, &before);
     }
 
     /// A quick estimate of what op `u` (out of the schedule) would cost at `(t, slot,
@@ -1069,15 +1169,17 @@ impl<'a, 'p> State<'a, 'p> {
         let placed = self.placed[u];
         let need = |row: usize, r: usize, found: &mut Vec<usize>| -> bool {
             let i = row * res.per_row + r;
-            let others: Vec<usize> = self.users[i].iter().copied().filter(|&x| x != u).collect();
-            if (others.len() as i32) < res.cap[r] {
+            let mut others = self.users[i].iter().copied().filter(|&x| x != u);
+            let count = others.clone().count() as i32;
+            if count < res.cap[r] {
                 return true;
             }
-            if others.len() as i32 > res.cap[r] || res.cap[r] != 1 {
+            if count > res.cap[r] || res.cap[r] != 1 {
                 return false;
             }
-            if !found.contains(&others[0]) {
-                found.push(others[0]);
+            let other = others.next().expect("one other user");
+            if !found.contains(&other) {
+                found.push(other);
             }
             true
         };
@@ -1131,11 +1233,10 @@ impl<'a, 'p> State<'a, 'p> {
             if let Loc::Lrf(lrf) = l {
                 let row = p.row(self.t[x] + p.ops[x].lat);
                 let i = row * res.per_row + res.port(lrf);
-                let others: Vec<usize> =
-                    self.users[i].iter().copied().filter(|&y| y != x).collect();
-                match others[..] {
-                    [] => {}
-                    [y] if y != u => {
+                let mut others = self.users[i].iter().copied().filter(|&y| y != x);
+                match (others.next(), others.next()) {
+                    (None, _) => {}
+                    (Some(y), None) if y != u => {
                         if !found.contains(&y) {
                             found.push(y);
                         }
@@ -1151,20 +1252,22 @@ impl<'a, 'p> State<'a, 'p> {
     /// its dependence window where at most one op is in its way, which moves next, ending
     /// with an op that finds a place nobody holds (breadth-first, as an augmenting path of
     /// a matching). Returns the moves, last first.
-    fn chain(&self, u: usize) -> Option<Vec<Move>> {
+    fn chain(&mut self, u: usize) -> Option<Vec<Move>> {
         self.search_chain(u, &|_, _, _| true)
     }
 
     /// A breadth-first ejection chain from op `u`, whose own move must satisfy `first`.
     fn search_chain(
-        &self,
+        &mut self,
         u: usize,
         first: &dyn Fn(i64, usize, bool) -> bool,
     ) -> Option<Vec<Move>> {
         let p = self.p;
-        let mut parent: HashMap<usize, Move> = HashMap::new();
+        // (Ops this search has seen carry its number, so the marks need no clearing.)
+        self.chain_search += 1;
+        let search = self.chain_search;
+        self.chain_seen[u] = search;
         let mut queue = std::collections::VecDeque::from([u]);
-        let mut seen = std::collections::HashSet::from([u]);
         let mut visited = 0;
         while let Some(x) = queue.pop_front() {
             visited += 1;
@@ -1172,9 +1275,7 @@ impl<'a, 'p> State<'a, 'p> {
                 return None;
             }
             let (lo, hi) = self.free_window(x, CHAIN_SPAN);
-            let mut times: Vec<i64> = (lo..=hi).collect();
-            times.sort_by_key(|&t| ((t - self.t[x]).abs(), t));
-            for t in times {
+            for t in nearest_first(self.t[x], lo, hi) {
                 for &(k, s) in &p.ops[x].options {
                     if !p.allowed(x, t, k) || (t, k, s) == (self.t[x], self.slot[x], self.swap[x]) {
                         continue;
@@ -1189,14 +1290,16 @@ impl<'a, 'p> State<'a, 'p> {
                         [] => {
                             let mut moves = vec![(x, t, k, s)];
                             let mut y = x;
-                            while let Some(&(px, pt, pk, ps)) = parent.get(&y) {
-                                moves.push((px, pt, pk, ps));
-                                y = px;
+                            while y != u {
+                                let m = self.chain_parent[y];
+                                moves.push(m);
+                                y = m.0;
                             }
                             return Some(moves);
                         }
-                        [y] if seen.insert(y) => {
-                            parent.insert(y, (x, t, k, s));
+                        [y] if self.chain_seen[y] != search => {
+                            self.chain_seen[y] = search;
+                            self.chain_parent[y] = (x, t, k, s);
                             queue.push_back(y);
                         }
                         _ => {}
@@ -1416,8 +1519,12 @@ pub fn schedule(
                 }
             }
         }
+        // (Only the shortlist needs sorting; the keys are distinct, so it comes out the same.)
+        if cands.len() > SHORTLIST {
+            cands.select_nth_unstable(SHORTLIST);
+            cands.truncate(SHORTLIST);
+        }
         cands.sort_unstable();
-        cands.truncate(SHORTLIST);
         let mut best: Option<(i64, i64, usize, bool)> = None;
         for &(_, _, t, k, s) in &cands {
             st.attach(u, t, k, s, &aff);
@@ -1462,6 +1569,21 @@ const CONSTANT_LEAD: i64 = 32;
 /// of its own round the unrolled body (see [`super::alloc`]), which needs a little more
 /// than the values live at once.
 const LRF_MARGIN: i32 = 2;
+
+/// The cycles of `[lo, hi]` nearest `t` first, the earlier of two as near.
+fn nearest_first(t: i64, lo: i64, hi: i64) -> impl Iterator<Item = i64> {
+    let nearest = if t < lo {
+        lo - t
+    } else if t > hi {
+        t - hi
+    } else {
+        0
+    };
+    let farthest = (t - lo).max(hi - t);
+    (nearest..=farthest)
+        .flat_map(move |d| [t - d, t + d].into_iter().take(if d == 0 { 1 } else { 2 }))
+        .filter(move |c| (lo..=hi).contains(c))
+}
 
 /// The ops that break something, or whose values are live where an LRF is over-full.
 fn troubled(st: &State) -> Vec<usize> {
