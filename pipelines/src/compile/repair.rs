@@ -29,6 +29,7 @@
 //! every LRF holds its values at every row.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::ops::UnitClass;
@@ -470,6 +471,16 @@ struct State<'p> {
 
 const SEEDED: u32 = 1 << 20;
 
+/// The placed ops around an op being placed, as [`State::quick`] weighs them.
+struct Around {
+    /// Per destination of the op: the last cycle a placed reader reads it there.
+    last_reads: Vec<i64>,
+    /// The last cycle a placed reader reads its value.
+    last_reader: i64,
+    /// The cycles it may issue at without breaking a dependence.
+    window: (i64, i64),
+}
+
 /// An op's place: (op, cycle, slot, swap).
 type Move = (usize, i64, usize, bool);
 
@@ -843,6 +854,7 @@ impl<'p> State<'p> {
     fn place_best(&mut self, u: usize, times: impl Iterator<Item = i64>) -> bool {
         let p = self.p;
         let mut best: Option<(i64, i64, usize, bool)> = None;
+        let around = self.around(u);
         for t in times {
             if p.ops[u].align.is_some_and(|k| t.rem_euclid(p.ii) % k != 0) {
                 continue;
@@ -851,7 +863,7 @@ impl<'p> State<'p> {
                 if !p.allowed(u, t, k) {
                     continue;
                 }
-                let c = self.quick(u, t, k, s);
+                let c = self.quick(u, &around, t, k, s);
                 if best.is_none_or(|b| c < b.0) {
                     best = Some((c, t, k, s));
                 }
@@ -921,6 +933,7 @@ impl<'p> State<'p> {
         log.push((u, self.t[u], self.slot[u], self.swap[u]));
         self.detach(u, &aff);
         let mut best: Option<(i64, i64, usize, bool)> = None;
+        let around = self.around(u);
         for d in 0..=PUSH_SLACK {
             let t = if forward { at + d } else { at - d };
             for &(k, s) in &p.ops[u].options {
@@ -929,7 +942,7 @@ impl<'p> State<'p> {
                 {
                     continue;
                 }
-                let c = self.quick(u, t, k, s);
+                let c = self.quick(u, &around, t, k, s);
                 if best.is_none_or(|b| c < b.0) {
                     best = Some((c, t, k, s));
                 }
@@ -1037,17 +1050,44 @@ impl<'p> State<'p> {
         self.update_operand_lifetimes(u, affected, &before);
     }
 
-    /// A quick estimate of what op `u` (out of the schedule) would cost at `(t, slot,
-    /// swap)`: its own resources and dependences, new destinations for its operands, and
-    /// the waits it makes.
-    fn quick(&self, u: usize, t: i64, slot: usize, swap: bool) -> i64 {
-        let (hard, broken, wait) = self.quick_parts(u, t, slot, swap);
+    /// What [`Self::quick`] needs to know of the placed ops around op `u` (out of the
+    /// schedule), which stay put while `u` is tried at many places.
+    fn around(&self, u: usize) -> Around {
+        let p = self.p;
+        Around {
+            // (`live_end` for a landing before every read: the last read.)
+            last_reads: self.dests[u]
+                .iter()
+                .map(|&(l, _)| self.live_end(u, l, i64::MIN + 1))
+                .collect(),
+            last_reader: p.readers[u]
+                .iter()
+                .filter(|&&(r, _)| self.placed[r])
+                .map(|&(r, _)| self.t[r])
+                .max()
+                .unwrap_or(i64::MIN),
+            window: self.dependence_window(u),
+        }
+    }
+
+    /// A quick estimate of what op `u` (out of the schedule, with `around` it) would cost
+    /// at `(t, slot, swap)`: its own resources and dependences, new destinations for its
+    /// operands, and the waits it makes.
+    fn quick(&self, u: usize, around: &Around, t: i64, slot: usize, swap: bool) -> i64 {
+        let (hard, broken, wait) = self.quick_parts(u, around, t, slot, swap);
         SCALE * (HARD * hard + broken) + self.wait_weight * wait
     }
 
     /// [`Self::quick`]'s parts: resources and destinations taken, dependences and
     /// lifetimes broken, waits.
-    fn quick_parts(&self, u: usize, t: i64, slot: usize, swap: bool) -> (i64, i64, i64) {
+    fn quick_parts(
+        &self,
+        u: usize,
+        around: &Around,
+        t: i64,
+        slot: usize,
+        swap: bool,
+    ) -> (i64, i64, i64) {
         let p = self.p;
         let op = &p.ops[u];
         let res = &p.res;
@@ -1074,17 +1114,21 @@ impl<'p> State<'p> {
         let land = p.row(t + op.lat);
         let mut wait = 0;
         let mut broken = 0;
-        for &(l, _) in &self.dests[u] {
+        for (&(l, _), &last) in self.dests[u].iter().zip(&around.last_reads) {
             if let Loc::Lrf(x) = l {
                 hard += i64::from(taken(land, res.port(x)));
             }
             if !op.permanent {
-                wait += self.live_end(u, l, t + op.lat) - (t + op.lat);
+                // (As `live_end`: at least the cycle after it lands.)
+                wait += last.max(t + op.lat + 1) - (t + op.lat);
             }
         }
-        for &(r, _) in &p.readers[u] {
-            if self.placed[r] {
-                broken += Self::pen(self.t[r] - (t + op.lat + p.reach));
+        // (No reader too late, no lifetime broken.)
+        if around.last_reader > t + op.lat + p.reach {
+            for &(r, _) in &p.readers[u] {
+                if self.placed[r] {
+                    broken += Self::pen(self.t[r] - (t + op.lat + p.reach));
+                }
             }
         }
         for (i, &(src, _)) in op.args.iter().enumerate() {
@@ -1106,6 +1150,10 @@ impl<'p> State<'p> {
                 broken += Self::pen(t - (wx + p.reach));
                 wait += (t - wx).max(0);
             }
+        }
+        // (Within its dependence window no dependence is broken.)
+        if (around.window.0..=around.window.1).contains(&t) {
+            return (hard, broken, wait);
         }
         for &e in &p.incident[u] {
             let (a, b, lat, dist) = p.edges[e];
@@ -1410,7 +1458,8 @@ impl<'p> State<'p> {
 
 /// Schedules the loop's `ops` at interval `ii` by local search, its random choices drawn
 /// from `seed`. On success returns each op's (cycle, slot, swap); `None` if the search
-/// ran out of moves with something broken or an LRF still too full.
+/// ran out of moves with something broken or an LRF still too full, or if `abandoned` was
+/// set (its result is no longer wanted).
 #[allow(clippy::too_many_arguments)]
 pub fn schedule(
     g: &Graph,
@@ -1422,6 +1471,7 @@ pub fn schedule(
     slots: &Slots,
     desc: &MachineDesc,
     seed: u64,
+    abandoned: &AtomicBool,
 ) -> Option<Vec<(i64, usize, bool)>> {
     let problem = Problem::new(g, ops, edges, ii, reach, slots, desc)?;
     let p = &problem;
@@ -1444,6 +1494,9 @@ pub fn schedule(
             break;
         }
         if step % REFRESH == 0 {
+            if abandoned.load(Ordering::Relaxed) {
+                return None;
+            }
             // A search still paying for more than one broken constraint per op once it has
             // settled is hopeless (a body whose values cannot fit the LRFs at all).
             if step >= budget / SETTLE && st.cost() > n as i64 * SCALE * HARD {
@@ -1512,10 +1565,11 @@ pub fn schedule(
         let aff = st.affected(u);
         st.detach(u, &aff);
         let mut cands: Vec<(i64, u64, i64, usize, bool)> = Vec::new();
+        let around = st.around(u);
         for t in st.window(u, WINDOW) {
             for &(k, s) in &p.ops[u].options {
                 if p.allowed(u, t, k) && (t, k, s) != (t0, k0, s0) {
-                    cands.push((st.quick(u, t, k, s), rng.next(), t, k, s));
+                    cands.push((st.quick(u, &around, t, k, s), rng.next(), t, k, s));
                 }
             }
         }

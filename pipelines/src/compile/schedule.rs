@@ -22,6 +22,8 @@
 //! A loop schedule whose values overflow an LRF is then relaxed ([`relax`]): its ops move to
 //! the free cycles where their values wait least.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::check::Shape;
 use imagine_units::ops::{Op, UnitClass};
@@ -634,10 +636,33 @@ fn attempt_repair(
     let reach = reach(g, ii, desc);
     let priority = list_priority(g, &dag.height);
     // The search is a gamble: a run that ends with something broken is tried again from
-    // other random choices, a few times.
-    let Some(places) = (0..REPAIR_SEEDS).find_map(|seed| {
-        super::repair::schedule(g, &dag.ops, &edges, &priority, ii, reach, slots, desc, seed)
-    }) else {
+    // other random choices, a few times. The runs go at once, on threads of their own, and
+    // the first seed's success wins as if they had gone in turn (a run no longer wanted
+    // stops early).
+    let search = |seed: u64, abandoned: &AtomicBool| {
+        super::repair::schedule(
+            g, &dag.ops, &edges, &priority, ii, reach, slots, desc, seed, abandoned,
+        )
+    };
+    let abandoned = AtomicBool::new(false);
+    let found = std::thread::scope(|scope| {
+        let later: Vec<_> = (1..REPAIR_SEEDS)
+            .map(|seed| {
+                let (search, abandoned) = (&search, &abandoned);
+                scope.spawn(move || search(seed, abandoned))
+            })
+            .collect();
+        let mut found = search(0, &abandoned);
+        for run in later {
+            if found.is_some() {
+                abandoned.store(true, Ordering::Relaxed);
+            }
+            let places = run.join().expect("a local search panicked");
+            found = found.or(places);
+        }
+        found
+    });
+    let Some(places) = found else {
         return Err(Attempt::Fail(Failure::NoSlot {
             op: dag.ops.first().copied().unwrap_or(0),
             why: "the local search left it in conflict".into(),
