@@ -479,6 +479,17 @@ struct Around {
     last_reader: i64,
     /// The cycles it may issue at without breaking a dependence.
     window: (i64, i64),
+    /// What its operands cost on each (slot, swap) choice: `[slot * 2 + swap]`.
+    operand_ports: Vec<i64>,
+}
+
+/// The parts of [`State::quick`] that depend on the cycle only: resources and destinations
+/// taken, dependences and lifetimes broken, waits.
+#[derive(Clone, Copy)]
+struct Quick {
+    hard: i64,
+    broken: i64,
+    wait: i64,
 }
 
 /// An op's place: (op, cycle, slot, swap).
@@ -859,11 +870,12 @@ impl<'p> State<'p> {
             if p.ops[u].align.is_some_and(|k| t.rem_euclid(p.ii) % k != 0) {
                 continue;
             }
+            let at = self.quick_at(u, &around, t);
             for &(k, s) in &p.ops[u].options {
                 if !p.allowed(u, t, k) {
                     continue;
                 }
-                let c = self.quick(u, &around, t, k, s);
+                let c = self.quick(u, &around, at, t, k, s);
                 if best.is_none_or(|b| c < b.0) {
                     best = Some((c, t, k, s));
                 }
@@ -936,13 +948,14 @@ impl<'p> State<'p> {
         let around = self.around(u);
         for d in 0..=PUSH_SLACK {
             let t = if forward { at + d } else { at - d };
+            let at_t = self.quick_at(u, &around, t);
             for &(k, s) in &p.ops[u].options {
                 if !p.allowed(u, t, k)
                     || p.ops[u].align.is_some_and(|a| t.rem_euclid(p.ii) % a != 0)
                 {
                     continue;
                 }
-                let c = self.quick(u, &around, t, k, s);
+                let c = self.quick(u, &around, at_t, t, k, s);
                 if best.is_none_or(|b| c < b.0) {
                     best = Some((c, t, k, s));
                 }
@@ -1067,27 +1080,22 @@ impl<'p> State<'p> {
                 .max()
                 .unwrap_or(i64::MIN),
             window: self.dependence_window(u),
+            operand_ports: self.operand_ports(u),
         }
     }
 
     /// A quick estimate of what op `u` (out of the schedule, with `around` it) would cost
-    /// at `(t, slot, swap)`: its own resources and dependences, new destinations for its
-    /// operands, and the waits it makes.
-    fn quick(&self, u: usize, around: &Around, t: i64, slot: usize, swap: bool) -> i64 {
-        let (hard, broken, wait) = self.quick_parts(u, around, t, slot, swap);
-        SCALE * (HARD * hard + broken) + self.wait_weight * wait
+    /// at `(t, slot, swap)`, `at` being [`Self::quick_at`] `t`: its own resources and
+    /// dependences, new destinations for its operands, and the waits it makes.
+    fn quick(&self, u: usize, around: &Around, at: Quick, t: i64, slot: usize, swap: bool) -> i64 {
+        let hard = at.hard
+            + self.issue_taken(u, t, slot)
+            + around.operand_ports[slot * 2 + usize::from(swap)];
+        SCALE * (HARD * hard + at.broken) + self.wait_weight * at.wait
     }
 
-    /// [`Self::quick`]'s parts: resources and destinations taken, dependences and
-    /// lifetimes broken, waits.
-    fn quick_parts(
-        &self,
-        u: usize,
-        around: &Around,
-        t: i64,
-        slot: usize,
-        swap: bool,
-    ) -> (i64, i64, i64) {
+    /// The issue slots and result ports op `u` would find taken at cycle `t` on `slot`.
+    fn issue_taken(&self, u: usize, t: i64, slot: usize) -> i64 {
         let p = self.p;
         let op = &p.ops[u];
         let res = &p.res;
@@ -1111,6 +1119,49 @@ impl<'p> State<'p> {
             }
             Kind::Imm(_) => hard += i64::from(taken(p.row(t), res.imm())),
         }
+        hard
+    }
+
+    /// What op `u`'s operands would cost on each (slot, swap) choice, wherever it goes:
+    /// new destinations, whose write ports may be taken, beyond two.
+    fn operand_ports(&self, u: usize) -> Vec<i64> {
+        let p = self.p;
+        let op = &p.ops[u];
+        let res = &p.res;
+        let taken = |row: usize, r: usize| self.usage[row * res.per_row + r] >= res.cap[r];
+        let choices = op.options.iter().map(|&(k, _)| k + 1).max().unwrap_or(1) * 2;
+        let mut costs = vec![0; choices];
+        for &(slot, swap) in &op.options {
+            let mut hard = 0;
+            for (i, &(src, _)) in op.args.iter().enumerate() {
+                let Src::Loop { op: x, .. } = src else {
+                    continue;
+                };
+                if !self.placed[x] {
+                    continue;
+                }
+                let l = p.arg_loc(u, i, slot, swap);
+                let wx = self.t[x] + p.ops[x].lat;
+                if !self.dests[x].iter().any(|e| e.0 == l) {
+                    if let Loc::Lrf(lrf) = l {
+                        hard += i64::from(taken(p.row(wx), res.port(lrf)));
+                    }
+                    hard += i64::from(self.dests[x].len() >= 2);
+                }
+            }
+            costs[slot * 2 + usize::from(swap)] = hard;
+        }
+        costs
+    }
+
+    /// What op `u` (with `around` it) would cost at cycle `t` on any slot: its result's
+    /// write ports and waits, its readers' and operands' lifetimes, its dependences.
+    fn quick_at(&self, u: usize, around: &Around, t: i64) -> Quick {
+        let p = self.p;
+        let op = &p.ops[u];
+        let res = &p.res;
+        let taken = |row: usize, r: usize| self.usage[row * res.per_row + r] >= res.cap[r];
+        let mut hard = 0;
         let land = p.row(t + op.lat);
         let mut wait = 0;
         let mut broken = 0;
@@ -1131,49 +1182,39 @@ impl<'p> State<'p> {
                 }
             }
         }
-        for (i, &(src, _)) in op.args.iter().enumerate() {
+        for &(src, _) in &op.args {
             let Src::Loop { op: x, carried } = src else {
                 continue;
             };
-            if !self.placed[x] {
+            if !self.placed[x] || carried {
                 continue;
             }
-            let l = p.arg_loc(u, i, slot, swap);
             let wx = self.t[x] + p.ops[x].lat;
-            if !self.dests[x].iter().any(|e| e.0 == l) {
-                if let Loc::Lrf(lrf) = l {
-                    hard += i64::from(taken(p.row(wx), res.port(lrf)));
-                }
-                hard += i64::from(self.dests[x].len() >= 2);
-            }
-            if !carried {
-                broken += Self::pen(t - (wx + p.reach));
-                wait += (t - wx).max(0);
-            }
+            broken += Self::pen(t - (wx + p.reach));
+            wait += (t - wx).max(0);
         }
         // (Within its dependence window no dependence is broken.)
-        if (around.window.0..=around.window.1).contains(&t) {
-            return (hard, broken, wait);
-        }
-        for &e in &p.incident[u] {
-            let (a, b, lat, dist) = p.edges[e];
-            if a == b {
-                continue;
+        if !(around.window.0..=around.window.1).contains(&t) {
+            for &e in &p.incident[u] {
+                let (a, b, lat, dist) = p.edges[e];
+                if a == b {
+                    continue;
+                }
+                let (ta, tb) = if a == u {
+                    if !self.placed[b] {
+                        continue;
+                    }
+                    (t, self.t[b])
+                } else {
+                    if !self.placed[a] {
+                        continue;
+                    }
+                    (self.t[a], t)
+                };
+                broken += Self::pen(ta + lat - p.ii * i64::from(dist) - tb);
             }
-            let (ta, tb) = if a == u {
-                if !self.placed[b] {
-                    continue;
-                }
-                (t, self.t[b])
-            } else {
-                if !self.placed[a] {
-                    continue;
-                }
-                (self.t[a], t)
-            };
-            broken += Self::pen(ta + lat - p.ii * i64::from(dist) - tb);
         }
-        (hard, broken, wait)
+        Quick { hard, broken, wait }
     }
 
     /// The cycles op `u` may move to without breaking a dependence on its placed
@@ -1567,9 +1608,10 @@ pub fn schedule(
         let mut cands: Vec<(i64, u64, i64, usize, bool)> = Vec::new();
         let around = st.around(u);
         for t in st.window(u, WINDOW) {
+            let at = st.quick_at(u, &around, t);
             for &(k, s) in &p.ops[u].options {
                 if p.allowed(u, t, k) && (t, k, s) != (t0, k0, s0) {
-                    cands.push((st.quick(u, &around, t, k, s), rng.next(), t, k, s));
+                    cands.push((st.quick(u, &around, at, t, k, s), rng.next(), t, k, s));
                 }
             }
         }
