@@ -645,21 +645,77 @@ impl<'p> State<'p> {
         }
     }
 
-    /// The end of each lifetime of the placed operands of op `u` (`affected`, `u`
-    /// excepted): (value, location, end).
-    fn operand_lifetimes(&self, u: usize, affected: &[usize]) -> Vec<(usize, Loc, i64)> {
+    /// The destinations of the placed operands of op `u` (`affected`, `u` excepted) and
+    /// when each lifetime there ends (`None` for a value held for the whole loop):
+    /// (value, location, end).
+    fn operand_lifetimes(&self, u: usize, affected: &[usize]) -> Vec<(usize, Loc, Option<i64>)> {
         let p = self.p;
         let mut ends = Vec::new();
         for &x in affected {
-            if x == u || !self.placed[x] || p.ops[x].permanent {
+            if x == u || !self.placed[x] {
                 continue;
             }
             let w = self.t[x] + p.ops[x].lat;
             for &(l, _) in &self.dests[x] {
-                ends.push((x, l, self.live_end(x, l, w)));
+                let end = (!p.ops[x].permanent).then(|| self.live_end(x, l, w));
+                ends.push((x, l, end));
             }
         }
         ends
+    }
+
+    /// Adds (`d` = 1) or removes (-1) what op `u` (placed) adds to its operands' values:
+    /// the lifetimes its reads break.
+    fn operand_reads(&mut self, u: usize, d: i32) {
+        let p = self.p;
+        for &(src, _) in &p.ops[u].args {
+            if let Src::Loop {
+                op: x,
+                carried: false,
+            } = src
+                && x != u
+                && self.placed[x]
+            {
+                let w = self.t[x] + p.ops[x].lat;
+                self.broken += i64::from(d) * Self::pen(self.t[u] - (w + p.reach));
+            }
+        }
+    }
+
+    /// Brings the write ports and destination counts of op `u`'s operands from `before`
+    /// (see [`Self::operand_lifetimes`]) to their destinations now that `u` moved.
+    fn update_operand_dests(
+        &mut self,
+        u: usize,
+        affected: &[usize],
+        before: &[(usize, Loc, Option<i64>)],
+    ) {
+        let p = self.p;
+        for &x in affected {
+            if x == u || !self.placed[x] {
+                continue;
+            }
+            let row = p.row(self.t[x] + p.ops[x].lat);
+            let had = || before.iter().filter(move |e| e.0 == x).map(|e| e.1);
+            let old = had().count() as i64;
+            let new = self.dests[x].len() as i64;
+            self.dest_over += (new - 2).max(0) - (old - 2).max(0);
+            for l in had() {
+                if let Loc::Lrf(lrf) = l
+                    && !self.dests[x].iter().any(|e| e.0 == l)
+                {
+                    self.use_res(row, p.res.port(lrf), -1, x);
+                }
+            }
+            for j in 0..self.dests[x].len() {
+                let l = self.dests[x][j].0;
+                if let Loc::Lrf(lrf) = l
+                    && !had().any(|m| m == l)
+                {
+                    self.use_res(row, p.res.port(lrf), 1, x);
+                }
+            }
+        }
     }
 
     /// Brings the lifetimes of op `u`'s operands from `before` (see
@@ -670,7 +726,7 @@ impl<'p> State<'p> {
         &mut self,
         u: usize,
         affected: &[usize],
-        before: &[(usize, Loc, i64)],
+        before: &[(usize, Loc, Option<i64>)],
     ) {
         let p = self.p;
         let mut matched = vec![false; before.len()];
@@ -686,7 +742,7 @@ impl<'p> State<'p> {
                 match before.iter().position(|&(y, m, _)| (y, m) == (x, l)) {
                     Some(i) => {
                         matched[i] = true;
-                        let old = before[i].2;
+                        let old = before[i].2.expect("a value not held for the loop");
                         if r > old {
                             self.interval(k, old, r, 1);
                         } else if r < old {
@@ -697,8 +753,8 @@ impl<'p> State<'p> {
                 }
             }
         }
-        for (i, &(x, l, r)) in before.iter().enumerate() {
-            if !matched[i] {
+        for (i, &(x, l, end)) in before.iter().enumerate() {
+            if let (false, Some(r)) = (matched[i], end) {
                 let w = self.t[x] + p.ops[x].lat;
                 self.interval(p.loc_index(l), w, r, -1);
             }
@@ -1022,44 +1078,27 @@ impl<'p> State<'p> {
 
     /// Takes op `u` out of the schedule.
     fn detach(&mut self, u: usize, affected: &[usize]) {
+        // (Of its operands' values only what `u` reads changes.)
         let before = self.operand_lifetimes(u, affected);
-        for &x in affected {
-            if x == u {
-                self.value(x, -1);
-            } else if self.placed[x] {
-                self.value_but_lifetimes(x, -1);
-            }
-        }
+        self.value(u, -1);
+        self.operand_reads(u, -1);
         self.op(u, -1);
         self.placed[u] = false;
-        for &x in affected {
-            if x != u && self.placed[x] {
-                self.value_but_lifetimes(x, 1);
-            }
-        }
+        self.update_operand_dests(u, affected, &before);
         self.update_operand_lifetimes(u, affected, &before);
     }
 
     /// Puts op `u` (out of the schedule) at cycle `t` on `slot`.
     fn attach(&mut self, u: usize, t: i64, slot: usize, swap: bool, affected: &[usize]) {
         let before = self.operand_lifetimes(u, affected);
-        for &x in affected {
-            if x != u && self.placed[x] {
-                self.value_but_lifetimes(x, -1);
-            }
-        }
         self.t[u] = t;
         self.slot[u] = slot;
         self.swap[u] = swap;
         self.placed[u] = true;
         self.op(u, 1);
-        for &x in affected {
-            if x == u {
-                self.value(x, 1);
-            } else if self.placed[x] {
-                self.value_but_lifetimes(x, 1);
-            }
-        }
+        self.value(u, 1);
+        self.operand_reads(u, 1);
+        self.update_operand_dests(u, affected, &before);
         self.update_operand_lifetimes(u, affected, &before);
     }
 
