@@ -232,6 +232,9 @@ struct Problem {
     incident: Vec<Vec<usize>>,
     /// Per op: the ops reading its value, and through which argument.
     readers: Vec<Vec<(usize, usize)>>,
+    /// Per op: each argument read from a loop value, the value, and the read's index
+    /// among the value's `readers`.
+    read_index: Vec<Vec<(usize, usize, usize)>>,
     res: Resources,
     /// Locations: the LRFs, then the condition codes.
     nloc: usize,
@@ -337,9 +340,11 @@ impl Problem {
             ledges.push((a, b, e.latency, e.distance));
         }
         let mut readers = vec![Vec::new(); n];
+        let mut read_index = vec![Vec::new(); n];
         for (u, op) in lops.iter().enumerate() {
             for (i, &(src, _)) in op.args.iter().enumerate() {
                 if let Src::Loop { op: x, .. } = src {
+                    read_index[u].push((i, x, readers[x].len()));
                     readers[x].push((u, i));
                 }
             }
@@ -381,6 +386,7 @@ impl Problem {
             edges: ledges,
             incident,
             readers,
+            read_index,
             res: Resources::new(slots),
             nloc: slots.lrfs() + 1,
             earlier: earlier.len(),
@@ -455,6 +461,9 @@ struct State<'p> {
     kept: Vec<i32>,
     /// Readers per (earlier value, location).
     kept_pairs: Vec<u32>,
+    /// Per value, for each of its `readers`: where and when it reads the value, if placed
+    /// (what [`Self::live_end`] asks most often, side by side).
+    reads: Vec<Vec<(Option<Loc>, i64)>>,
     /// Ejection chains searched so far, and per op the last search that reached it and
     /// the move that displaced it there (see [`Self::search_chain`]).
     chain_search: u32,
@@ -518,6 +527,7 @@ impl<'p> State<'p> {
             live: vec![vec![0; rows]; p.nloc],
             kept: vec![0; p.nloc],
             kept_pairs: vec![0; p.earlier * p.nloc],
+            reads: p.readers.iter().map(|r| vec![(None, 0); r.len()]).collect(),
             chain_search: 0,
             chain_seen: vec![0; n],
             chain_parent: vec![(0, 0, 0, false); n],
@@ -622,12 +632,25 @@ impl<'p> State<'p> {
     /// after it lands).
     fn live_end(&self, x: usize, l: Loc, w: i64) -> i64 {
         let mut r = w + 1;
-        for &(u, i) in &self.p.readers[x] {
-            if self.placed[u] && self.p.arg_loc(u, i, self.slot[u], self.swap[u]) == l {
-                r = r.max(self.t[u]);
+        for &(at, t) in &self.reads[x] {
+            if at == Some(l) {
+                r = r.max(t);
             }
         }
         r
+    }
+
+    /// Records where and when op `u` reads its loop operands (or that it does not, out of
+    /// the schedule) in their values' [`State::reads`].
+    fn note_reads(&mut self, u: usize) {
+        let p = self.p;
+        for &(i, x, j) in &p.read_index[u] {
+            self.reads[x][j] = if self.placed[u] {
+                (Some(p.arg_loc(u, i, self.slot[u], self.swap[u])), self.t[u])
+            } else {
+                (None, 0)
+            };
+        }
     }
 
     /// Adds or removes everything value `x` (placed) costs: its write ports, destinations
@@ -1084,6 +1107,7 @@ impl<'p> State<'p> {
         self.operand_reads(u, -1);
         self.op(u, -1);
         self.placed[u] = false;
+        self.note_reads(u);
         self.update_operand_dests(u, affected, &before);
         self.update_operand_lifetimes(u, affected, &before);
     }
@@ -1095,6 +1119,7 @@ impl<'p> State<'p> {
         self.slot[u] = slot;
         self.swap[u] = swap;
         self.placed[u] = true;
+        self.note_reads(u);
         self.op(u, 1);
         self.value(u, 1);
         self.operand_reads(u, 1);
