@@ -29,6 +29,7 @@
 //! every LRF holds its values at every row.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::ops::UnitClass;
@@ -41,7 +42,8 @@ use super::schedule::Slots;
 enum Src {
     /// A loop op's result (this iteration's, or the previous one's for a carried value).
     Loop { op: usize, carried: bool },
-    /// A value made before the loop and kept in its entry throughout.
+    /// A value made before the loop and kept in its entry throughout (numbered densely
+    /// among the loop's earlier operands).
     Earlier(usize),
 }
 
@@ -56,6 +58,9 @@ struct LOp {
     /// (slot, operands swapped) choices.
     options: Vec<(usize, bool)>,
     args: Vec<(Src, Input)>,
+    /// Where each argument is read on each choice: `[(slot * 2 + swap) * args + i]` (the
+    /// search asks millions of times).
+    arg_locs: Vec<Loc>,
     /// Destinations fixed by other regions.
     seeded: Vec<Loc>,
     /// Its entries are held for the whole loop (a carried value).
@@ -218,8 +223,7 @@ impl Rng {
 }
 
 /// The problem: the loop's ops, dependences and readers.
-struct Problem<'a> {
-    slots: &'a Slots,
+struct Problem {
     ii: i64,
     reach: i64,
     ops: Vec<LOp>,
@@ -228,16 +232,21 @@ struct Problem<'a> {
     incident: Vec<Vec<usize>>,
     /// Per op: the ops reading its value, and through which argument.
     readers: Vec<Vec<(usize, usize)>>,
+    /// Per op: each argument read from a loop value, the value, and the read's index
+    /// among the value's `readers`.
+    read_index: Vec<Vec<(usize, usize, usize)>>,
     res: Resources,
     /// Locations: the LRFs, then the condition codes.
     nloc: usize,
+    /// Values made before the loop that it reads.
+    earlier: usize,
     cap: Vec<i32>,
     /// Per FU slot, per row: which latency may issue there (see [`latency_plan`]); empty
     /// for a slot of a class without a plan.
     rows: Vec<Vec<Row>>,
 }
 
-impl<'a> Problem<'a> {
+impl Problem {
     /// The search's view of the loop's `ops` at interval `ii`; `None` if the search
     /// cannot schedule them (a conditional stream, an op with no unit to go to).
     fn new(
@@ -246,15 +255,16 @@ impl<'a> Problem<'a> {
         edges: &[Edge],
         ii: i64,
         reach: i64,
-        slots: &'a Slots,
+        slots: &Slots,
         desc: &MachineDesc,
-    ) -> Option<Problem<'a>> {
+    ) -> Option<Problem> {
         let n = ops.len();
         let mut local = vec![usize::MAX; g.ops.len()];
         for (i, &o) in ops.iter().enumerate() {
             local[o] = i;
         }
         let mut lops = Vec::with_capacity(n);
+        let mut earlier: HashMap<usize, usize> = HashMap::new();
         for &o in ops {
             let op = &g.ops[o];
             let (issue, align) = match op.kind {
@@ -287,9 +297,20 @@ impl<'a> Problem<'a> {
                         op: local[q],
                         carried: true,
                     },
-                    Source::Earlier(q) => Src::Earlier(q),
+                    Source::Earlier(q) => {
+                        let next = earlier.len();
+                        Src::Earlier(*earlier.entry(q).or_insert(next))
+                    }
                 };
                 args.push((src, a.input));
+            }
+            let choices = options.iter().map(|&(k, _)| k + 1).max().unwrap_or(1) * 2;
+            let mut arg_locs = vec![Loc::Cc; choices * op.args.len()];
+            for &(k, swap) in &options {
+                for (i, a) in op.args.iter().enumerate() {
+                    arg_locs[(k * 2 + usize::from(swap)) * op.args.len() + i] =
+                        slots.operand_loc(op.kind, k, swap, a);
+                }
             }
             lops.push(LOp {
                 kind: op.kind,
@@ -298,6 +319,7 @@ impl<'a> Problem<'a> {
                 align,
                 options,
                 args,
+                arg_locs,
                 seeded: op.seeded.clone(),
                 // A loop mov that a value before the loop initialises holds a carried value.
                 permanent: g.ops.iter().any(|x| x.tie == Some(o)),
@@ -318,9 +340,11 @@ impl<'a> Problem<'a> {
             ledges.push((a, b, e.latency, e.distance));
         }
         let mut readers = vec![Vec::new(); n];
+        let mut read_index = vec![Vec::new(); n];
         for (u, op) in lops.iter().enumerate() {
             for (i, &(src, _)) in op.args.iter().enumerate() {
                 if let Src::Loop { op: x, .. } = src {
+                    read_index[u].push((i, x, readers[x].len()));
                     readers[x].push((u, i));
                 }
             }
@@ -356,22 +380,23 @@ impl<'a> Problem<'a> {
             }
         }
         Some(Problem {
-            slots,
             ii,
             reach,
             ops: lops,
             edges: ledges,
             incident,
             readers,
+            read_index,
             res: Resources::new(slots),
             nloc: slots.lrfs() + 1,
+            earlier: earlier.len(),
             cap,
             rows,
         })
     }
 }
 
-impl Problem<'_> {
+impl Problem {
     /// The issue slot op `u` holds at cycle `t` on `slot` (as an index into the usage
     /// table), if it holds exactly one.
     fn primary(&self, u: usize, t: i64, slot: usize) -> Option<usize> {
@@ -407,12 +432,8 @@ impl Problem<'_> {
     }
     /// Where op `u`, on `slot` with operands swapped or not, reads argument `i`.
     fn arg_loc(&self, u: usize, i: usize, slot: usize, swap: bool) -> Loc {
-        let (_, input) = self.ops[u].args[i];
-        let a = super::graph::Arg {
-            src: Source::Local(0),
-            input,
-        };
-        self.slots.operand_loc(self.ops[u].kind, slot, swap, &a)
+        let op = &self.ops[u];
+        op.arg_locs[(slot * 2 + usize::from(swap)) * op.args.len() + i]
     }
     fn row(&self, t: i64) -> usize {
         t.rem_euclid(self.ii) as usize
@@ -420,8 +441,8 @@ impl Problem<'_> {
 }
 
 /// The search state: every op's place and the tallies the cost is made of.
-struct State<'a, 'p> {
-    p: &'p Problem<'a>,
+struct State<'p> {
+    p: &'p Problem,
     placed: Vec<bool>,
     t: Vec<i64>,
     slot: Vec<usize>,
@@ -438,7 +459,16 @@ struct State<'a, 'p> {
     live: Vec<Vec<i32>>,
     /// Entries held for the whole loop per location.
     kept: Vec<i32>,
-    kept_pairs: HashMap<(usize, Loc), u32>,
+    /// Readers per (earlier value, location).
+    kept_pairs: Vec<u32>,
+    /// Per value, for each of its `readers`: where and when it reads the value, if placed
+    /// (what [`Self::live_end`] asks most often, side by side).
+    reads: Vec<Vec<(Option<Loc>, i64)>>,
+    /// Ejection chains searched so far, and per op the last search that reached it and
+    /// the move that displaced it there (see [`Self::search_chain`]).
+    chain_search: u32,
+    chain_seen: Vec<u32>,
+    chain_parent: Vec<Move>,
     /// Weight of the waits against [`SCALE`].
     wait_weight: i64,
     over: i64,
@@ -450,11 +480,32 @@ struct State<'a, 'p> {
 
 const SEEDED: u32 = 1 << 20;
 
+/// The placed ops around an op being placed, as [`State::quick`] weighs them.
+struct Around {
+    /// Per destination of the op: the last cycle a placed reader reads it there.
+    last_reads: Vec<i64>,
+    /// The last cycle a placed reader reads its value.
+    last_reader: i64,
+    /// The cycles it may issue at without breaking a dependence.
+    window: (i64, i64),
+    /// What its operands cost on each (slot, swap) choice: `[slot * 2 + swap]`.
+    operand_ports: Vec<i64>,
+}
+
+/// The parts of [`State::quick`] that depend on the cycle only: resources and destinations
+/// taken, dependences and lifetimes broken, waits.
+#[derive(Clone, Copy)]
+struct Quick {
+    hard: i64,
+    broken: i64,
+    wait: i64,
+}
+
 /// An op's place: (op, cycle, slot, swap).
 type Move = (usize, i64, usize, bool);
 
-impl<'a, 'p> State<'a, 'p> {
-    fn new(p: &'p Problem<'a>) -> Self {
+impl<'p> State<'p> {
+    fn new(p: &'p Problem) -> Self {
         let n = p.ops.len();
         let rows = p.ii as usize;
         let mut dests: Vec<Vec<(Loc, u32)>> = vec![Vec::new(); n];
@@ -475,7 +526,11 @@ impl<'a, 'p> State<'a, 'p> {
             dests,
             live: vec![vec![0; rows]; p.nloc],
             kept: vec![0; p.nloc],
-            kept_pairs: HashMap::new(),
+            kept_pairs: vec![0; p.earlier * p.nloc],
+            reads: p.readers.iter().map(|r| vec![(None, 0); r.len()]).collect(),
+            chain_search: 0,
+            chain_seen: vec![0; n],
+            chain_parent: vec![(0, 0, 0, false); n],
             wait_weight: SCALE,
             over: 0,
             dest_over: 0,
@@ -577,17 +632,160 @@ impl<'a, 'p> State<'a, 'p> {
     /// after it lands).
     fn live_end(&self, x: usize, l: Loc, w: i64) -> i64 {
         let mut r = w + 1;
-        for &(u, i) in &self.p.readers[x] {
-            if self.placed[u] && self.p.arg_loc(u, i, self.slot[u], self.swap[u]) == l {
-                r = r.max(self.t[u]);
+        for &(at, t) in &self.reads[x] {
+            if at == Some(l) {
+                r = r.max(t);
             }
         }
         r
     }
 
+    /// Records where and when op `u` reads its loop operands (or that it does not, out of
+    /// the schedule) in their values' [`State::reads`].
+    fn note_reads(&mut self, u: usize) {
+        let p = self.p;
+        for &(i, x, j) in &p.read_index[u] {
+            self.reads[x][j] = if self.placed[u] {
+                (Some(p.arg_loc(u, i, self.slot[u], self.swap[u])), self.t[u])
+            } else {
+                (None, 0)
+            };
+        }
+    }
+
     /// Adds or removes everything value `x` (placed) costs: its write ports, destinations
     /// beyond two, its entries' lifetimes, its readers' lifetime limits.
     fn value(&mut self, x: usize, d: i32) {
+        self.value_but_lifetimes(x, d);
+        let p = self.p;
+        if !p.ops[x].permanent {
+            let w = self.t[x] + p.ops[x].lat;
+            for j in 0..self.dests[x].len() {
+                let l = self.dests[x][j].0;
+                let r = self.live_end(x, l, w);
+                self.interval(p.loc_index(l), w, r, d);
+            }
+        }
+    }
+
+    /// The destinations of the placed operands of op `u` (`affected`, `u` excepted) and
+    /// when each lifetime there ends (`None` for a value held for the whole loop):
+    /// (value, location, end).
+    fn operand_lifetimes(&self, u: usize, affected: &[usize]) -> Vec<(usize, Loc, Option<i64>)> {
+        let p = self.p;
+        let mut ends = Vec::new();
+        for &x in affected {
+            if x == u || !self.placed[x] {
+                continue;
+            }
+            let w = self.t[x] + p.ops[x].lat;
+            for &(l, _) in &self.dests[x] {
+                let end = (!p.ops[x].permanent).then(|| self.live_end(x, l, w));
+                ends.push((x, l, end));
+            }
+        }
+        ends
+    }
+
+    /// Adds (`d` = 1) or removes (-1) what op `u` (placed) adds to its operands' values:
+    /// the lifetimes its reads break.
+    fn operand_reads(&mut self, u: usize, d: i32) {
+        let p = self.p;
+        for &(src, _) in &p.ops[u].args {
+            if let Src::Loop {
+                op: x,
+                carried: false,
+            } = src
+                && x != u
+                && self.placed[x]
+            {
+                let w = self.t[x] + p.ops[x].lat;
+                self.broken += i64::from(d) * Self::pen(self.t[u] - (w + p.reach));
+            }
+        }
+    }
+
+    /// Brings the write ports and destination counts of op `u`'s operands from `before`
+    /// (see [`Self::operand_lifetimes`]) to their destinations now that `u` moved.
+    fn update_operand_dests(
+        &mut self,
+        u: usize,
+        affected: &[usize],
+        before: &[(usize, Loc, Option<i64>)],
+    ) {
+        let p = self.p;
+        for &x in affected {
+            if x == u || !self.placed[x] {
+                continue;
+            }
+            let row = p.row(self.t[x] + p.ops[x].lat);
+            let had = || before.iter().filter(move |e| e.0 == x).map(|e| e.1);
+            let old = had().count() as i64;
+            let new = self.dests[x].len() as i64;
+            self.dest_over += (new - 2).max(0) - (old - 2).max(0);
+            for l in had() {
+                if let Loc::Lrf(lrf) = l
+                    && !self.dests[x].iter().any(|e| e.0 == l)
+                {
+                    self.use_res(row, p.res.port(lrf), -1, x);
+                }
+            }
+            for j in 0..self.dests[x].len() {
+                let l = self.dests[x][j].0;
+                if let Loc::Lrf(lrf) = l
+                    && !had().any(|m| m == l)
+                {
+                    self.use_res(row, p.res.port(lrf), 1, x);
+                }
+            }
+        }
+    }
+
+    /// Brings the lifetimes of op `u`'s operands from `before` (see
+    /// [`Self::operand_lifetimes`]) to what they are now that `u` moved: only the cycles
+    /// between the old and the new end change (an operand's landing stays), so a long
+    /// lifetime costs no more than a short one.
+    fn update_operand_lifetimes(
+        &mut self,
+        u: usize,
+        affected: &[usize],
+        before: &[(usize, Loc, Option<i64>)],
+    ) {
+        let p = self.p;
+        let mut matched = vec![false; before.len()];
+        for &x in affected {
+            if x == u || !self.placed[x] || p.ops[x].permanent {
+                continue;
+            }
+            let w = self.t[x] + p.ops[x].lat;
+            for j in 0..self.dests[x].len() {
+                let l = self.dests[x][j].0;
+                let k = p.loc_index(l);
+                let r = self.live_end(x, l, w);
+                match before.iter().position(|&(y, m, _)| (y, m) == (x, l)) {
+                    Some(i) => {
+                        matched[i] = true;
+                        let old = before[i].2.expect("a value not held for the loop");
+                        if r > old {
+                            self.interval(k, old, r, 1);
+                        } else if r < old {
+                            self.interval(k, r, old, -1);
+                        }
+                    }
+                    None => self.interval(k, w, r, 1),
+                }
+            }
+        }
+        for (i, &(x, l, end)) in before.iter().enumerate() {
+            if let (false, Some(r)) = (matched[i], end) {
+                let w = self.t[x] + p.ops[x].lat;
+                self.interval(p.loc_index(l), w, r, -1);
+            }
+        }
+    }
+
+    /// [`Self::value`] but for the lifetimes of its entries.
+    fn value_but_lifetimes(&mut self, x: usize, d: i32) {
         let p = self.p;
         let op = &p.ops[x];
         let w = self.t[x] + op.lat;
@@ -595,13 +793,8 @@ impl<'a, 'p> State<'a, 'p> {
         let n = self.dests[x].len() as i64;
         self.dest_over += i64::from(d) * (n - 2).max(0);
         for j in 0..self.dests[x].len() {
-            let l = self.dests[x][j].0;
-            if let Loc::Lrf(lrf) = l {
+            if let Loc::Lrf(lrf) = self.dests[x][j].0 {
                 self.use_res(row, p.res.port(lrf), d, x);
-            }
-            if !op.permanent {
-                let r = self.live_end(x, l, w);
-                self.interval(p.loc_index(l), w, r, d);
             }
         }
         for j in 0..p.readers[x].len() {
@@ -679,7 +872,7 @@ impl<'a, 'p> State<'a, 'p> {
                     }
                 }
                 Src::Earlier(x) => {
-                    let c = self.kept_pairs.entry((x, l)).or_insert(0);
+                    let c = &mut self.kept_pairs[x * p.nloc + p.loc_index(l)];
                     if d > 0 {
                         *c += 1;
                         if *c == 1 {
@@ -751,15 +944,17 @@ impl<'a, 'p> State<'a, 'p> {
     fn place_best(&mut self, u: usize, times: impl Iterator<Item = i64>) -> bool {
         let p = self.p;
         let mut best: Option<(i64, i64, usize, bool)> = None;
+        let around = self.around(u);
         for t in times {
             if p.ops[u].align.is_some_and(|k| t.rem_euclid(p.ii) % k != 0) {
                 continue;
             }
+            let at = self.quick_at(u, &around, t);
             for &(k, s) in &p.ops[u].options {
                 if !p.allowed(u, t, k) {
                     continue;
                 }
-                let c = self.quick(u, t, k, s);
+                let c = self.quick(u, &around, at, t, k, s);
                 if best.is_none_or(|b| c < b.0) {
                     best = Some((c, t, k, s));
                 }
@@ -829,15 +1024,17 @@ impl<'a, 'p> State<'a, 'p> {
         log.push((u, self.t[u], self.slot[u], self.swap[u]));
         self.detach(u, &aff);
         let mut best: Option<(i64, i64, usize, bool)> = None;
+        let around = self.around(u);
         for d in 0..=PUSH_SLACK {
             let t = if forward { at + d } else { at - d };
+            let at_t = self.quick_at(u, &around, t);
             for &(k, s) in &p.ops[u].options {
                 if !p.allowed(u, t, k)
                     || p.ops[u].align.is_some_and(|a| t.rem_euclid(p.ii) % a != 0)
                 {
                     continue;
                 }
-                let c = self.quick(u, t, k, s);
+                let c = self.quick(u, &around, at_t, t, k, s);
                 if best.is_none_or(|b| c < b.0) {
                     best = Some((c, t, k, s));
                 }
@@ -904,50 +1101,65 @@ impl<'a, 'p> State<'a, 'p> {
 
     /// Takes op `u` out of the schedule.
     fn detach(&mut self, u: usize, affected: &[usize]) {
-        for &x in affected {
-            if self.placed[x] {
-                self.value(x, -1);
-            }
-        }
+        // (Of its operands' values only what `u` reads changes.)
+        let before = self.operand_lifetimes(u, affected);
+        self.value(u, -1);
+        self.operand_reads(u, -1);
         self.op(u, -1);
         self.placed[u] = false;
-        for &x in affected {
-            if x != u && self.placed[x] {
-                self.value(x, 1);
-            }
-        }
+        self.note_reads(u);
+        self.update_operand_dests(u, affected, &before);
+        self.update_operand_lifetimes(u, affected, &before);
     }
 
     /// Puts op `u` (out of the schedule) at cycle `t` on `slot`.
     fn attach(&mut self, u: usize, t: i64, slot: usize, swap: bool, affected: &[usize]) {
-        for &x in affected {
-            if x != u && self.placed[x] {
-                self.value(x, -1);
-            }
-        }
+        let before = self.operand_lifetimes(u, affected);
         self.t[u] = t;
         self.slot[u] = slot;
         self.swap[u] = swap;
         self.placed[u] = true;
+        self.note_reads(u);
         self.op(u, 1);
-        for &x in affected {
-            if self.placed[x] {
-                self.value(x, 1);
-            }
+        self.value(u, 1);
+        self.operand_reads(u, 1);
+        self.update_operand_dests(u, affected, &before);
+        self.update_operand_lifetimes(u, affected, &before);
+    }
+
+    /// What [`Self::quick`] needs to know of the placed ops around op `u` (out of the
+    /// schedule), which stay put while `u` is tried at many places.
+    fn around(&self, u: usize) -> Around {
+        let p = self.p;
+        Around {
+            // (`live_end` for a landing before every read: the last read.)
+            last_reads: self.dests[u]
+                .iter()
+                .map(|&(l, _)| self.live_end(u, l, i64::MIN + 1))
+                .collect(),
+            last_reader: p.readers[u]
+                .iter()
+                .filter(|&&(r, _)| self.placed[r])
+                .map(|&(r, _)| self.t[r])
+                .max()
+                .unwrap_or(i64::MIN),
+            window: self.dependence_window(u),
+            operand_ports: self.operand_ports(u),
         }
     }
 
-    /// A quick estimate of what op `u` (out of the schedule) would cost at `(t, slot,
-    /// swap)`: its own resources and dependences, new destinations for its operands, and
-    /// the waits it makes.
-    fn quick(&self, u: usize, t: i64, slot: usize, swap: bool) -> i64 {
-        let (hard, broken, wait) = self.quick_parts(u, t, slot, swap);
-        SCALE * (HARD * hard + broken) + self.wait_weight * wait
+    /// A quick estimate of what op `u` (out of the schedule, with `around` it) would cost
+    /// at `(t, slot, swap)`, `at` being [`Self::quick_at`] `t`: its own resources and
+    /// dependences, new destinations for its operands, and the waits it makes.
+    fn quick(&self, u: usize, around: &Around, at: Quick, t: i64, slot: usize, swap: bool) -> i64 {
+        let hard = at.hard
+            + self.issue_taken(u, t, slot)
+            + around.operand_ports[slot * 2 + usize::from(swap)];
+        SCALE * (HARD * hard + at.broken) + self.wait_weight * at.wait
     }
 
-    /// [`Self::quick`]'s parts: resources and destinations taken, dependences and
-    /// lifetimes broken, waits.
-    fn quick_parts(&self, u: usize, t: i64, slot: usize, swap: bool) -> (i64, i64, i64) {
+    /// The issue slots and result ports op `u` would find taken at cycle `t` on `slot`.
+    fn issue_taken(&self, u: usize, t: i64, slot: usize) -> i64 {
         let p = self.p;
         let op = &p.ops[u];
         let res = &p.res;
@@ -971,61 +1183,102 @@ impl<'a, 'p> State<'a, 'p> {
             }
             Kind::Imm(_) => hard += i64::from(taken(p.row(t), res.imm())),
         }
+        hard
+    }
+
+    /// What op `u`'s operands would cost on each (slot, swap) choice, wherever it goes:
+    /// new destinations, whose write ports may be taken, beyond two.
+    fn operand_ports(&self, u: usize) -> Vec<i64> {
+        let p = self.p;
+        let op = &p.ops[u];
+        let res = &p.res;
+        let taken = |row: usize, r: usize| self.usage[row * res.per_row + r] >= res.cap[r];
+        let choices = op.options.iter().map(|&(k, _)| k + 1).max().unwrap_or(1) * 2;
+        let mut costs = vec![0; choices];
+        for &(slot, swap) in &op.options {
+            let mut hard = 0;
+            for (i, &(src, _)) in op.args.iter().enumerate() {
+                let Src::Loop { op: x, .. } = src else {
+                    continue;
+                };
+                if !self.placed[x] {
+                    continue;
+                }
+                let l = p.arg_loc(u, i, slot, swap);
+                let wx = self.t[x] + p.ops[x].lat;
+                if !self.dests[x].iter().any(|e| e.0 == l) {
+                    if let Loc::Lrf(lrf) = l {
+                        hard += i64::from(taken(p.row(wx), res.port(lrf)));
+                    }
+                    hard += i64::from(self.dests[x].len() >= 2);
+                }
+            }
+            costs[slot * 2 + usize::from(swap)] = hard;
+        }
+        costs
+    }
+
+    /// What op `u` (with `around` it) would cost at cycle `t` on any slot: its result's
+    /// write ports and waits, its readers' and operands' lifetimes, its dependences.
+    fn quick_at(&self, u: usize, around: &Around, t: i64) -> Quick {
+        let p = self.p;
+        let op = &p.ops[u];
+        let res = &p.res;
+        let taken = |row: usize, r: usize| self.usage[row * res.per_row + r] >= res.cap[r];
+        let mut hard = 0;
         let land = p.row(t + op.lat);
         let mut wait = 0;
         let mut broken = 0;
-        for &(l, _) in &self.dests[u] {
+        for (&(l, _), &last) in self.dests[u].iter().zip(&around.last_reads) {
             if let Loc::Lrf(x) = l {
                 hard += i64::from(taken(land, res.port(x)));
             }
             if !op.permanent {
-                wait += self.live_end(u, l, t + op.lat) - (t + op.lat);
+                // (As `live_end`: at least the cycle after it lands.)
+                wait += last.max(t + op.lat + 1) - (t + op.lat);
             }
         }
-        for &(r, _) in &p.readers[u] {
-            if self.placed[r] {
-                broken += Self::pen(self.t[r] - (t + op.lat + p.reach));
+        // (No reader too late, no lifetime broken.)
+        if around.last_reader > t + op.lat + p.reach {
+            for &(r, _) in &p.readers[u] {
+                if self.placed[r] {
+                    broken += Self::pen(self.t[r] - (t + op.lat + p.reach));
+                }
             }
         }
-        for (i, &(src, _)) in op.args.iter().enumerate() {
+        for &(src, _) in &op.args {
             let Src::Loop { op: x, carried } = src else {
                 continue;
             };
-            if !self.placed[x] {
+            if !self.placed[x] || carried {
                 continue;
             }
-            let l = p.arg_loc(u, i, slot, swap);
             let wx = self.t[x] + p.ops[x].lat;
-            if !self.dests[x].iter().any(|e| e.0 == l) {
-                if let Loc::Lrf(lrf) = l {
-                    hard += i64::from(taken(p.row(wx), res.port(lrf)));
-                }
-                hard += i64::from(self.dests[x].len() >= 2);
-            }
-            if !carried {
-                broken += Self::pen(t - (wx + p.reach));
-                wait += (t - wx).max(0);
-            }
+            broken += Self::pen(t - (wx + p.reach));
+            wait += (t - wx).max(0);
         }
-        for &e in &p.incident[u] {
-            let (a, b, lat, dist) = p.edges[e];
-            if a == b {
-                continue;
-            }
-            let (ta, tb) = if a == u {
-                if !self.placed[b] {
+        // (Within its dependence window no dependence is broken.)
+        if !(around.window.0..=around.window.1).contains(&t) {
+            for &e in &p.incident[u] {
+                let (a, b, lat, dist) = p.edges[e];
+                if a == b {
                     continue;
                 }
-                (t, self.t[b])
-            } else {
-                if !self.placed[a] {
-                    continue;
-                }
-                (self.t[a], t)
-            };
-            broken += Self::pen(ta + lat - p.ii * i64::from(dist) - tb);
+                let (ta, tb) = if a == u {
+                    if !self.placed[b] {
+                        continue;
+                    }
+                    (t, self.t[b])
+                } else {
+                    if !self.placed[a] {
+                        continue;
+                    }
+                    (self.t[a], t)
+                };
+                broken += Self::pen(ta + lat - p.ii * i64::from(dist) - tb);
+            }
         }
-        (hard, broken, wait)
+        Quick { hard, broken, wait }
     }
 
     /// The cycles op `u` may move to without breaking a dependence on its placed
@@ -1069,15 +1322,17 @@ impl<'a, 'p> State<'a, 'p> {
         let placed = self.placed[u];
         let need = |row: usize, r: usize, found: &mut Vec<usize>| -> bool {
             let i = row * res.per_row + r;
-            let others: Vec<usize> = self.users[i].iter().copied().filter(|&x| x != u).collect();
-            if (others.len() as i32) < res.cap[r] {
+            let mut others = self.users[i].iter().copied().filter(|&x| x != u);
+            let count = others.clone().count() as i32;
+            if count < res.cap[r] {
                 return true;
             }
-            if others.len() as i32 > res.cap[r] || res.cap[r] != 1 {
+            if count > res.cap[r] || res.cap[r] != 1 {
                 return false;
             }
-            if !found.contains(&others[0]) {
-                found.push(others[0]);
+            let other = others.next().expect("one other user");
+            if !found.contains(&other) {
+                found.push(other);
             }
             true
         };
@@ -1131,11 +1386,10 @@ impl<'a, 'p> State<'a, 'p> {
             if let Loc::Lrf(lrf) = l {
                 let row = p.row(self.t[x] + p.ops[x].lat);
                 let i = row * res.per_row + res.port(lrf);
-                let others: Vec<usize> =
-                    self.users[i].iter().copied().filter(|&y| y != x).collect();
-                match others[..] {
-                    [] => {}
-                    [y] if y != u => {
+                let mut others = self.users[i].iter().copied().filter(|&y| y != x);
+                match (others.next(), others.next()) {
+                    (None, _) => {}
+                    (Some(y), None) if y != u => {
                         if !found.contains(&y) {
                             found.push(y);
                         }
@@ -1151,20 +1405,22 @@ impl<'a, 'p> State<'a, 'p> {
     /// its dependence window where at most one op is in its way, which moves next, ending
     /// with an op that finds a place nobody holds (breadth-first, as an augmenting path of
     /// a matching). Returns the moves, last first.
-    fn chain(&self, u: usize) -> Option<Vec<Move>> {
+    fn chain(&mut self, u: usize) -> Option<Vec<Move>> {
         self.search_chain(u, &|_, _, _| true)
     }
 
     /// A breadth-first ejection chain from op `u`, whose own move must satisfy `first`.
     fn search_chain(
-        &self,
+        &mut self,
         u: usize,
         first: &dyn Fn(i64, usize, bool) -> bool,
     ) -> Option<Vec<Move>> {
         let p = self.p;
-        let mut parent: HashMap<usize, Move> = HashMap::new();
+        // (Ops this search has seen carry its number, so the marks need no clearing.)
+        self.chain_search += 1;
+        let search = self.chain_search;
+        self.chain_seen[u] = search;
         let mut queue = std::collections::VecDeque::from([u]);
-        let mut seen = std::collections::HashSet::from([u]);
         let mut visited = 0;
         while let Some(x) = queue.pop_front() {
             visited += 1;
@@ -1172,9 +1428,7 @@ impl<'a, 'p> State<'a, 'p> {
                 return None;
             }
             let (lo, hi) = self.free_window(x, CHAIN_SPAN);
-            let mut times: Vec<i64> = (lo..=hi).collect();
-            times.sort_by_key(|&t| ((t - self.t[x]).abs(), t));
-            for t in times {
+            for t in nearest_first(self.t[x], lo, hi) {
                 for &(k, s) in &p.ops[x].options {
                     if !p.allowed(x, t, k) || (t, k, s) == (self.t[x], self.slot[x], self.swap[x]) {
                         continue;
@@ -1189,14 +1443,16 @@ impl<'a, 'p> State<'a, 'p> {
                         [] => {
                             let mut moves = vec![(x, t, k, s)];
                             let mut y = x;
-                            while let Some(&(px, pt, pk, ps)) = parent.get(&y) {
-                                moves.push((px, pt, pk, ps));
-                                y = px;
+                            while y != u {
+                                let m = self.chain_parent[y];
+                                moves.push(m);
+                                y = m.0;
                             }
                             return Some(moves);
                         }
-                        [y] if seen.insert(y) => {
-                            parent.insert(y, (x, t, k, s));
+                        [y] if self.chain_seen[y] != search => {
+                            self.chain_seen[y] = search;
+                            self.chain_parent[y] = (x, t, k, s);
                             queue.push_back(y);
                         }
                         _ => {}
@@ -1307,7 +1563,8 @@ impl<'a, 'p> State<'a, 'p> {
 
 /// Schedules the loop's `ops` at interval `ii` by local search, its random choices drawn
 /// from `seed`. On success returns each op's (cycle, slot, swap); `None` if the search
-/// ran out of moves with something broken or an LRF still too full.
+/// ran out of moves with something broken or an LRF still too full, or if `abandoned` was
+/// set (its result is no longer wanted).
 #[allow(clippy::too_many_arguments)]
 pub fn schedule(
     g: &Graph,
@@ -1319,6 +1576,7 @@ pub fn schedule(
     slots: &Slots,
     desc: &MachineDesc,
     seed: u64,
+    abandoned: &AtomicBool,
 ) -> Option<Vec<(i64, usize, bool)>> {
     let problem = Problem::new(g, ops, edges, ii, reach, slots, desc)?;
     let p = &problem;
@@ -1341,6 +1599,9 @@ pub fn schedule(
             break;
         }
         if step % REFRESH == 0 {
+            if abandoned.load(Ordering::Relaxed) {
+                return None;
+            }
             // A search still paying for more than one broken constraint per op once it has
             // settled is hopeless (a body whose values cannot fit the LRFs at all).
             if step >= budget / SETTLE && st.cost() > n as i64 * SCALE * HARD {
@@ -1409,15 +1670,21 @@ pub fn schedule(
         let aff = st.affected(u);
         st.detach(u, &aff);
         let mut cands: Vec<(i64, u64, i64, usize, bool)> = Vec::new();
+        let around = st.around(u);
         for t in st.window(u, WINDOW) {
+            let at = st.quick_at(u, &around, t);
             for &(k, s) in &p.ops[u].options {
                 if p.allowed(u, t, k) && (t, k, s) != (t0, k0, s0) {
-                    cands.push((st.quick(u, t, k, s), rng.next(), t, k, s));
+                    cands.push((st.quick(u, &around, at, t, k, s), rng.next(), t, k, s));
                 }
             }
         }
+        // (Only the shortlist needs sorting; the keys are distinct, so it comes out the same.)
+        if cands.len() > SHORTLIST {
+            cands.select_nth_unstable(SHORTLIST);
+            cands.truncate(SHORTLIST);
+        }
         cands.sort_unstable();
-        cands.truncate(SHORTLIST);
         let mut best: Option<(i64, i64, usize, bool)> = None;
         for &(_, _, t, k, s) in &cands {
             st.attach(u, t, k, s, &aff);
@@ -1462,6 +1729,21 @@ const CONSTANT_LEAD: i64 = 32;
 /// of its own round the unrolled body (see [`super::alloc`]), which needs a little more
 /// than the values live at once.
 const LRF_MARGIN: i32 = 2;
+
+/// The cycles of `[lo, hi]` nearest `t` first, the earlier of two as near.
+fn nearest_first(t: i64, lo: i64, hi: i64) -> impl Iterator<Item = i64> {
+    let nearest = if t < lo {
+        lo - t
+    } else if t > hi {
+        t - hi
+    } else {
+        0
+    };
+    let farthest = (t - lo).max(hi - t);
+    (nearest..=farthest)
+        .flat_map(move |d| [t - d, t + d].into_iter().take(if d == 0 { 1 } else { 2 }))
+        .filter(move |c| (lo..=hi).contains(c))
+}
 
 /// The ops that break something, or whose values are live where an LRF is over-full.
 fn troubled(st: &State) -> Vec<usize> {

@@ -22,6 +22,8 @@
 //! A loop schedule whose values overflow an LRF is then relaxed ([`relax`]): its ops move to
 //! the free cycles where their values wait least.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::check::Shape;
 use imagine_units::ops::{Op, UnitClass};
@@ -448,7 +450,7 @@ fn attempt_line(
         } else {
             Box::new(estart..=last)
         };
-        let mut why = String::new();
+        let mut busy = None;
         let mut placed = false;
         for t in times {
             match try_place(g, sched, &mut table, u, t, slots, desc) {
@@ -456,13 +458,14 @@ fn attempt_line(
                     placed = true;
                     break;
                 }
-                Err(w) => why = w,
+                Err(b) => busy = Some(b),
             }
         }
         if !placed {
-            if why.is_empty() {
-                why = format!("its dependences leave no cycle (earliest {estart}, latest {last})");
-            }
+            let why = busy.map_or_else(
+                || format!("its dependences leave no cycle (earliest {estart}, latest {last})"),
+                |b| b.why(slots),
+            );
             return Err(Attempt::Fail(Failure::NoSlot { op: u, why }));
         }
         for e in &succs[u] {
@@ -569,14 +572,14 @@ fn attempt_list_modulo(
             (estart..=last).collect()
         };
         let dsq_align = divider_alignment(g, u, ii, slots);
-        let mut why = String::new();
+        let mut busy = None;
         let mut placed = false;
         for t in times {
             if dsq_align.is_some_and(|k| t.rem_euclid(ii) % k != 0) {
                 continue;
             }
-            if let Err(w) = try_place(g, sched, &mut table, u, t, slots, desc) {
-                why = w;
+            if let Err(b) = try_place(g, sched, &mut table, u, t, slots, desc) {
+                busy = Some(b);
                 continue;
             }
             if place_constants(g, sched, &mut table, &preds[u], t, ii, slots, desc) {
@@ -584,7 +587,7 @@ fn attempt_list_modulo(
                 break;
             }
             unplace(g, sched, &mut table, u, slots, desc);
-            why = "no cycle is free for a constant it reads".into();
+            busy = Some(Busy::ConstantCycle);
         }
         if !placed {
             if let Some((arg, _)) = lifetime.filter(|_| !late) {
@@ -595,9 +598,10 @@ fn attempt_list_modulo(
                     places: sched.place.iter().map(|p| p.map(|p| p.time)).collect(),
                 });
             }
-            if why.is_empty() {
-                why = format!("its dependences leave no cycle (earliest {estart}, latest {last})");
-            }
+            let why = busy.map_or_else(
+                || format!("its dependences leave no cycle (earliest {estart}, latest {last})"),
+                |b| b.why(slots),
+            );
             return Err(Attempt::Fail(Failure::NoSlot { op: u, why }));
         }
         for e in &succs[u] {
@@ -632,10 +636,33 @@ fn attempt_repair(
     let reach = reach(g, ii, desc);
     let priority = list_priority(g, &dag.height);
     // The search is a gamble: a run that ends with something broken is tried again from
-    // other random choices, a few times.
-    let Some(places) = (0..REPAIR_SEEDS).find_map(|seed| {
-        super::repair::schedule(g, &dag.ops, &edges, &priority, ii, reach, slots, desc, seed)
-    }) else {
+    // other random choices, a few times. The runs go at once, on threads of their own, and
+    // the first seed's success wins as if they had gone in turn (a run no longer wanted
+    // stops early).
+    let search = |seed: u64, abandoned: &AtomicBool| {
+        super::repair::schedule(
+            g, &dag.ops, &edges, &priority, ii, reach, slots, desc, seed, abandoned,
+        )
+    };
+    let abandoned = AtomicBool::new(false);
+    let found = std::thread::scope(|scope| {
+        let later: Vec<_> = (1..REPAIR_SEEDS)
+            .map(|seed| {
+                let (search, abandoned) = (&search, &abandoned);
+                scope.spawn(move || search(seed, abandoned))
+            })
+            .collect();
+        let mut found = search(0, &abandoned);
+        for run in later {
+            if found.is_some() {
+                abandoned.store(true, Ordering::Relaxed);
+            }
+            let places = run.join().expect("a local search panicked");
+            found = found.or(places);
+        }
+        found
+    });
+    let Some(places) = found else {
         return Err(Attempt::Fail(Failure::NoSlot {
             op: dag.ops.first().copied().unwrap_or(0),
             why: "the local search left it in conflict".into(),
@@ -648,8 +675,12 @@ fn attempt_repair(
     super::bind::destinations(g, sched, region, slots);
     let mut table = Table::new(ii, slots);
     for (&u, &(t, _, _)) in dag.ops.iter().zip(&places) {
-        try_place(g, sched, &mut table, u, t, slots, desc)
-            .map_err(|why| Attempt::Fail(Failure::NoSlot { op: u, why }))?;
+        try_place(g, sched, &mut table, u, t, slots, desc).map_err(|b| {
+            Attempt::Fail(Failure::NoSlot {
+                op: u,
+                why: b.why(slots),
+            })
+        })?;
     }
     let latency = |o: usize| g.latency(o, desc);
     let at = |o: usize| sched.place[o].map_or(0, |p| p.time);
@@ -1063,10 +1094,13 @@ fn attempt_modulo(
                 loop {
                     match try_place(g, sched, &mut table, u, t, slots, desc) {
                         Ok(()) => break,
-                        Err(why) => {
+                        Err(b) => {
                             let holders = blockers(g, sched, &table, ops, u, t, slots, desc);
                             if holders.is_empty() {
-                                return Err(Attempt::Fail(Failure::NoSlot { op: u, why }));
+                                return Err(Attempt::Fail(Failure::NoSlot {
+                                    op: u,
+                                    why: b.why(slots),
+                                }));
                             }
                             for v in holders {
                                 evict(v, sched, &mut table, &mut queue);
@@ -1344,6 +1378,47 @@ pub fn input_of(a: &Arg, swap: bool) -> Input {
     }
 }
 
+/// Why an op cannot go where it was tried. (Put into words only when a schedule fails: the
+/// schedulers try millions of places.)
+#[derive(Clone, Copy, Debug)]
+enum Busy {
+    Unit(usize),
+    ResultPort(usize),
+    Scratchpad(usize),
+    Comm(usize),
+    StreamWords,
+    StreamOutput,
+    ConditionalStream,
+    Immediate,
+    WritePort(u16),
+    /// A rematerialised constant the op reads finds no cycle before it.
+    ConstantCycle,
+}
+
+impl Busy {
+    fn why(self, slots: &Slots) -> String {
+        match self {
+            Busy::Unit(slot) => format!("{} is busy", slots.shape.fu_name(slot)),
+            Busy::ResultPort(slot) => {
+                format!("the result port of {} is busy", slots.shape.fu_name(slot))
+            }
+            Busy::Scratchpad(slot) => format!("sp{slot} is busy"),
+            Busy::Comm(slot) => format!("comm{slot} is busy"),
+            Busy::StreamWords => "the SRF stream words of the cycle are used".into(),
+            Busy::StreamOutput => "the stream output slot is used".into(),
+            Busy::ConditionalStream => {
+                "a conditional stream needs comm0 and sp0 in its cycle".into()
+            }
+            Busy::Immediate => "the immediate slot is used".into(),
+            Busy::WritePort(lrf) => format!(
+                "the write port of {} is taken when the result lands",
+                slots.shape.lrf_names[lrf as usize]
+            ),
+            Busy::ConstantCycle => "no cycle is free for a constant it reads".into(),
+        }
+    }
+}
+
 /// Places op `u` at cycle `t` on its bound slot, if its resources are free: the slot (a
 /// divide/sqrt unit for its issue interval), the unit's result port, stream and immediate
 /// slots, and the write port of every LRF its result goes to, in the cycle it lands.
@@ -1355,7 +1430,7 @@ fn try_place(
     t: i64,
     slots: &Slots,
     desc: &MachineDesc,
-) -> Result<(), String> {
+) -> Result<(), Busy> {
     let op = &g.ops[u];
     let slot = op.slot;
     let row = table.row(t);
@@ -1364,45 +1439,42 @@ fn try_place(
         Kind::Fu(o) => {
             for k in 0..slots.issue_cycles(o).min(table.modulus) {
                 if table.fu[table.row(t + k) * table.nfu + slot] != FREE {
-                    return Err(format!("{} is busy", slots.shape.fu_name(slot)));
+                    return Err(Busy::Unit(slot));
                 }
             }
             if table.fu_result[table.row(write) * table.nfu + slot] != FREE {
-                return Err(format!(
-                    "the result port of {} is busy",
-                    slots.shape.fu_name(slot)
-                ));
+                return Err(Busy::ResultPort(slot));
             }
         }
         Kind::SpRead { .. } | Kind::SpWrite { .. } => {
             if table.sp[row * table.nsp + slot] != FREE || table.conditional[row] > 0 {
-                return Err(format!("sp{slot} is busy"));
+                return Err(Busy::Scratchpad(slot));
             }
         }
         Kind::Comm(_) => {
             let cond_blocks = slot == 0 && table.conditional[row] > 0;
             if table.comm[row * table.ncomm + slot] != FREE || cond_blocks {
-                return Err(format!("comm{slot} is busy"));
+                return Err(Busy::Comm(slot));
             }
         }
         Kind::StreamIn { cond, .. } | Kind::StreamOut { cond, .. } => {
             if table.stream_words[row] as usize >= slots.stream_words {
-                return Err("the SRF stream words of the cycle are used".into());
+                return Err(Busy::StreamWords);
             }
             if matches!(op.kind, Kind::StreamOut { .. }) && table.sout[row] != FREE {
-                return Err("the stream output slot is used".into());
+                return Err(Busy::StreamOutput);
             }
             if cond
                 && (table.conditional[row] as usize >= slots.conditional_words
                     || table.comm[row * table.ncomm] != FREE
                     || table.sp[row * table.nsp] != FREE)
             {
-                return Err("a conditional stream needs comm0 and sp0 in its cycle".into());
+                return Err(Busy::ConditionalStream);
             }
         }
         Kind::Imm(_) => {
             if table.imm[row] != FREE {
-                return Err("the immediate slot is used".into());
+                return Err(Busy::Immediate);
             }
         }
     }
@@ -1410,10 +1482,7 @@ fn try_place(
         if let Loc::Lrf(x) = *l
             && table.port(x, write) != FREE
         {
-            return Err(format!(
-                "the write port of {} is taken when the result lands",
-                slots.shape.lrf_names[x as usize]
-            ));
+            return Err(Busy::WritePort(x));
         }
     }
     // Commit.
@@ -1743,31 +1812,29 @@ fn relax(
     } = dag;
     let latency: Vec<i64> = (0..g.ops.len()).map(|o| g.latency(o, desc)).collect();
     let at = |o: usize, sched: &Schedule| sched.place[o].map(|p| p.time);
-    // Where reader `r` reads value `p`.
-    let read_locs = |r: usize, p: usize, sched: &Schedule| -> Vec<Loc> {
+    // Whether reader `r` reads value `p` from `l`.
+    let reads_from = |r: usize, p: usize, l: Loc, sched: &Schedule| -> bool {
         let op = &g.ops[r];
         let pl = sched.place[r];
         op.args
             .iter()
             .filter(|a| a.src == Source::Local(p))
-            .map(|a| {
+            .any(|a| {
                 slots.operand_loc(
                     op.kind,
                     pl.map_or(op.slot, |q| q.slot),
                     pl.map_or(op.swap, |q| q.swap),
                     a,
-                )
+                ) == l
             })
-            .collect()
     };
-    // How long `p`'s value waits in `l`, with `u` read at `tu`.
-    let wait = |p: usize, l: Loc, u: usize, tu: i64, tp: i64, sched: &Schedule| -> i64 {
-        let last = readers[p]
+    // The last cycle `p`'s value is read from `l` by a placed reader other than `u`.
+    let last_read_but = |p: usize, l: Loc, u: usize, sched: &Schedule| -> Option<i64> {
+        readers[p]
             .iter()
-            .filter(|&&r| read_locs(r, p, sched).contains(&l))
-            .filter_map(|&r| if r == u { Some(tu) } else { at(r, sched) })
-            .max();
-        last.map_or(0, |t| t - (tp + latency[p]))
+            .filter(|&&r| r != u && reads_from(r, p, l, sched))
+            .filter_map(|&r| at(r, sched))
+            .max()
     };
     for sweep in 0..RELAX_SWEEPS {
         let order: Vec<usize> = if sweep % 2 == 0 {
@@ -1809,38 +1876,45 @@ fn relax(
             if lo == i64::MIN || hi == i64::MAX || lo >= hi {
                 continue;
             }
-            let operands: Vec<(usize, Loc, i64)> = g.ops[u]
+            // The waits of its operands (each until its last read, `u`'s at `t` among them)
+            // and of its value (from its landing, `t` plus its latency, until its readers'
+            // last read), as functions of `t`: what the other reads fix is found once.
+            let operands: Vec<(Option<i64>, i64)> = g.ops[u]
                 .args
                 .iter()
                 .filter_map(|a| match a.src {
-                    Source::Local(p) => at(p, sched)
-                        .map(|tp| (p, slots.operand_loc(g.ops[u].kind, pl.slot, pl.swap, a), tp)),
+                    Source::Local(p) => at(p, sched).map(|tp| {
+                        let l = slots.operand_loc(g.ops[u].kind, pl.slot, pl.swap, a);
+                        (last_read_but(p, l, u, sched), tp + latency[p])
+                    }),
                     _ => None,
                 })
                 .collect();
-            let dests: Vec<Loc> = sched.dests[u].clone();
-            let cost = |t: i64, sched: &Schedule| -> i64 {
-                let mut c = 0;
-                for &(p, l, tp) in &operands {
-                    c += wait(p, l, u, t, tp, sched);
-                }
-                for &l in &dests {
-                    let last = readers[u]
+            let last_reads: Vec<i64> = sched.dests[u]
+                .iter()
+                .filter_map(|&l| {
+                    readers[u]
                         .iter()
-                        .filter(|&&r| read_locs(r, u, sched).contains(&l))
+                        .filter(|&&r| reads_from(r, u, l, sched))
                         .filter_map(|&r| at(r, sched))
-                        .max();
-                    if let Some(last) = last {
-                        c += last - (t + latency[u]);
-                    }
+                        .max()
+                })
+                .collect();
+            let cost = |t: i64| -> i64 {
+                let mut c = 0;
+                for &(others, lands) in &operands {
+                    c += others.map_or(t, |o| o.max(t)) - lands;
+                }
+                for &last in &last_reads {
+                    c += last - (t + latency[u]);
                 }
                 c
             };
-            let now = cost(pl.time, sched);
+            let now = cost(pl.time);
             // (Least wait first, then nearest.)
             let mut candidates: Vec<(i64, i64, i64)> = (lo..=hi)
                 .filter(|&t| t != pl.time)
-                .map(|t| (cost(t, sched), (t - pl.time).abs(), t))
+                .map(|t| (cost(t), (t - pl.time).abs(), t))
                 .filter(|&(c, _, _)| c < now)
                 .collect();
             if candidates.is_empty() {
