@@ -15,7 +15,7 @@
 //! edges. Kept as it is: the latency is part of every cycle count the project has
 //! published, and changing it is a model change of its own.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::collections::VecDeque;
 use std::rc::Rc;
 
@@ -35,6 +35,9 @@ pub(crate) struct AsyncFifoState<T> {
     read_ptr_sync: Synchroniser,
     pushed: Option<T>,
     popped: bool,
+    /// Raised by a push or a pop: the simulator commits this FIFO again (it stops
+    /// committing it once an edge would change nothing, see [`Channel::is_static`]).
+    wake: Rc<Cell<bool>>,
     ids: [SignalId; 2],
 }
 
@@ -49,6 +52,7 @@ pub(crate) fn new_async_fifo<T: 'static>(
     capacity: usize,
     sync_stages: usize,
     ids: [SignalId; 2],
+    wake: Rc<Cell<bool>>,
 ) -> (AsyncFifoTx<T>, AsyncFifoRx<T>, Rc<RefCell<dyn Channel>>) {
     let state = Rc::new(RefCell::new(AsyncFifoState {
         path,
@@ -62,6 +66,7 @@ pub(crate) fn new_async_fifo<T: 'static>(
         read_ptr_sync: Synchroniser::new(sync_stages),
         pushed: None,
         popped: false,
+        wake,
         ids,
     }));
     (
@@ -157,6 +162,7 @@ impl<T> AsyncFifoTx<T> {
             return Err(ContractError::at(&s.path, Violation::Overflow { capacity }));
         }
         s.pushed = Some(v);
+        s.wake.set(true);
         Ok(())
     }
 }
@@ -189,6 +195,7 @@ impl<T: Clone> AsyncFifoRx<T> {
             return Err(ContractError::at(&s.path, Violation::Underflow));
         }
         s.popped = true;
+        s.wake.set(true);
         Ok(s.items[0].clone())
     }
 }
@@ -227,6 +234,13 @@ impl<T> Channel for AsyncFifoState<T> {
         self.write_domain
     }
 
+    fn is_static(&self) -> bool {
+        self.pushed.is_none()
+            && !self.popped
+            && self.write_ptr_sync.holds_only(self.write_ptr)
+            && self.read_ptr_sync.holds_only(self.read_ptr)
+    }
+
     fn trace(&self, t: &mut Trace) {
         t.value(self.ids[0], self.write_level() as u64);
         t.value(self.ids[1], self.read_level() as u64);
@@ -240,8 +254,14 @@ mod tests {
     #[test]
     fn settled_once_both_synchronisers_have_caught_up() {
         let (core, dram) = (DomainId(0), DomainId(1));
-        let (mut tx, mut rx, ch) =
-            new_async_fifo::<u8>("f".into(), (core, dram), 4, 2, [SignalId(0), SignalId(1)]);
+        let (mut tx, mut rx, ch) = new_async_fifo::<u8>(
+            "f".into(),
+            (core, dram),
+            4,
+            2,
+            [SignalId(0), SignalId(1)],
+            Rc::default(),
+        );
         let (write, read) = (DomainSet(1), DomainSet(2));
         let edge = |d: DomainSet| ch.borrow_mut().commit(d).unwrap();
         assert!(tx.is_settled() && rx.is_settled());

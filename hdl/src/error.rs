@@ -44,9 +44,15 @@ impl fmt::Display for Violation {
     }
 }
 
-/// A broken contract, located by the signal's hierarchical path and the cycle.
+/// A broken contract, located by the signal's hierarchical path and the cycle. Boxed:
+/// every block's `eval` returns `Result<_, ContractError>` each cycle, and a pointer-sized
+/// error keeps those results in registers (the fields read through `Deref`).
+#[derive(Clone, PartialEq, Eq)]
+pub struct ContractError(Box<Contract>);
+
+/// What a [`ContractError`] says.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct ContractError {
+pub struct Contract {
     /// Hierarchical path of the module that owns the signal, e.g. `top.mac`.
     pub module: String,
     /// Name of the signal, port or FIFO within that module.
@@ -62,13 +68,13 @@ impl ContractError {
     /// An error on the signal at hierarchical `path` (`module.signal`).
     pub fn at(path: &str, violation: Violation) -> Self {
         let (module, signal) = path.rsplit_once('.').unwrap_or(("", path));
-        ContractError {
+        ContractError(Box::new(Contract {
             module: module.to_string(),
             signal: signal.to_string(),
             cycle: None,
             domain: None,
             violation,
-        }
+        }))
     }
 
     /// One access more than the `bandwidth` of the port at `path` in one cycle.
@@ -90,6 +96,32 @@ impl ContractError {
             self.domain = Some(domain.to_string());
         }
         self
+    }
+}
+
+impl std::ops::Deref for ContractError {
+    type Target = Contract;
+    fn deref(&self) -> &Contract {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for ContractError {
+    fn deref_mut(&mut self) -> &mut Contract {
+        &mut self.0
+    }
+}
+
+impl fmt::Debug for ContractError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let c = &*self.0;
+        f.debug_struct("ContractError")
+            .field("module", &c.module)
+            .field("signal", &c.signal)
+            .field("cycle", &c.cycle)
+            .field("domain", &c.domain)
+            .field("violation", &c.violation)
+            .finish()
     }
 }
 

@@ -28,7 +28,7 @@ pub mod sim;
 pub use async_fifo::{AsyncFifoRx, AsyncFifoTx};
 pub use bits::{Bits, WideWord, bits_for, wide_word};
 pub use clock::{ClockDomain, ClockError, Clocks, DomainId, DomainSet, Edge, default_domains};
-pub use error::{ContractError, Violation};
+pub use error::{Contract, ContractError, Violation};
 pub use fifo::{FifoRx, FifoTx};
 pub use pipe::{PipeRx, PipeTx};
 pub use probe::{ProbeRegistry, SignalDecl, SignalId, SignalKind, Trace, Tracer};

@@ -9,7 +9,7 @@
 //! and [`Sim::reverse_eval_order`] exists so tests can prove it.
 
 use std::any::Any;
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::fmt;
 use std::io;
 use std::rc::Rc;
@@ -40,6 +40,11 @@ pub trait Channel {
     /// The domain whose cycle count locates this channel's errors.
     fn domain(&self) -> DomainId;
     fn trace(&self, t: &mut Trace);
+    /// Whether edges of any clock change nothing here until an endpoint next acts (and
+    /// raises the channel's wake flag): the simulator then stops committing it.
+    fn is_static(&self) -> bool {
+        false
+    }
 }
 
 /// A mistake in how a design is put together.
@@ -78,6 +83,8 @@ pub struct Design {
     probes: ProbeRegistry,
     clock_ids: Vec<SignalId>,
     channels: Vec<Rc<RefCell<dyn Channel>>>,
+    /// Per channel, the flag its endpoints raise when they act (see [`Channel::is_static`]).
+    wakes: Vec<Rc<Cell<bool>>>,
     modules: Vec<Box<dyn Module>>,
     top: String,
 }
@@ -98,6 +105,7 @@ impl Design {
             probes,
             clock_ids,
             channels: Vec::new(),
+            wakes: Vec::new(),
             modules: Vec::new(),
             top: top.into(),
         })
@@ -121,6 +129,11 @@ impl Design {
 
     pub fn probes(&self) -> &ProbeRegistry {
         &self.probes
+    }
+
+    fn add_channel(&mut self, channel: Rc<RefCell<dyn Channel>>, wake: Rc<Cell<bool>>) {
+        self.channels.push(channel);
+        self.wakes.push(wake);
     }
 }
 
@@ -179,7 +192,7 @@ impl Scope<'_> {
             .child(name)
             .signal("valid", bits_for(bandwidth as u64), SignalKind::Wire);
         let (tx, rx, ch) = new_pipe(path, domain, latency, bandwidth, valid);
-        self.design.channels.push(ch);
+        self.design.add_channel(ch, Rc::default());
         Ok((tx, rx))
     }
 
@@ -199,7 +212,7 @@ impl Scope<'_> {
             .child(name)
             .signal("level", bits_for(capacity as u64), SignalKind::Wire);
         let (tx, rx, ch) = new_fifo(path, domain, capacity, bandwidth, level);
-        self.design.channels.push(ch);
+        self.design.add_channel(ch, Rc::default());
         Ok((tx, rx))
     }
 
@@ -222,8 +235,16 @@ impl Scope<'_> {
             s.signal("write_level", width, SignalKind::Wire),
             s.signal("read_level", width, SignalKind::Wire),
         ];
-        let (tx, rx, ch) = new_async_fifo(path, (write, read), capacity, sync_stages, ids);
-        self.design.channels.push(ch);
+        let wake = Rc::new(Cell::new(true));
+        let (tx, rx, ch) = new_async_fifo(
+            path,
+            (write, read),
+            capacity,
+            sync_stages,
+            ids,
+            wake.clone(),
+        );
+        self.design.add_channel(ch, wake);
         Ok((tx, rx))
     }
 }
@@ -244,6 +265,9 @@ pub struct Sim {
     /// Per module (in their order), the domain whose edges drive it: fixed once built, so
     /// not asked of each module at each edge.
     module_domains: Vec<DomainId>,
+    /// Per channel, whether it was static at its last commit: it is not committed again
+    /// until its wake flag rises (see [`Channel::is_static`]).
+    asleep: Vec<bool>,
     /// Domains other than the core's that hold no module.
     quiet: u64,
     #[cfg(feature = "probes")]
@@ -259,9 +283,11 @@ impl Sim {
             busy |= 1 << m.domain().0;
         }
         let module_domains = design.modules.iter().map(|m| m.domain()).collect();
+        let asleep = vec![false; design.channels.len()];
         Sim {
             design,
             module_domains,
+            asleep,
             quiet: !busy,
             #[cfg(feature = "probes")]
             trace: None,
@@ -308,6 +334,8 @@ impl Sim {
         self.design.modules.reverse();
         self.design.channels.reverse();
         self.module_domains.reverse();
+        self.design.wakes.reverse();
+        self.asleep.reverse();
     }
 
     /// The modules of type `M`, for inspecting their state.
@@ -442,9 +470,17 @@ impl Sim {
                 m.commit();
             }
         }
-        for c in &self.design.channels {
+        let channels = self.design.channels.iter().zip(&self.design.wakes);
+        for ((c, wake), asleep) in channels.zip(&mut self.asleep) {
+            // A static channel's commit would change nothing: skip it, without touching
+            // it, until one of its endpoints acts.
+            if *asleep && !wake.get() {
+                continue;
+            }
+            wake.set(false);
             let mut c = c.borrow_mut();
             c.commit(rising).map_err(|e| stamp(e, c.domain()))?;
+            *asleep = c.is_static();
         }
         Ok(())
     }

@@ -165,7 +165,7 @@ fn fifo_overflow_and_underflow_are_errors() {
     let (_tx, mut rx) = d.scope().fifo::<u8>("q", core, 3, 1).unwrap();
     d.add(probe(core, move |_| rx.pop().map(|_| ())));
     let e = run(d, 10).unwrap_err();
-    assert_eq!((e.violation, e.cycle), (Violation::Underflow, Some(0)));
+    assert_eq!((&e.violation, e.cycle), (&Violation::Underflow, Some(0)));
 }
 
 #[test]
