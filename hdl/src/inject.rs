@@ -21,6 +21,8 @@ pub enum Bug {
     CommRotatesBackwards,
     /// The crossing's write pointer reaches the reader with no synchroniser stage.
     CdcZeroStageSynchroniser,
+    /// An SDRAM bank's PRECHARGE leaves its row open.
+    SdramPrechargeKeepsRowOpen,
 }
 
 thread_local! {

@@ -78,6 +78,11 @@ fn cdc_passes() {
 }
 
 #[test]
+fn sdram_passes() {
+    passes_on_the_built_in_machines("sdram");
+}
+
+#[test]
 fn lrf_catches_a_write_dropped_on_a_same_entry_read() {
     catches("lrf", Bug::LrfDropsWriteOnSameEntryRead);
 }
@@ -105,6 +110,11 @@ fn comm_catches_a_backwards_rotation() {
 #[test]
 fn cdc_catches_a_zero_stage_synchroniser() {
     catches("cdc", Bug::CdcZeroStageSynchroniser);
+}
+
+#[test]
+fn sdram_catches_a_precharge_that_keeps_the_row_open() {
+    catches("sdram", Bug::SdramPrechargeKeepsRowOpen);
 }
 
 #[test]

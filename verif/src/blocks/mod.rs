@@ -16,6 +16,7 @@ pub mod comm;
 pub mod fu;
 pub mod lrf;
 pub mod scratchpad;
+pub mod sdram;
 
 use std::fmt;
 use std::time::{Duration, Instant};
@@ -69,6 +70,11 @@ pub const BLOCKS: &[Block] = &[
         name: "cdc",
         about: "synchronising FIFO across the core and DRAM clocks: order, no loss or duplication, full/empty",
         run: cdc::run,
+    },
+    Block {
+        name: "sdram",
+        about: "SDRAM banks and data under legal and illegal command sequences, with the timing checker",
+        run: sdram::run,
     },
 ];
 
