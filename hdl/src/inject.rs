@@ -23,6 +23,9 @@ pub enum Bug {
     CdcZeroStageSynchroniser,
     /// An SDRAM bank's PRECHARGE leaves its row open.
     SdramPrechargeKeepsRowOpen,
+    /// The DRAM scheduler's column arbiter ignores an older pending reference to the same
+    /// burst.
+    SchedulerIgnoresSameBurstHazard,
 }
 
 thread_local! {

@@ -83,6 +83,11 @@ fn sdram_passes() {
 }
 
 #[test]
+fn scheduler_passes() {
+    passes_on_the_built_in_machines("scheduler");
+}
+
+#[test]
 fn lrf_catches_a_write_dropped_on_a_same_entry_read() {
     catches("lrf", Bug::LrfDropsWriteOnSameEntryRead);
 }
@@ -115,6 +120,11 @@ fn cdc_catches_a_zero_stage_synchroniser() {
 #[test]
 fn sdram_catches_a_precharge_that_keeps_the_row_open() {
     catches("sdram", Bug::SdramPrechargeKeepsRowOpen);
+}
+
+#[test]
+fn scheduler_catches_a_column_access_ignoring_the_same_burst_hazard() {
+    catches("scheduler", Bug::SchedulerIgnoresSameBurstHazard);
 }
 
 #[test]

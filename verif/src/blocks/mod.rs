@@ -15,6 +15,7 @@ pub mod cdc;
 pub mod comm;
 pub mod fu;
 pub mod lrf;
+pub mod scheduler;
 pub mod scratchpad;
 pub mod sdram;
 
@@ -75,6 +76,11 @@ pub const BLOCKS: &[Block] = &[
         name: "sdram",
         about: "SDRAM banks and data under legal and illegal command sequences, with the timing checker",
         run: sdram::run,
+    },
+    Block {
+        name: "scheduler",
+        about: "DRAM access scheduler under every policy: each reference served once, same-burst order, timing",
+        run: scheduler::run,
     },
 ];
 

@@ -88,7 +88,7 @@ struct RefBank {
 }
 
 /// The reference: bank states, command history, stored words, data bus.
-struct RefSdram {
+pub(super) struct RefSdram {
     p: DramParams,
     banks: Vec<RefBank>,
     last_act: Option<u64>,
@@ -108,7 +108,7 @@ fn slack(now: u64, since: Option<u64>, min: u64) -> Option<i64> {
 }
 
 impl RefSdram {
-    fn new(p: &DramParams) -> Self {
+    pub(super) fn new(p: &DramParams) -> Self {
         RefSdram {
             p: p.clone(),
             banks: vec![RefBank::default(); p.banks],
@@ -178,7 +178,7 @@ impl RefSdram {
     }
 
     /// The rules `cmd` in cycle `t` breaks, sorted.
-    fn broken(&self, t: u64, cmd: Command) -> Vec<&'static str> {
+    pub(super) fn broken(&self, t: u64, cmd: Command) -> Vec<&'static str> {
         let mut rules: Vec<_> = self
             .constraints(t, cmd)
             .iter()
@@ -209,14 +209,14 @@ impl RefSdram {
     }
 
     /// Whether the refresh interval is overdue in cycle `t` (counted once per interval).
-    fn refresh_overdue(&mut self, t: u64) -> bool {
+    pub(super) fn refresh_overdue(&mut self, t: u64) -> bool {
         let overdue = t >= (self.refreshes + self.missed + 2) * self.p.t_refi;
         self.missed += overdue as u64;
         overdue
     }
 
     /// Executes `cmd` in cycle `t` with write data `data`.
-    fn apply(&mut self, t: u64, cmd: Command, data: &[u32]) {
+    pub(super) fn apply(&mut self, t: u64, cmd: Command, data: &[u32]) {
         let bl = self.p.burst;
         match cmd {
             Command::Activate { bank, row } => {
@@ -260,6 +260,17 @@ impl RefSdram {
                 self.refreshes += 1;
             }
         }
+    }
+
+    /// The row open in `bank`, if any.
+    pub(super) fn open_row(&self, bank: usize) -> Option<u16> {
+        self.banks[bank].open
+    }
+
+    /// Forgets the read words due on the data bus (for a testbench that models the data
+    /// itself).
+    pub(super) fn forget_data_bus(&mut self) {
+        self.bus.clear();
     }
 
     fn word(&self, bank: usize, row: u16, column: usize) -> u32 {
