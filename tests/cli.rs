@@ -1099,6 +1099,7 @@ fn verify_lists_and_runs_every_block() {
         "cdc",
         "sdram",
         "scheduler",
+        "address_gen",
     ] {
         assert!(out.contains(block), "{out}");
     }
@@ -1112,7 +1113,7 @@ fn verify_lists_and_runs_every_block() {
     ]);
     let out = stdout(&o);
     assert!(o.status.success(), "{out}");
-    assert!(out.trim_end().ends_with("8 passed, 0 failed"), "{out}");
+    assert!(out.trim_end().ends_with("9 passed, 0 failed"), "{out}");
     let o = imagine(&["verify", "comm", "--machine", "gold8", "--seed", "3"]);
     assert!(
         o.status.success() && stdout(&o).contains("PASS"),

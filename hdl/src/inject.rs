@@ -26,6 +26,8 @@ pub enum Bug {
     /// The DRAM scheduler's column arbiter ignores an older pending reference to the same
     /// burst.
     SchedulerIgnoresSameBurstHazard,
+    /// An address generator addresses every word of a record at the record's first word.
+    AgDropsRecordWordOffset,
 }
 
 thread_local! {

@@ -88,6 +88,11 @@ fn scheduler_passes() {
 }
 
 #[test]
+fn address_gen_passes() {
+    passes_on_the_built_in_machines("address_gen");
+}
+
+#[test]
 fn lrf_catches_a_write_dropped_on_a_same_entry_read() {
     catches("lrf", Bug::LrfDropsWriteOnSameEntryRead);
 }
@@ -125,6 +130,11 @@ fn sdram_catches_a_precharge_that_keeps_the_row_open() {
 #[test]
 fn scheduler_catches_a_column_access_ignoring_the_same_burst_hazard() {
     catches("scheduler", Bug::SchedulerIgnoresSameBurstHazard);
+}
+
+#[test]
+fn address_gen_catches_a_record_word_offset_dropped() {
+    catches("address_gen", Bug::AgDropsRecordWordOffset);
 }
 
 #[test]

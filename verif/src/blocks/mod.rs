@@ -10,6 +10,7 @@
 //!
 //! One file per block; [`BLOCKS`] registers them by name for `imagine verify`.
 
+pub mod address_gen;
 pub mod alu;
 pub mod cdc;
 pub mod comm;
@@ -81,6 +82,11 @@ pub const BLOCKS: &[Block] = &[
         name: "scheduler",
         about: "DRAM access scheduler under every policy: each reference served once, same-burst order, timing",
         run: scheduler::run,
+    },
+    Block {
+        name: "address_gen",
+        about: "memory address generator: strided, record and indexed loads and stores, reorder buffer, SRF order",
+        run: address_gen::run,
     },
 ];
 
