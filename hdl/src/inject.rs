@@ -28,6 +28,8 @@ pub enum Bug {
     SchedulerIgnoresSameBurstHazard,
     /// An address generator addresses every word of a record at the record's first word.
     AgDropsRecordWordOffset,
+    /// A flushing SRF output stream buffer never drains its last partial line.
+    SrfFlushKeepsPartialLine,
 }
 
 thread_local! {

@@ -93,6 +93,11 @@ fn address_gen_passes() {
 }
 
 #[test]
+fn srf_passes() {
+    passes_on_the_built_in_machines("srf");
+}
+
+#[test]
 fn lrf_catches_a_write_dropped_on_a_same_entry_read() {
     catches("lrf", Bug::LrfDropsWriteOnSameEntryRead);
 }
@@ -135,6 +140,11 @@ fn scheduler_catches_a_column_access_ignoring_the_same_burst_hazard() {
 #[test]
 fn address_gen_catches_a_record_word_offset_dropped() {
     catches("address_gen", Bug::AgDropsRecordWordOffset);
+}
+
+#[test]
+fn srf_catches_a_flush_that_keeps_the_partial_line() {
+    catches("srf", Bug::SrfFlushKeepsPartialLine);
 }
 
 #[test]

@@ -19,6 +19,7 @@ pub mod lrf;
 pub mod scheduler;
 pub mod scratchpad;
 pub mod sdram;
+pub mod srf;
 
 use std::fmt;
 use std::time::{Duration, Instant};
@@ -87,6 +88,11 @@ pub const BLOCKS: &[Block] = &[
         name: "address_gen",
         about: "memory address generator: strided, record and indexed loads and stores, reorder buffer, SRF order",
         run: address_gen::run,
+    },
+    Block {
+        name: "srf",
+        about: "stream register file: streams through stream buffers, port arbitration, bandwidth, flush, refusals",
+        run: srf::run,
     },
 ];
 
