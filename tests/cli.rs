@@ -1101,6 +1101,7 @@ fn verify_lists_and_runs_every_block() {
         "scheduler",
         "address_gen",
         "srf",
+        "scoreboard",
     ] {
         assert!(out.contains(block), "{out}");
     }
@@ -1114,7 +1115,7 @@ fn verify_lists_and_runs_every_block() {
     ]);
     let out = stdout(&o);
     assert!(o.status.success(), "{out}");
-    assert!(out.trim_end().ends_with("10 passed, 0 failed"), "{out}");
+    assert!(out.trim_end().ends_with("11 passed, 0 failed"), "{out}");
     let o = imagine(&["verify", "comm", "--machine", "gold8", "--seed", "3"]);
     assert!(
         o.status.success() && stdout(&o).contains("PASS"),

@@ -30,6 +30,9 @@ pub enum Bug {
     AgDropsRecordWordOffset,
     /// A flushing SRF output stream buffer never drains its last partial line.
     SrfFlushKeepsPartialLine,
+    /// The stream controller's scoreboard lets a write pass an older read of the same SRF
+    /// words.
+    ScoreboardIgnoresWriteAfterRead,
 }
 
 thread_local! {

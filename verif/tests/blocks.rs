@@ -98,6 +98,11 @@ fn srf_passes() {
 }
 
 #[test]
+fn scoreboard_passes() {
+    passes_on_the_built_in_machines("scoreboard");
+}
+
+#[test]
 fn lrf_catches_a_write_dropped_on_a_same_entry_read() {
     catches("lrf", Bug::LrfDropsWriteOnSameEntryRead);
 }
@@ -145,6 +150,11 @@ fn address_gen_catches_a_record_word_offset_dropped() {
 #[test]
 fn srf_catches_a_flush_that_keeps_the_partial_line() {
     catches("srf", Bug::SrfFlushKeepsPartialLine);
+}
+
+#[test]
+fn scoreboard_catches_a_write_passing_an_older_read() {
+    catches("scoreboard", Bug::ScoreboardIgnoresWriteAfterRead);
 }
 
 #[test]

@@ -17,6 +17,7 @@ pub mod comm;
 pub mod fu;
 pub mod lrf;
 pub mod scheduler;
+pub mod scoreboard;
 pub mod scratchpad;
 pub mod sdram;
 pub mod srf;
@@ -93,6 +94,11 @@ pub const BLOCKS: &[Block] = &[
         name: "srf",
         about: "stream register file: streams through stream buffers, port arbitration, bandwidth, flush, refusals",
         run: srf::run,
+    },
+    Block {
+        name: "scoreboard",
+        about: "stream controller scoreboard: SRF and DRAM hazards, oldest-ready issue, units, completion",
+        run: scoreboard::run,
     },
 ];
 
