@@ -1090,7 +1090,19 @@ fn output_into_a_closed_pipe_ends_quietly() {
 #[test]
 fn verify_lists_and_runs_every_block() {
     let out = stdout(&imagine(&["verify", "list"]));
-    for block in ["lrf", "scratchpad", "fu", "alu", "comm", "cdc"] {
+    for block in [
+        "lrf",
+        "scratchpad",
+        "fu",
+        "alu",
+        "comm",
+        "cdc",
+        "sdram",
+        "scheduler",
+        "address_gen",
+        "srf",
+        "scoreboard",
+    ] {
         assert!(out.contains(block), "{out}");
     }
     let o = imagine(&[
@@ -1103,7 +1115,7 @@ fn verify_lists_and_runs_every_block() {
     ]);
     let out = stdout(&o);
     assert!(o.status.success(), "{out}");
-    assert!(out.trim_end().ends_with("6 passed, 0 failed"), "{out}");
+    assert!(out.trim_end().ends_with("11 passed, 0 failed"), "{out}");
     let o = imagine(&["verify", "comm", "--machine", "gold8", "--seed", "3"]);
     assert!(
         o.status.success() && stdout(&o).contains("PASS"),

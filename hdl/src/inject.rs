@@ -21,6 +21,18 @@ pub enum Bug {
     CommRotatesBackwards,
     /// The crossing's write pointer reaches the reader with no synchroniser stage.
     CdcZeroStageSynchroniser,
+    /// An SDRAM bank's PRECHARGE leaves its row open.
+    SdramPrechargeKeepsRowOpen,
+    /// The DRAM scheduler's column arbiter ignores an older pending reference to the same
+    /// burst.
+    SchedulerIgnoresSameBurstHazard,
+    /// An address generator addresses every word of a record at the record's first word.
+    AgDropsRecordWordOffset,
+    /// A flushing SRF output stream buffer never drains its last partial line.
+    SrfFlushKeepsPartialLine,
+    /// The stream controller's scoreboard lets a write pass an older read of the same SRF
+    /// words.
+    ScoreboardIgnoresWriteAfterRead,
 }
 
 thread_local! {

@@ -187,13 +187,27 @@ impl Footprint {
         };
         srf(&self.srf_writes, &later.srf_reads)
             || srf(&self.srf_writes, &later.srf_writes)
-            || srf(&later.srf_writes, &self.srf_reads)
+            || (srf(&later.srf_writes, &self.srf_reads) && !war_ignored())
             || mem(&self.mem_writes, &later.mem_reads)
             || mem(&self.mem_writes, &later.mem_writes)
             || mem(&later.mem_writes, &self.mem_reads)
             || (self.code_write.is_some()
                 && (self.code_write == later.code_read || self.code_write == later.code_write))
             || (later.code_write.is_some() && later.code_write == self.code_read)
+    }
+}
+
+/// Whether the injected bug that drops write-after-read hazards is on (never without the
+/// `inject-bugs` feature).
+#[inline(always)]
+fn war_ignored() -> bool {
+    #[cfg(feature = "inject-bugs")]
+    {
+        imagine_hdl::inject::active(imagine_hdl::inject::Bug::ScoreboardIgnoresWriteAfterRead)
+    }
+    #[cfg(not(feature = "inject-bugs"))]
+    {
+        false
     }
 }
 

@@ -78,6 +78,31 @@ fn cdc_passes() {
 }
 
 #[test]
+fn sdram_passes() {
+    passes_on_the_built_in_machines("sdram");
+}
+
+#[test]
+fn scheduler_passes() {
+    passes_on_the_built_in_machines("scheduler");
+}
+
+#[test]
+fn address_gen_passes() {
+    passes_on_the_built_in_machines("address_gen");
+}
+
+#[test]
+fn srf_passes() {
+    passes_on_the_built_in_machines("srf");
+}
+
+#[test]
+fn scoreboard_passes() {
+    passes_on_the_built_in_machines("scoreboard");
+}
+
+#[test]
 fn lrf_catches_a_write_dropped_on_a_same_entry_read() {
     catches("lrf", Bug::LrfDropsWriteOnSameEntryRead);
 }
@@ -105,6 +130,31 @@ fn comm_catches_a_backwards_rotation() {
 #[test]
 fn cdc_catches_a_zero_stage_synchroniser() {
     catches("cdc", Bug::CdcZeroStageSynchroniser);
+}
+
+#[test]
+fn sdram_catches_a_precharge_that_keeps_the_row_open() {
+    catches("sdram", Bug::SdramPrechargeKeepsRowOpen);
+}
+
+#[test]
+fn scheduler_catches_a_column_access_ignoring_the_same_burst_hazard() {
+    catches("scheduler", Bug::SchedulerIgnoresSameBurstHazard);
+}
+
+#[test]
+fn address_gen_catches_a_record_word_offset_dropped() {
+    catches("address_gen", Bug::AgDropsRecordWordOffset);
+}
+
+#[test]
+fn srf_catches_a_flush_that_keeps_the_partial_line() {
+    catches("srf", Bug::SrfFlushKeepsPartialLine);
+}
+
+#[test]
+fn scoreboard_catches_a_write_passing_an_older_read() {
+    catches("scoreboard", Bug::ScoreboardIgnoresWriteAfterRead);
 }
 
 #[test]

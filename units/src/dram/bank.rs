@@ -53,6 +53,10 @@ impl Bank {
     }
 
     pub fn precharge(&mut self) {
+        #[cfg(feature = "inject-bugs")]
+        if imagine_hdl::inject::active(imagine_hdl::inject::Bug::SdramPrechargeKeepsRowOpen) {
+            return;
+        }
         self.d = BankState::Idle;
     }
 

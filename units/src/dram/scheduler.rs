@@ -374,6 +374,10 @@ impl Scheduler {
 
     /// An older pending reference addresses the same burst.
     fn hazard(&self, i: usize) -> bool {
+        #[cfg(feature = "inject-bugs")]
+        if imagine_hdl::inject::active(imagine_hdl::inject::Bug::SchedulerIgnoresSameBurstHazard) {
+            return false;
+        }
         let a = self.entries[i].burst_addr;
         self.entries[..i].iter().any(|e| e.burst_addr == a)
     }

@@ -321,6 +321,13 @@ impl AddressGenerator {
                 }
             };
             let j = j as u64;
+            #[cfg(feature = "inject-bugs")]
+            let j =
+                if imagine_hdl::inject::active(imagine_hdl::inject::Bug::AgDropsRecordWordOffset) {
+                    0
+                } else {
+                    j
+                };
             let byte = (start + j) * 4;
             let Some(loc) = ports.params().map(byte) else {
                 return Err(self.error(

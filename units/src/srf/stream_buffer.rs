@@ -137,6 +137,15 @@ impl StreamBuffer {
                 }
             }
             SbMode::Output if self.level >= to_line_end => to_line_end,
+            #[cfg(feature = "inject-bugs")]
+            SbMode::Flushing
+                if self.level < to_line_end
+                    && imagine_hdl::inject::active(
+                        imagine_hdl::inject::Bug::SrfFlushKeepsPartialLine,
+                    ) =>
+            {
+                0
+            }
             SbMode::Flushing => self.level.min(to_line_end),
             _ => 0,
         }

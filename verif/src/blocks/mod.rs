@@ -10,12 +10,17 @@
 //!
 //! One file per block; [`BLOCKS`] registers them by name for `imagine verify`.
 
+pub mod address_gen;
 pub mod alu;
 pub mod cdc;
 pub mod comm;
 pub mod fu;
 pub mod lrf;
+pub mod scheduler;
+pub mod scoreboard;
 pub mod scratchpad;
+pub mod sdram;
+pub mod srf;
 
 use std::fmt;
 use std::time::{Duration, Instant};
@@ -69,6 +74,31 @@ pub const BLOCKS: &[Block] = &[
         name: "cdc",
         about: "synchronising FIFO across the core and DRAM clocks: order, no loss or duplication, full/empty",
         run: cdc::run,
+    },
+    Block {
+        name: "sdram",
+        about: "SDRAM banks and data under legal and illegal command sequences, with the timing checker",
+        run: sdram::run,
+    },
+    Block {
+        name: "scheduler",
+        about: "DRAM access scheduler under every policy: each reference served once, same-burst order, timing",
+        run: scheduler::run,
+    },
+    Block {
+        name: "address_gen",
+        about: "memory address generator: strided, record and indexed loads and stores, reorder buffer, SRF order",
+        run: address_gen::run,
+    },
+    Block {
+        name: "srf",
+        about: "stream register file: streams through stream buffers, port arbitration, bandwidth, flush, refusals",
+        run: srf::run,
+    },
+    Block {
+        name: "scoreboard",
+        about: "stream controller scoreboard: SRF and DRAM hazards, oldest-ready issue, units, completion",
+        run: scoreboard::run,
     },
 ];
 
