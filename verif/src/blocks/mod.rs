@@ -22,6 +22,7 @@ pub mod scratchpad;
 pub mod sdram;
 pub mod srf;
 
+use imagine_units::arith::fp32::testgen::SplitMix64;
 use std::fmt;
 use std::time::{Duration, Instant};
 
@@ -132,22 +133,19 @@ pub fn run_block(block: &Block, desc: &MachineDesc, config: &Config) -> Report {
 
 // ---- stimulus ----------------------------------------------------------------------------
 
-/// A small deterministic generator (SplitMix64): the same seed gives the same stimulus on
-/// every host, so a failure is replayed by its seed.
+/// A small deterministic generator (the arithmetic tests' SplitMix64) with the draws the
+/// testbenches use: the same seed gives the same stimulus on every host, so a failure is
+/// replayed by its seed.
 #[derive(Clone, Debug)]
-pub struct Rng(u64);
+pub struct Rng(SplitMix64);
 
 impl Rng {
     pub fn new(seed: u64) -> Self {
-        Rng(seed)
+        Rng(SplitMix64::new(seed))
     }
 
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
 
     pub fn word(&mut self) -> u32 {
