@@ -129,11 +129,7 @@ impl<T> AsyncFifoState<T> {
     /// Empty, nothing pushed or popped this cycle, and every synchroniser stage holding
     /// the pointer it samples: an edge of either clock changes nothing.
     fn is_settled(&self) -> bool {
-        self.items.is_empty()
-            && self.pushed.is_none()
-            && !self.popped
-            && self.write_ptr_sync.holds_only(self.write_ptr)
-            && self.read_ptr_sync.holds_only(self.read_ptr)
+        self.items.is_empty() && self.is_static()
     }
 }
 

@@ -126,22 +126,17 @@ impl Clocks {
             }
         }
         let n = domains.len();
-        let half_period_ps = domains
-            .iter()
-            .map(|d| {
-                let denom = 2 * d.freq_hz as u128;
-                ((PS_PER_S / denom) as u64, (PS_PER_S % denom) as u64)
-            })
-            .collect();
-        Ok(Clocks {
+        let mut clocks = Clocks {
             domains,
             next_half: vec![0; n],
             next_ps: vec![0; n],
             next_ps_rem: vec![0; n],
-            half_period_ps,
+            half_period_ps: Vec::new(),
             cycles: vec![0; n],
             time_ps: 0,
-        })
+        };
+        clocks.half_period_ps = (0..n).map(|d| clocks.half_edge(d, 1)).collect();
+        Ok(clocks)
     }
 
     pub fn domains(&self) -> &[ClockDomain] {
@@ -178,16 +173,20 @@ impl Clocks {
 
     /// Time of half-period edge `half` of domain `d`, in picoseconds, rounded down.
     fn half_edge_ps(&self, d: usize, half: u64) -> u64 {
-        (half as u128 * PS_PER_S / (2 * self.domains[d].freq_hz as u128)) as u64
+        self.half_edge(d, half).0
+    }
+
+    /// [`half_edge_ps`](Self::half_edge_ps) and the remainder of its division.
+    fn half_edge(&self, d: usize, half: u64) -> (u64, u64) {
+        let denom = 2 * self.domains[d].freq_hz as u128;
+        let num = half as u128 * PS_PER_S;
+        ((num / denom) as u64, (num % denom) as u64)
     }
 
     /// Sets domain `d`'s next half-period edge to `half`.
     fn set_half(&mut self, d: usize, half: u64) {
-        let denom = 2 * self.domains[d].freq_hz as u128;
-        let num = half as u128 * PS_PER_S;
         self.next_half[d] = half;
-        self.next_ps[d] = (num / denom) as u64;
-        self.next_ps_rem[d] = (num % denom) as u64;
+        (self.next_ps[d], self.next_ps_rem[d]) = self.half_edge(d, half);
     }
 
     /// Moves domain `d`'s next edge on by one half-period: `next_ps` grows by

@@ -97,7 +97,8 @@ enum Op {
     Activate,
 }
 
-/// Per-bank facts gathered once per cycle.
+/// Per-bank facts gathered once per cycle by the by-class policies (first-ready asks
+/// for a bank's row hit only when it considers a precharge, `row_hit`).
 #[derive(Clone, Copy, Debug, Default)]
 struct BankView {
     /// Some pending reference hits the open row.
