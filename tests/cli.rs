@@ -1087,14 +1087,24 @@ fn output_into_a_closed_pipe_ends_quietly() {
     }
 }
 
+/// A machine description written to differ from every built-in one in sizes, latencies,
+/// clocks and DRAM timings.
+const UNFAMILIAR_MACHINE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/verif/tests/machines/unfamiliar.toml"
+);
+
 #[test]
 fn verify_lists_and_runs_every_block() {
     let out = stdout(&imagine(&["verify", "list"]));
+    let listed = out.lines().count();
     for block in [
         "lrf",
         "scratchpad",
         "fu",
+        "fpu",
         "alu",
+        "ccfile",
         "comm",
         "cdc",
         "sdram",
@@ -1105,26 +1115,63 @@ fn verify_lists_and_runs_every_block() {
     ] {
         assert!(out.contains(block), "{out}");
     }
-    let o = imagine(&[
-        "verify",
-        "all",
-        "--machine",
-        "gold1",
-        "--transactions",
-        "200",
-    ]);
-    let out = stdout(&o);
-    assert!(o.status.success(), "{out}");
-    assert!(out.trim_end().ends_with("11 passed, 0 failed"), "{out}");
+    for machine in ["gold1", UNFAMILIAR_MACHINE] {
+        let o = imagine(&[
+            "verify",
+            "all",
+            "--machine",
+            machine,
+            "--transactions",
+            "200",
+        ]);
+        let out = stdout(&o);
+        assert!(o.status.success(), "{out}");
+        let summary = format!("{listed} passed, 0 failed");
+        assert!(out.trim_end().ends_with(&summary), "{out}");
+    }
     let o = imagine(&["verify", "comm", "--machine", "gold8", "--seed", "3"]);
     assert!(
         o.status.success() && stdout(&o).contains("PASS"),
         "{}",
         stdout(&o)
     );
+    // The fpu block testbench is `verify fpu` without an op.
+    let o = imagine(&[
+        "verify",
+        "fpu",
+        "--machine",
+        "gold32",
+        "--transactions",
+        "300",
+    ]);
+    assert!(
+        o.status.success() && stdout(&o).contains("op f32_sqrt"),
+        "{}",
+        stdout(&o)
+    );
     let o = imagine(&["verify", "all", "--transactions", "100", "--json"]);
     let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(json["failed"], 0);
+    assert_eq!(json["blocks"].as_array().unwrap().len(), listed);
+}
+
+#[test]
+fn verify_writes_no_waveform_when_nothing_fails() {
+    let dir = std::env::temp_dir().join(format!("imagine-cli-vcd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vcd = dir.join("fail.vcd");
+    let o = imagine(&[
+        "verify",
+        "all",
+        "--transactions",
+        "100",
+        "--vcd-on-fail",
+        vcd.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stdout(&o));
+    let written: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
+    assert!(written.is_empty(), "{written:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -1133,4 +1180,7 @@ fn verify_refuses_bad_blocks_machines_and_counts() {
     assert_clear_error(&["verify", "lrf", "--transactions", "0"]);
     assert_clear_error(&["verify", "all", "--machine", "nosuch"]);
     assert_clear_error(&["verify", "cdc", "--seed", "x"]);
+    assert_clear_error(&["verify", "lrf", "--vcd-on-fail", "fail.txt"]);
+    assert_clear_error(&["verify", "all", "--vcd-on-fail", "/no/such/dir/fail.vcd"]);
+    assert_clear_error(&["verify", "fpu", "--ftz"]);
 }

@@ -13,10 +13,14 @@ pub enum Bug {
     LrfDropsWriteOnSameEntryRead,
     /// The scratchpad lands a write one cycle after its write latency.
     ScratchpadWriteLandsLate,
+    /// The fp32 adder's alignment shifter drops the sticky bit (the bits shifted out).
+    FpAddDropsStickyBit,
     /// A pipelined unit delivers its shorter-latency ops one cycle late.
     PipelineShortOpsOneCycleLate,
     /// The adder's carry chain is not cut between the lanes of `add_16x2`.
     PackedAddCarriesAcrossLanes,
+    /// The condition-code file writes every cluster, ignoring the write mask.
+    CcFileIgnoresWriteMask,
     /// The intercluster network rotates the wrong way (`c - k` for `c + k`).
     CommRotatesBackwards,
     /// The crossing's write pointer reaches the reader with no synchroniser stage.

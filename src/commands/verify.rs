@@ -3,18 +3,21 @@
 //! machine description.
 
 use std::io::{self, Write};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
 use imagine_units::arith::fp32::FpMode;
 use imagine_units::desc::MachineDesc;
-use imagine_verif::blocks::{self, BLOCKS, Config, Report};
+use imagine_verif::blocks::{self, BLOCKS, Config, Report, WaveRequest};
 use imagine_verif::testfloat::{FpuOp, check_stream_with_mode};
 
 #[derive(Subcommand)]
 pub enum VerifyCommand {
-    /// Check an fp32 operation against Berkeley TestFloat vectors read from stdin
+    /// Check an fp32 operation against Berkeley TestFloat vectors read from stdin; with no
+    /// OP, run the `fpu` block testbench (the units' fp32 pipelines against the built-in
+    /// SoftFloat vectors) like any other block
     ///
     /// Input: one case per line in TestFloat's format, hex operands, the expected result and
     /// the expected flags as two hex digits (inexact 1, underflow 2, overflow 4, infinite 8,
@@ -24,13 +27,16 @@ pub enum VerifyCommand {
     Fpu {
         /// f32_add, f32_sub, f32_mul, f32_div, f32_sqrt, f32_to_i32, i32_to_f32, f32_lt,
         /// f32_le, f32_eq (also f32_to_i32_r_minMag, f32_min, f32_max)
-        op: FpuOp,
+        op: Option<FpuOp>,
         /// Check the flush-to-zero mode instead of IEEE subnormals
         #[arg(long)]
         ftz: bool,
         /// How many mismatches to print
         #[arg(long, default_value_t = 20)]
         show: usize,
+        /// The block testbench's options (without OP)
+        #[command(flatten)]
+        run: RunArgs,
     },
     /// List the block testbenches (`imagine verify BLOCK` runs one)
     List,
@@ -60,6 +66,11 @@ pub struct RunArgs {
     /// Transactions to drive into each block
     #[arg(long, default_value_t = 2000)]
     transactions: u64,
+    /// On a failure, replay the run and write a VCD of the cycles around the first mismatch
+    /// to F, with a GTKWave save file next to it (`verify all`: one file per failing block,
+    /// F-BLOCK.vcd)
+    #[arg(long, value_name = "F")]
+    vcd_on_fail: Option<PathBuf>,
 }
 
 /// `imagine verify BLOCK ...`: the arguments after the block's name.
@@ -72,7 +83,23 @@ struct BlockArgs {
 
 pub fn run(c: VerifyCommand) -> Result<ExitCode> {
     match c {
-        VerifyCommand::Fpu { op, ftz, show } => {
+        VerifyCommand::Fpu {
+            op: None,
+            ftz: false,
+            run,
+            ..
+        } => run_one(blocks::find("fpu").expect("registered"), &run),
+        VerifyCommand::Fpu { op: None, .. } => {
+            bail!(
+                "--ftz applies to vectors on stdin (`imagine verify fpu OP --ftz`); the fpu block testbench takes the machine's mode"
+            )
+        }
+        VerifyCommand::Fpu {
+            op: Some(op),
+            ftz,
+            show,
+            ..
+        } => {
             let mode = if ftz { FpMode::FTZ } else { FpMode::IEEE };
             let stdout = io::stdout();
             let mut out = stdout.lock();
@@ -104,12 +131,22 @@ pub fn run(c: VerifyCommand) -> Result<ExitCode> {
                 Ok(a) => a,
                 Err(e) => e.exit(),
             };
-            let (desc, config) = prepare(&args.run)?;
-            let report = labelled(blocks::run_block(block, &desc, &config), &args.run);
-            print_report(&report);
-            Ok(exit_code(report.passed()))
+            run_one(block, &args.run)
         }
     }
+}
+
+/// `imagine verify BLOCK`: one testbench, its coverage and verdict.
+fn run_one(block: &blocks::Block, run: &RunArgs) -> Result<ExitCode> {
+    let (desc, config) = prepare(run)?;
+    let vcd = run.vcd_on_fail.as_deref();
+    let report = labelled(
+        blocks::run_block_with_waves(block, &desc, &config, vcd),
+        run,
+    );
+    print_report(&report);
+    report_waves(&report)?;
+    Ok(exit_code(report.passed()))
 }
 
 /// The machine and run configuration, or an error naming the bad option.
@@ -119,17 +156,67 @@ fn prepare(run: &RunArgs) -> Result<(MachineDesc, Config)> {
     }
     let desc =
         MachineDesc::resolve(&run.machine).with_context(|| format!("--machine {}", run.machine))?;
-    let config = Config {
-        seed: run.seed,
-        transactions: run.transactions,
-    };
-    Ok((desc, config))
+    if let Some(path) = &run.vcd_on_fail {
+        check_vcd_path(path)?;
+    }
+    Ok((desc, Config::new(run.seed, run.transactions)))
 }
 
 /// The report names the machine as the user gave it, so its replay line can be pasted.
 fn labelled(mut report: Report, run: &RunArgs) -> Report {
     report.machine = run.machine.clone();
     report
+}
+
+/// A waveform path must name a `.vcd` file in a directory that exists, so that a failure
+/// late in a long run is not lost to a typo.
+fn check_vcd_path(path: &Path) -> Result<()> {
+    if path.extension().is_none_or(|e| e != "vcd") {
+        bail!(
+            "--vcd-on-fail {}: the waveform file must end in `.vcd` (its GTKWave save file is written next to it as `.gtkw`)",
+            path.display()
+        );
+    }
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+    if let Some(dir) = dir
+        && !dir.is_dir()
+    {
+        bail!(
+            "--vcd-on-fail {}: no directory `{}`",
+            path.display(),
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+/// `F.vcd` → `F-BLOCK.vcd`: `verify all` writes one waveform per failing block.
+fn per_block_path(path: &Path, block: &str) -> PathBuf {
+    let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+    path.with_file_name(format!("{stem}-{block}.vcd"))
+}
+
+/// Says where the waveform of a failure went, or why it could not be written.
+fn report_waves(r: &Report) -> Result<()> {
+    let (Some(path), Some(first)) = (&r.vcd, &r.scoreboard.first) else {
+        return Ok(());
+    };
+    match &r.waves {
+        Ok(summary) => {
+            let window = WaveRequest::around(path, first.cycle).window;
+            let gtkw = summary
+                .as_ref()
+                .and_then(|s| s.gtkw.clone())
+                .unwrap_or_else(|| path.with_extension("gtkw"));
+            println!(
+                "waveform of cycles {window} around the first mismatch: {} (gtkwave {})",
+                path.display(),
+                gtkw.display()
+            );
+            Ok(())
+        }
+        Err(e) => bail!("{}: writing the waveform {}: {e}", r.block, path.display()),
+    }
 }
 
 fn exit_code(passed: bool) -> ExitCode {
@@ -168,11 +255,25 @@ fn all(run: &RunArgs, json: bool) -> Result<ExitCode> {
     let (desc, config) = prepare(run)?;
     let reports: Vec<Report> = BLOCKS
         .iter()
-        .map(|b| labelled(blocks::run_block(b, &desc, &config), run))
+        .map(|b| {
+            let vcd = run
+                .vcd_on_fail
+                .as_deref()
+                .map(|p| per_block_path(p, b.name));
+            labelled(
+                blocks::run_block_with_waves(b, &desc, &config, vcd.as_deref()),
+                run,
+            )
+        })
         .collect();
     let failed = reports.iter().filter(|r| !r.passed()).count();
     let passed = reports.len() - failed;
     if json {
+        for r in &reports {
+            if let (Some(vcd), Err(e)) = (&r.vcd, &r.waves) {
+                bail!("{}: writing the waveform {}: {e}", r.block, vcd.display());
+            }
+        }
         let rows: Vec<_> = reports
             .iter()
             .map(|r| {
@@ -192,6 +293,7 @@ fn all(run: &RunArgs, json: bool) -> Result<ExitCode> {
                     "coverage_reached": r.coverage.reached(),
                     "coverage_total": r.coverage.total(),
                     "host_seconds": r.host_time.as_secs_f64(),
+                    "waveform": r.vcd.as_ref().filter(|_| r.waves.is_ok()),
                     "passed": r.passed(),
                 })
             })
@@ -217,6 +319,7 @@ fn all(run: &RunArgs, json: bool) -> Result<ExitCode> {
     for r in &reports {
         if let Some(m) = r.first_mismatch() {
             println!("FAIL {m}");
+            report_waves(r)?;
         }
     }
     println!("{passed} passed, {failed} failed");

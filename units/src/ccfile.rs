@@ -86,6 +86,9 @@ impl CcFile {
         let row = &mut self.rows[n];
         row.copy_from_slice(&self.bits[e * self.lanes..(e + 1) * self.lanes]);
         for ((r, &v), &m) in row.iter_mut().zip(values).zip(mask) {
+            #[cfg(feature = "inject-bugs")]
+            let m =
+                m || imagine_hdl::inject::active(imagine_hdl::inject::Bug::CcFileIgnoresWriteMask);
             if m {
                 *r = v & 1 != 0;
             }

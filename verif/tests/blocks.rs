@@ -11,14 +11,7 @@ const TRANSACTIONS: u64 = 400;
 fn run(block: &str, machine: &str, seed: u64) -> Report {
     let desc = MachineDesc::resolve(machine).unwrap();
     let block = blocks::find(block).unwrap();
-    blocks::run_block(
-        block,
-        &desc,
-        &Config {
-            seed,
-            transactions: TRANSACTIONS,
-        },
-    )
+    blocks::run_block(block, &desc, &Config::new(seed, TRANSACTIONS))
 }
 
 /// The testbench of `block` passes on gold1, gold8 and gold32 and reaches coverage.
@@ -37,7 +30,9 @@ fn passes_on_the_built_in_machines(block: &str) {
     }
 }
 
-/// With `bug` injected, the testbench of `block` reports a mismatch on gold8.
+/// With `bug` injected, the testbench of `block` reports a mismatch on gold8, and its
+/// replay with a waveform is the same run and writes a VCD window around the mismatch
+/// (with its GTKWave save file) in which the block's signals change.
 fn catches(block: &str, bug: Bug) {
     let _bug = inject(bug);
     let r = run(block, "gold8", 7);
@@ -45,6 +40,41 @@ fn catches(block: &str, bug: Bug) {
     let m = r.first_mismatch().unwrap();
     assert!(m.contains("--seed 7"), "{m}");
     eprintln!("{bug:?} caught: {m}");
+
+    let dir = std::env::temp_dir().join(format!("imagine-verif-{}-{block}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vcd = dir.join("fail.vcd");
+    let desc = MachineDesc::resolve("gold8").unwrap();
+    let replay = blocks::run_block_with_waves(
+        blocks::find(block).unwrap(),
+        &desc,
+        &Config::new(7, TRANSACTIONS),
+        Some(&vcd),
+    );
+    assert_eq!(
+        replay.scoreboard.first, r.scoreboard.first,
+        "{block}: replay differs"
+    );
+    let summary = replay.waves.unwrap().expect("a waveform was written");
+    let text = std::fs::read_to_string(&vcd).unwrap();
+    assert!(
+        text.contains("$dumpvars"),
+        "{block}: the window was never reached"
+    );
+    let block_vars = text
+        .lines()
+        .filter(|l| l.starts_with("$var") && !l.contains(" clk_"))
+        .count();
+    assert!(
+        block_vars > 0,
+        "{block}: no signal of the block in the waveform"
+    );
+    assert!(
+        summary.values_written > summary.signals as u64,
+        "{block}: nothing changes after the window opens"
+    );
+    assert!(summary.gtkw.as_ref().is_some_and(|g| g.exists()));
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -63,8 +93,18 @@ fn fu_passes() {
 }
 
 #[test]
+fn fpu_passes() {
+    passes_on_the_built_in_machines("fpu");
+}
+
+#[test]
 fn alu_passes() {
     passes_on_the_built_in_machines("alu");
+}
+
+#[test]
+fn ccfile_passes() {
+    passes_on_the_built_in_machines("ccfile");
 }
 
 #[test]
@@ -118,8 +158,18 @@ fn fu_catches_short_ops_one_cycle_late() {
 }
 
 #[test]
+fn fpu_catches_a_dropped_sticky_bit() {
+    catches("fpu", Bug::FpAddDropsStickyBit);
+}
+
+#[test]
 fn alu_catches_a_carry_across_packed_lanes() {
     catches("alu", Bug::PackedAddCarriesAcrossLanes);
+}
+
+#[test]
+fn ccfile_catches_a_write_that_ignores_its_mask() {
+    catches("ccfile", Bug::CcFileIgnoresWriteMask);
 }
 
 #[test]

@@ -14,7 +14,7 @@
 //! a load leaves in the SRF, the memory a store leaves (a later word of the stream to the
 //! same address wins), and, per channel, the sequence of references it received.
 
-use imagine_hdl::{ClockDomain, ContractError, Design, DomainId, Module, Sim};
+use imagine_hdl::{ClockDomain, ContractError, Design, DomainId, Module, Sim, Trace};
 use imagine_units::desc::MachineDesc;
 use imagine_units::dram::{DramChannel, DramParams, Policy, Reply, TraceKind};
 use imagine_units::memory::{
@@ -22,7 +22,7 @@ use imagine_units::memory::{
 };
 use imagine_units::srf::Srf;
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard};
+use super::{Config, Coverage, Outcome, Rng, Scoreboard, Waves};
 
 const BINS: &[&str] = &[
     "strided load",
@@ -89,6 +89,11 @@ impl Module for Harness {
             self.deferred = Some(e);
         }
         self.ports.commit();
+    }
+
+    fn trace(&self, t: &mut Trace) {
+        self.srf.trace(t);
+        self.ag.trace(t);
     }
 }
 
@@ -199,6 +204,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
             return Outcome {
                 scoreboard: sb,
                 coverage: cov,
+                waves: Ok(None),
             };
         }
     };
@@ -224,6 +230,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
         deferred: None,
     });
     let mut sim = Sim::new(design);
+    let waves = Waves::attach(&mut sim, config);
     let mut seen = vec![0usize; p.channels];
     while sb.transactions < config.transactions && sb.mismatches == 0 {
         let (planned, indices) = plan(&mut rng, desc);
@@ -347,6 +354,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves: waves.finish(Some(&mut sim)),
     }
 }
 

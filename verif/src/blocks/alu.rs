@@ -9,7 +9,7 @@ use imagine_units::desc::MachineDesc;
 use imagine_units::fu::{Adder, FunctionalUnit, Issue, Multiplier};
 use imagine_units::ops::{Op, UnitClass};
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard, design};
+use super::{BlockClock, Config, Coverage, Outcome, Rng, Scoreboard, Waves, design};
 
 const CORNER_BINS: &[&str] = &[
     "wrapping 32-bit add or subtract",
@@ -149,6 +149,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     // Expected results by unit, in issue order (each unit's ops here share one latency).
     let mut expected: [VecDeque<(u16, Op, Vec<u32>)>; 2] = [VecDeque::new(), VecDeque::new()];
     let mut tag = 0u16;
+    let mut waves = Waves::new(d.probes(), desc, BlockClock::Core, config);
     let mut cycle = 0u64;
     while sb.transactions < config.transactions || expected.iter().any(|q| !q.is_empty()) {
         let drive = sb.transactions < config.transactions;
@@ -223,6 +224,10 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
             }
             unit.commit();
         }
+        waves.cycle(cycle, |t| {
+            adder.trace(t);
+            multiplier.trace(t);
+        });
         cycle += 1;
         if cycle > 64 * (config.transactions + 64) {
             sb.assert(cycle, false, || "every issued op completes".into());
@@ -232,5 +237,6 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves: waves.finish(None),
     }
 }

@@ -20,7 +20,7 @@ use imagine_hdl::{
 };
 use imagine_units::desc::MachineDesc;
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard};
+use super::{Config, Coverage, Outcome, Rng, Scoreboard, Waves};
 
 const BINS: &[&str] = &[
     "push",
@@ -116,8 +116,9 @@ impl Bench {
         self.sb.transactions < self.transactions
     }
 
-    /// The writing side of crossing `i` in its cycle `k`.
-    fn write(&mut self, i: usize, k: u64, tx: &mut AsyncFifoTx<u32>) {
+    /// The writing side of crossing `i` in its cycle `k`, core cycle `now` (the cycle its
+    /// checks are reported in).
+    fn write(&mut self, i: usize, k: u64, now: u64, tx: &mut AsyncFifoTx<u32>) {
         let driving = self.driving();
         let Bench {
             rng,
@@ -133,13 +134,13 @@ impl Bench {
         }
         let room = x.room(k);
         sb.check(
-            k,
+            now,
             || format!("{} can_push in writer cycle {k}", x.label),
             room,
             tx.can_push(),
         );
         let occupancy = x.pushes.len() - x.pops.len();
-        sb.assert(k, occupancy <= x.capacity, || {
+        sb.assert(now, occupancy <= x.capacity, || {
             format!("{} occupancy within capacity", x.label)
         });
         cov.hit_if(occupancy == x.capacity, &x.bin("occupancy at capacity"));
@@ -152,7 +153,7 @@ impl Bench {
             let value = *next_value;
             *next_value = next_value.wrapping_add(1);
             let ok = tx.push(value).is_ok();
-            sb.check(k, || format!("{} push accepted", x.label), true, ok);
+            sb.check(now, || format!("{} push accepted", x.label), true, ok);
             cov.hit(&x.bin("push"));
             cov.hit_if(
                 x.pushes.last() == Some(&(k.wrapping_sub(1))),
@@ -168,7 +169,7 @@ impl Bench {
                 sb.transaction();
                 let refused = tx.push(0).is_err();
                 sb.check(
-                    k,
+                    now,
                     || format!("{} second push in a cycle refused", x.label),
                     true,
                     refused,
@@ -178,7 +179,7 @@ impl Bench {
             sb.transaction();
             let refused = tx.push(0).is_err();
             sb.check(
-                k,
+                now,
                 || format!("{} push into a full FIFO refused", x.label),
                 true,
                 refused,
@@ -187,8 +188,8 @@ impl Bench {
         }
     }
 
-    /// The reading side of crossing `i` in its cycle `j`.
-    fn read(&mut self, i: usize, j: u64, rx: &mut AsyncFifoRx<u32>) {
+    /// The reading side of crossing `i` in its cycle `j`, core cycle `now`.
+    fn read(&mut self, i: usize, j: u64, now: u64, rx: &mut AsyncFifoRx<u32>) {
         let driving = self.driving();
         let Bench {
             rng,
@@ -203,7 +204,7 @@ impl Bench {
         }
         let ready = x.ready(j);
         sb.check(
-            j,
+            now,
             || format!("{} can_pop in reader cycle {j}", x.label),
             ready,
             rx.can_pop(),
@@ -214,7 +215,7 @@ impl Bench {
             let got = rx.pop().ok();
             let expected = x.queue.pop_front();
             sb.check(
-                j,
+                now,
                 || format!("{} word popped (in order, once)", x.label),
                 expected,
                 got,
@@ -229,7 +230,7 @@ impl Bench {
             sb.transaction();
             let refused = rx.pop().is_err();
             sb.check(
-                j,
+                now,
                 || format!("{} pop from an empty FIFO refused", x.label),
                 true,
                 refused,
@@ -248,6 +249,10 @@ struct Side {
     domain: DomainId,
     side: usize,
     cycle: u64,
+    /// This side's clock and the core clock: checks are reported in core cycles, the
+    /// cycles a waveform window counts.
+    mhz: u64,
+    core_mhz: u64,
     tx: AsyncFifoTx<u32>,
     rx: AsyncFifoRx<u32>,
     bench: Rc<RefCell<Bench>>,
@@ -259,8 +264,9 @@ impl Module for Side {
     }
     fn eval(&mut self) -> Result<(), ContractError> {
         let mut b = self.bench.borrow_mut();
-        b.write(self.side, self.cycle, &mut self.tx);
-        b.read(1 - self.side, self.cycle, &mut self.rx);
+        let now = self.cycle * self.core_mhz / self.mhz;
+        b.write(self.side, self.cycle, now, &mut self.tx);
+        b.read(1 - self.side, self.cycle, now, &mut self.rx);
         Ok(())
     }
     fn commit(&mut self) {
@@ -304,6 +310,8 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
         domain: core,
         side: 0,
         cycle: 0,
+        mhz: core_mhz,
+        core_mhz,
         tx: to_dram_tx,
         rx: to_core_rx,
         bench: bench.clone(),
@@ -312,11 +320,14 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
         domain: dram,
         side: 1,
         cycle: 0,
+        mhz: dram_mhz,
+        core_mhz,
         tx: to_core_tx,
         rx: to_dram_rx,
         bench: bench.clone(),
     });
     let mut sim = Sim::new(d);
+    let waves = Waves::attach(&mut sim, config);
     // Generous: every transaction is at most a few core cycles apart, plus the drain.
     let limit = 64 * config.transactions + 10_000;
     let mut drained = false;
@@ -337,6 +348,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
             break;
         }
     }
+    let waves = waves.finish(Some(&mut sim));
     drop(sim);
     let Bench { mut sb, cov, .. } = Rc::into_inner(bench)
         .expect("the simulator is gone")
@@ -347,5 +359,6 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves,
     }
 }

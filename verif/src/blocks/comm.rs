@@ -13,7 +13,7 @@ use imagine_units::comm::CommUnit;
 use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::Permutation;
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard, design};
+use super::{BlockClock, Config, Coverage, Outcome, Rng, Scoreboard, Waves, design};
 
 const BINS: &[&str] = &[
     "rotate",
@@ -52,6 +52,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     let mut arriving: VecDeque<(u64, (u16, Vec<u32>))> = VecDeque::new();
     let mut tag = 0u16;
     let mut last_send = None;
+    let mut waves = Waves::new(d.probes(), desc, BlockClock::Core, config);
     let mut cycle = 0u64;
     while sb.transactions < config.transactions || !arriving.is_empty() {
         let drive = sb.transactions < config.transactions;
@@ -140,10 +141,12 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
         let got = comm.completed().map(|f| (f.tag, f.values.clone()));
         sb.check(cycle, || "words arriving".into(), expected, got);
         comm.commit();
+        waves.cycle(cycle, |t| comm.trace(t));
         cycle += 1;
     }
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves: waves.finish(None),
     }
 }

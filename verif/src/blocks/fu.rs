@@ -16,7 +16,7 @@ use imagine_units::desc::{Latency, MachineDesc};
 use imagine_units::fu::{Adder, DivSqrt, FunctionalUnit, Issue, Multiplier};
 use imagine_units::ops::{Op, UnitClass};
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard, design};
+use super::{BlockClock, Config, Coverage, Outcome, Rng, Scoreboard, Waves, design};
 
 /// The coverage bins of a unit called `label`: those its machine can reach (writeback
 /// conflicts need ops of two latencies, a busy core an issue interval over 1).
@@ -278,6 +278,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
         names.extend(u.bins(&desc.latency));
     }
     let mut cov = Coverage::new(&names);
+    let mut waves = Waves::new(d.probes(), desc, BlockClock::Core, config);
     let mut cycle = 0;
     loop {
         let drive = sb.transactions < config.transactions;
@@ -290,10 +291,18 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
         if let Some(u) = &mut divsqrt {
             u.cycle(cycle, drive, &env, &mut rng, &mut sb, &mut cov);
         }
+        waves.cycle(cycle, |t| {
+            adder.unit.trace(t);
+            multiplier.unit.trace(t);
+            if let Some(u) = &divsqrt {
+                u.unit.trace(t);
+            }
+        });
         cycle += 1;
     }
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves: waves.finish(None),
     }
 }

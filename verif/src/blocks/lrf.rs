@@ -9,7 +9,7 @@
 use imagine_units::desc::MachineDesc;
 use imagine_units::lrf::Lrf;
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard, design};
+use super::{BlockClock, Config, Coverage, Outcome, Rng, Scoreboard, Waves, design};
 
 const BINS: &[&str] = &[
     "read",
@@ -107,6 +107,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
         })
         .collect();
     let large = desc.lrf.large_entries;
+    let mut waves = Waves::new(d.probes(), desc, BlockClock::Core, config);
     let mut cycle = 0u64;
     while sb.transactions < config.transactions {
         for (lrf, model) in &mut files {
@@ -227,6 +228,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
             lrf.commit();
             model.edge(lanes);
         }
+        waves.cycle(cycle, |t| files.iter().for_each(|(lrf, _)| lrf.trace(t)));
         cycle += 1;
     }
     for (lrf, model) in &files {
@@ -240,5 +242,6 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves: waves.finish(None),
     }
 }

@@ -12,8 +12,10 @@
 
 pub mod address_gen;
 pub mod alu;
+pub mod ccfile;
 pub mod cdc;
 pub mod comm;
+pub mod fpu;
 pub mod fu;
 pub mod lrf;
 pub mod scheduler;
@@ -21,19 +23,34 @@ pub mod scoreboard;
 pub mod scratchpad;
 pub mod sdram;
 pub mod srf;
+pub mod waves;
 
 use imagine_units::arith::fp32::testgen::SplitMix64;
 use std::fmt;
 use std::time::{Duration, Instant};
 
 use imagine_units::desc::MachineDesc;
+use imagine_waves::VcdSummary;
 
-/// How a testbench runs: the stimulus seed (the same seed replays the same run) and the
-/// number of transactions to drive.
-#[derive(Clone, Copy, Debug)]
+pub use waves::{BlockClock, WaveRequest, Waves};
+
+/// How a testbench runs: the stimulus seed (the same seed replays the same run), the
+/// number of transactions to drive, and the waveform to write, if any.
+#[derive(Clone, Debug)]
 pub struct Config {
     pub seed: u64,
     pub transactions: u64,
+    pub waves: Option<WaveRequest>,
+}
+
+impl Config {
+    pub fn new(seed: u64, transactions: u64) -> Self {
+        Config {
+            seed,
+            transactions,
+            waves: None,
+        }
+    }
 }
 
 /// A registered testbench.
@@ -62,9 +79,19 @@ pub const BLOCKS: &[Block] = &[
         run: fu::run,
     },
     Block {
+        name: "fpu",
+        about: "fp32 ops through the adder, multiplier and divide/sqrt pipelines against SoftFloat's vectors",
+        run: fpu::run,
+    },
+    Block {
         name: "alu",
         about: "integer and packed ops of the adders and multipliers against a plain-Rust reference",
         run: alu::run,
+    },
+    Block {
+        name: "ccfile",
+        about: "condition-code file: masked writes of bit 0, reads and every-cluster tests, port refusals",
+        run: ccfile::run,
     },
     Block {
         name: "comm",
@@ -108,10 +135,12 @@ pub fn find(name: &str) -> Option<&'static Block> {
     BLOCKS.iter().find(|b| b.name == name)
 }
 
-/// What a testbench hands back: its scoreboard and coverage.
+/// What a testbench hands back: its scoreboard, coverage and waveform.
 pub struct Outcome {
     pub scoreboard: Scoreboard,
     pub coverage: Coverage,
+    /// What the waveform holds, when one was asked for, or why it could not be written.
+    pub waves: Result<Option<VcdSummary>, String>,
 }
 
 /// Runs `block` on `desc` and times it.
@@ -120,6 +149,7 @@ pub fn run_block(block: &Block, desc: &MachineDesc, config: &Config) -> Report {
     let Outcome {
         scoreboard,
         coverage,
+        waves,
     } = (block.run)(desc, config);
     Report {
         block: block.name,
@@ -127,7 +157,31 @@ pub fn run_block(block: &Block, desc: &MachineDesc, config: &Config) -> Report {
         seed: config.seed,
         scoreboard,
         coverage,
+        vcd: config.waves.as_ref().map(|w| w.path.clone()),
+        waves,
         host_time: start.elapsed(),
+    }
+}
+
+/// Runs `block` and, if it fails and `vcd` is given, replays it from its seed with a
+/// waveform around the first mismatch written to `vcd` (see [`waves`]); the report is the
+/// replay's, which is the same run.
+pub fn run_block_with_waves(
+    block: &Block,
+    desc: &MachineDesc,
+    config: &Config,
+    vcd: Option<&std::path::Path>,
+) -> Report {
+    let report = run_block(block, desc, config);
+    match (vcd, &report.scoreboard.first) {
+        (Some(path), Some(first)) => {
+            let replay = Config {
+                waves: Some(WaveRequest::around(path, first.cycle)),
+                ..config.clone()
+            };
+            run_block(block, desc, &replay)
+        }
+        _ => report,
     }
 }
 
@@ -324,6 +378,10 @@ pub struct Report {
     pub seed: u64,
     pub scoreboard: Scoreboard,
     pub coverage: Coverage,
+    /// The waveform this run was asked to write (a replay of a failure), and what it holds
+    /// or why it could not be written.
+    pub vcd: Option<std::path::PathBuf>,
+    pub waves: Result<Option<VcdSummary>, String>,
     pub host_time: Duration,
 }
 

@@ -28,9 +28,10 @@ use imagine_hdl::bits::{u4, u12};
 use imagine_units::desc::MachineDesc;
 use imagine_units::dram::scheduler::{Issued, Scheduler};
 use imagine_units::dram::{Command, DramParams, Location, Policy, Request, Tag, TimingChecker};
+use imagine_waves::VcdSummary;
 
 use super::sdram::RefSdram;
-use super::{Config, Coverage, Outcome, Rng, Scoreboard, design};
+use super::{BlockClock, Config, Coverage, Outcome, Rng, Scoreboard, Waves, design};
 
 const BINS: &[&str] = &[
     "read served",
@@ -96,6 +97,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
         .transactions
         .div_ceil(Policy::ALL.len() as u64)
         .max(1);
+    let mut waves = Ok(None);
     for policy in Policy::ALL {
         let mut run = Run {
             p: &p,
@@ -114,19 +116,37 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
             next_in_order: 0,
             refreshes: 0,
         };
-        run.drive(desc.memory.pending_references, per_policy);
+        // Each policy's run starts again at cycle 0: the waveform is of the run in which the
+        // first mismatch happens (the runs before it rewrite the file and pass).
+        let clean = run.sb.mismatches == 0;
+        let run_waves = run.drive(desc, per_policy, clean.then_some(config));
+        if clean {
+            waves = run_waves;
+        }
     }
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves,
     }
 }
 
 impl Run<'_> {
-    fn drive(&mut self, capacity: usize, count: u64) {
+    /// Drives `count` references; writes the waveform `config` asks for, if any.
+    fn drive(
+        &mut self,
+        desc: &MachineDesc,
+        count: u64,
+        config: Option<&Config>,
+    ) -> Result<Option<VcdSummary>, String> {
         let p = self.p;
+        let capacity = desc.memory.pending_references;
         let mut d = design();
         let mut scheduler = Scheduler::new(&mut d.scope(), self.policy, p.clone(), capacity);
+        let mut waves = match config {
+            Some(config) => Waves::new(d.probes(), desc, BlockClock::Dram, config),
+            None => Waves::none(),
+        };
         let mut bus: Option<Issued> = None;
         let mut rate = 50;
         let mut cycle = 0u64;
@@ -189,6 +209,7 @@ impl Run<'_> {
                 }
             }
             scheduler.commit(cycle);
+            waves.cycle(cycle, |t| scheduler.trace(t, cycle));
             bus = issued;
             cycle += 1;
         }
@@ -209,6 +230,7 @@ impl Run<'_> {
             expected,
             got,
         );
+        waves.finish(None)
     }
 
     /// A new reference, recorded in the reference model.

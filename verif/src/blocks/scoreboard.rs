@@ -14,11 +14,12 @@
 //! allowed, it was the oldest allowed, on a free unit of its kind, once; and every
 //! instruction completes.
 
+use imagine_hdl::{SignalKind, bits_for};
 use imagine_units::desc::MachineDesc;
 use imagine_units::memory::{MemOp, MemOpKind, Pattern};
 use imagine_units::stream_controller::{Issue, StreamController, StreamInstr, Unit};
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard};
+use super::{BlockClock, Config, Coverage, Outcome, Rng, Scoreboard, Waves, design};
 
 const BINS: &[&str] = &[
     "load issued",
@@ -176,6 +177,21 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     let mut completed = vec![false; n];
     let mut issued = vec![false; n];
     let limit = 200 * n as u64 + 1000;
+    // The controller has no probes of its own (the processor shows its occupancy): the
+    // waveform shows the testbench's view of its ports.
+    let mut d = design();
+    let mut scope = d.scope();
+    let mut s = scope.child("sc");
+    let probe_occupancy = s.signal(
+        "scoreboard",
+        bits_for(desc.stream_controller.scoreboard_entries as u64),
+        SignalKind::Reg,
+    );
+    let probe_issue = s.signal("issue_valid", 1, SignalKind::Wire);
+    let probe_issue_id = s.signal("issue_id", 32, SignalKind::Wire);
+    let probe_ags_busy = s.signal("ags_busy", ags as u32, SignalKind::Reg);
+    let probe_host_busy = s.signal("host_busy", 1, SignalKind::Reg);
+    let mut waves = Waves::new(d.probes(), desc, BlockClock::Core, config);
     let mut cycle = 0u64;
     let mut oldest = 0;
     loop {
@@ -293,10 +309,22 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
             }
         }
         sc.commit(cycle, issue.as_ref());
+        waves.cycle(cycle, |t| {
+            t.value(probe_occupancy, sc.occupancy() as u64);
+            t.value(probe_issue, issue.is_some() as u64);
+            t.value(probe_issue_id, issue.as_ref().map_or(0, |i| i.id as u64));
+            let busy = ag_busy.iter().enumerate();
+            t.value(
+                probe_ags_busy,
+                busy.fold(0, |m, (a, b)| m | (b.is_some() as u64) << a),
+            );
+            t.value(probe_host_busy, host_busy.is_some() as u64);
+        });
         cycle += 1;
     }
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves: waves.finish(None),
     }
 }

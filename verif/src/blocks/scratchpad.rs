@@ -13,7 +13,7 @@ use std::collections::VecDeque;
 use imagine_units::desc::MachineDesc;
 use imagine_units::scratchpad::Scratchpad;
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard, design};
+use super::{BlockClock, Config, Coverage, Outcome, Rng, Scoreboard, Waves, design};
 
 const BINS: &[&str] = &[
     "read",
@@ -76,6 +76,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     let mut reserved = 0;
     let mut tag = 0u16;
     let mut last_read = None;
+    let mut waves = Waves::new(d.probes(), desc, BlockClock::Core, config);
     let mut cycle = 0u64;
     while sb.transactions < config.transactions || !reads.is_empty() || !writes.is_empty() {
         let driving = sb.transactions < config.transactions;
@@ -273,11 +274,13 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
             sp.in_flight(),
         );
         sp.commit();
+        waves.cycle(cycle, |t| sp.trace(t));
         recent.retain(|(t, _)| *t + u64::from(write_latency) > cycle);
         cycle += 1;
     }
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves: waves.finish(None),
     }
 }

@@ -21,7 +21,7 @@ use imagine_units::dram::bank::BankState;
 use imagine_units::dram::sdram::Sdram;
 use imagine_units::dram::{Command, DramParams, TimingChecker};
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard, design};
+use super::{BlockClock, Config, Coverage, Outcome, Rng, Scoreboard, Waves, design};
 
 /// Rules whose limit a legal command can meet exactly.
 const LIMIT_RULES: &[&str] = &[
@@ -360,6 +360,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     let mut written: VecDeque<(usize, u16, usize)> = VecDeque::new();
     let mut phase = Phase::RowHits;
     let mut last_cmd_cycle = None;
+    let mut waves = Waves::new(d.probes(), desc, BlockClock::Dram, config);
     let mut cycle = 0u64;
     while sb.transactions < config.transactions || !r.bus.is_empty() {
         if cycle.is_multiple_of(48) {
@@ -448,11 +449,13 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
             r.bus.len(),
             sdram.reads_in_flight(),
         );
+        waves.cycle(cycle, |t| sdram.trace(t));
         cycle += 1;
     }
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves: waves.finish(None),
     }
 }
 

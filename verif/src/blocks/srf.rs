@@ -15,7 +15,7 @@
 use imagine_units::desc::MachineDesc;
 use imagine_units::srf::Srf;
 
-use super::{Config, Coverage, Outcome, Rng, Scoreboard, design};
+use super::{BlockClock, Config, Coverage, Outcome, Rng, Scoreboard, Waves, design};
 
 const BINS: &[&str] = &[
     "cluster read",
@@ -64,6 +64,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     let line = srf.words_per_cycle();
     let cap = srf.sb_capacity();
     let (uncond_limit, cond_limit) = srf.cluster_words_left();
+    let mut waves = Waves::new(d.probes(), desc, BlockClock::Core, config);
     let mut cycle = 0u64;
     while sb.transactions < config.transactions && sb.mismatches == 0 {
         // Bind up to four streams on distinct stream buffers, in disjoint regions.
@@ -91,6 +92,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
                 return Outcome {
                     scoreboard: sb,
                     coverage: cov,
+                    waves: waves.finish(None),
                 };
             }
             streams.push(Stream {
@@ -147,6 +149,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
                 cov.hit_if(g.words < line, "port transfer of a partial line");
             }
             srf.commit();
+            waves.cycle(cycle, |t| srf.trace(t));
             cycle += 1;
         }
         for s in &streams {
@@ -168,6 +171,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
     Outcome {
         scoreboard: sb,
         coverage: cov,
+        waves: waves.finish(None),
     }
 }
 

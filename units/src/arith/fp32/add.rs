@@ -165,6 +165,12 @@ fn add_lane(a: u32, b: u32) -> (u32, Flags, bool) {
     // shift of 31 already moves all of `ss` (< 2^30) out, so larger differences saturate.
     let wide = ((ss as u64) << 32) >> ((eb - es) as i32).min(31);
     let ss = (wide >> 32) as u32 | (wide as u32 != 0) as u32;
+    #[cfg(feature = "inject-bugs")]
+    let ss = if imagine_hdl::inject::active(imagine_hdl::inject::Bug::FpAddDropsStickyBit) {
+        (wide >> 32) as u32
+    } else {
+        ss
+    };
     // 3. Significand adder: an effective subtraction (signs differ) inverts the B input and
     // sets the carry-in, i.e. adds the two's complement.
     let inv = 0u32.wrapping_sub((a ^ b) >> 31);
