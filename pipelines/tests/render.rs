@@ -461,6 +461,46 @@ fn frames_are_the_same_cycle_for_cycle_in_either_evaluation_order() {
     }
 }
 
+/// Every frame cycle falls in exactly one category: the categories sum to the frame's cycles
+/// and each batch's to its cycles, and kernels run exactly the breakdown's cycles.
+#[test]
+fn every_frame_cycle_is_attributed_once() {
+    let advs = scene::load(
+        "ADVS-1",
+        &LoadOptions {
+            size: Some(24),
+            subdivisions: None,
+        },
+    )
+    .unwrap();
+    for scene in [rate1_16x16(), advs] {
+        let f = render_with(&scene, &MachineDesc::gold8(), cached(), None, |_, _| {}).unwrap();
+        let s = &f.stats;
+        let a = &s.attribution;
+        assert_eq!(a.total(), s.cycles, "{}: {a:?}", scene.name);
+        let kernels: u64 = s.kernels.iter().map(|k| k.cycles).sum();
+        assert_eq!(a.kernel_running, kernels, "{}", scene.name);
+        // Depth (and texels) come by gathers; short kernels are held for the minimum time.
+        assert!(
+            a.waiting_gather > 0 && a.kernel_dispatch > 0,
+            "{}: {a:?}",
+            scene.name
+        );
+        for row in &s.batch_rows {
+            assert_eq!(
+                row.attribution.total(),
+                row.cycles,
+                "{} batch {}",
+                scene.name,
+                row.batch
+            );
+        }
+        let csv = s.batches_csv();
+        let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+        assert!(header.contains(&"waiting_gather_cycles"), "{header:?}");
+    }
+}
+
 /// The longest minimum kernel time a machine may ask for: the frame finishes (its idle
 /// time is jumped over), every kernel call holding the clusters for it.
 #[test]

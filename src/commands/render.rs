@@ -235,6 +235,17 @@ fn print_stats(f: &Frame, m: &Metrics) {
         );
     }
     println!("  left out         {}", sp.left_out.join(", "));
+    println!("where cycles went  (every frame cycle in one category; share of frame cycles)");
+    for (name, cycles) in s.attribution.rows() {
+        if cycles > 0 {
+            println!(
+                "  {:<24} {:>12} cycles {:>5.1} %",
+                name,
+                cycles,
+                100.0 * cycles as f64 / s.cycles.max(1) as f64
+            );
+        }
+    }
     println!("kernel breakdown   (share of frame cycles)");
     for k in &s.kernels {
         println!(

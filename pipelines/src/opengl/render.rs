@@ -51,6 +51,7 @@
 //! general pipeline instead: every vertex carries position, normal or colour, specular
 //! lighting always, and every kernel compiled up front.
 
+use std::ops::Range;
 use std::time::Instant;
 
 use imagine_units::desc::MachineDesc;
@@ -73,6 +74,7 @@ use crate::kernels::texture::{self, FragmentProgram};
 use crate::kernels::turbulence;
 use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene, Shader};
 use crate::scene::{MAX_WINDOW, bump_map};
+use crate::stream::attribution::{self, Attribution};
 use crate::stream::{
     Buffer, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS, PlanError,
     SrfPlan, SrfPlanner, StreamHost, StreamId, live, pipelined, split_to_fit, strip_mine,
@@ -1429,7 +1431,7 @@ pub fn render_with(
         readback_cycles: read - rendered,
     };
     stats.cycles = rendered - cleared;
-    finish_stats(&mut stats, &host, desc, &pp);
+    finish_stats(&mut stats, &host, desc, &pp, cleared..rendered);
     stats.compile_seconds = host.kernels.compile_seconds();
     stats.kernels_from_cache = host.kernels.from_cache();
     stats.kernel_programs = host.kernels.built().len();
@@ -2134,9 +2136,23 @@ impl FrameRun<'_> {
     }
 }
 
-fn finish_stats(s: &mut FrameStats, host: &StreamHost, desc: &MachineDesc, pp: &PipelinePlan) {
+fn finish_stats(
+    s: &mut FrameStats,
+    host: &StreamHost,
+    desc: &MachineDesc,
+    pp: &PipelinePlan,
+    frame: Range<u64>,
+) {
     let sim = host.sim();
     let p = processor::processor(sim);
+    // Every frame cycle in one category; each batch's window follows the last one's.
+    let segments = attribution::attribute(p.controller().records(), frame.clone());
+    s.attribution = Attribution::of(&segments, frame.clone());
+    let mut batch_start = frame.start;
+    for row in &mut s.batch_rows {
+        row.attribution = Attribution::of(&segments, batch_start..batch_start + row.cycles);
+        batch_start += row.cycles;
+    }
     let cycles = s.cycles.max(1);
     let mhz = desc.clocks.core_mhz as f64;
     let seconds = cycles as f64 / (mhz * 1e6);

@@ -3,6 +3,7 @@
 
 use serde::Serialize;
 
+use crate::stream::attribution::Attribution;
 use crate::stream::srf::PlanRow;
 
 /// One kernel's share of the frame.
@@ -71,6 +72,8 @@ pub struct BatchRow {
     pub srf_words: usize,
     /// SRF words holding fragments at the batch's largest rasterization pass.
     pub srf_fragment_words: usize,
+    /// The batch's `cycles`, each in one category (they sum to `cycles`).
+    pub attribution: Attribution,
 }
 
 /// Statistics of a frame.
@@ -114,6 +117,10 @@ pub struct FrameStats {
     /// Share of the frame's cycles a kernel was running, and running without a stall.
     pub cluster_occupancy: f64,
     pub cluster_occupancy_without_stalls: f64,
+    /// Every frame cycle in one category (kernels running, dispatch, waiting on a stream
+    /// operation by kind, issue, host, drain; see `stream::attribution`); they sum to
+    /// `cycles`.
+    pub attribution: Attribution,
     pub kernels: Vec<KernelShare>,
     pub specialisation: Specialisation,
     pub batch_triangles: usize,
@@ -158,11 +165,18 @@ impl FrameStats {
     pub fn batches_csv(&self) -> String {
         let mut out = String::from(
             "batch,object,triangles,vertices,cycles,kernel_cycles,fragments,spills,\
-             composite_rounds,dram_words,srf_words,srf_fragment_words\n",
+             composite_rounds,dram_words,srf_words,srf_fragment_words",
         );
+        for (name, _) in Attribution::default().rows() {
+            out += &format!(
+                ",{}_cycles",
+                name.replace("waiting: ", "waiting_").replace(' ', "_")
+            );
+        }
+        out += "\n";
         for r in &self.batch_rows {
             out += &format!(
-                "{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{},{},{},{}",
                 r.batch,
                 r.object.replace(',', ";"),
                 r.triangles,
@@ -176,6 +190,10 @@ impl FrameStats {
                 r.srf_words,
                 r.srf_fragment_words
             );
+            for (_, cycles) in r.attribution.rows() {
+                out += &format!(",{cycles}");
+            }
+            out += "\n";
         }
         out
     }

@@ -10,8 +10,11 @@
 //!   gathers, scatters, host-interface writes and read-backs — queued on the stream
 //!   controller and ordered by its scoreboard; uploads and downloads through the host
 //!   interface.
+//! * [`attribution`]: every cycle of a run in one category (a kernel, waiting on a stream
+//!   operation, dispatch, issue, host), from the stream controller's records.
 //! * [`batch`]: strip-mining, two batches in flight, and spilling by splitting work.
 
+pub mod attribution;
 pub mod batch;
 pub mod dram;
 pub mod host;
