@@ -946,7 +946,7 @@ fn machine_shapes_the_model_cannot_hold_name_the_file_and_key() {
 fn render_reports_its_pipeline_and_one_csv_row_per_batch() {
     let dir = std::env::temp_dir().join(format!("imagine-render-csv-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let (csv, stats) = (dir.join("b.csv"), dir.join("s.json"));
+    let (csv, stats, timeline) = (dir.join("b.csv"), dir.join("s.json"), dir.join("t.json"));
     let o = imagine(&[
         "render",
         "RATE-4",
@@ -956,6 +956,8 @@ fn render_reports_its_pipeline_and_one_csv_row_per_batch() {
         csv.to_str().unwrap(),
         "--stats",
         stats.to_str().unwrap(),
+        "--timeline",
+        timeline.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let json: serde_json::Value =
@@ -990,6 +992,18 @@ fn render_reports_its_pipeline_and_one_csv_row_per_batch() {
         sum(5) > 0 && sum(9) > 0,
         "kernel cycles and DRAM words are counted"
     );
+    // The attribution: every frame cycle in one category, in the JSON and per batch.
+    let attribution = frame["attribution"].as_object().unwrap();
+    let attributed: u64 = attribution.values().map(|v| v.as_u64().unwrap()).sum();
+    assert_eq!(attributed, frame["cycles"].as_u64().unwrap());
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("where cycles went") && out.contains("kernels running"),
+        "{out}"
+    );
+    let timeline: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&timeline).unwrap()).unwrap();
+    assert!(timeline["traceEvents"].as_array().unwrap().len() > 10);
     // An unlit scene: no lighting kernel built, the merge stage never reached.
     let sp = &frame["specialisation"];
     let built: Vec<&str> = sp["kernels_built"]

@@ -653,6 +653,10 @@ fn bad_output_paths_are_refused_before_the_work() {
             vec!["render", "SPHERE", "--reference-png", missing],
             "--reference-png",
         ),
+        (
+            vec!["render", "SPHERE", "--timeline", missing],
+            "--timeline",
+        ),
         (vec!["render", "SPHERE", "--vcd", missing], "--vcd"),
         (
             vec!["render", "SPHERE", "--png", a, "--stats", a],

@@ -474,7 +474,11 @@ fn every_frame_cycle_is_attributed_once() {
     )
     .unwrap();
     for scene in [rate1_16x16(), advs] {
-        let f = render_with(&scene, &MachineDesc::gold8(), cached(), None, |_, _| {}).unwrap();
+        let options = RenderOptions {
+            timeline: true,
+            ..cached()
+        };
+        let f = render_with(&scene, &MachineDesc::gold8(), options, None, |_, _| {}).unwrap();
         let s = &f.stats;
         let a = &s.attribution;
         assert_eq!(a.total(), s.cycles, "{}: {a:?}", scene.name);
@@ -498,6 +502,35 @@ fn every_frame_cycle_is_attributed_once() {
         let csv = s.batches_csv();
         let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
         assert!(header.contains(&"waiting_gather_cycles"), "{header:?}");
+
+        // The timeline, read back as plain JSON: its kernel slices ran the breakdown's
+        // cycles, and the kernel calls and the waits cover the frame once.
+        let text = serde_json::to_string(f.timeline.as_ref().unwrap()).unwrap();
+        let t: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let events = t["traceEvents"].as_array().unwrap();
+        fn slices<'a>(
+            events: &'a [serde_json::Value],
+            cat: &'a str,
+        ) -> impl Iterator<Item = &'a serde_json::Value> + 'a {
+            events
+                .iter()
+                .filter(move |e| e["ph"] == "X" && e["cat"] == cat)
+                .map(|e| &e["args"])
+        }
+        let running: u64 = slices(events, "kernel")
+            .map(|a| a["running_cycles"].as_u64().unwrap())
+            .sum();
+        assert_eq!(running, kernels, "{}", scene.name);
+        let cycles = |a: &serde_json::Value| {
+            a["to_cycle"].as_u64().unwrap() - a["from_cycle"].as_u64().unwrap()
+        };
+        let covered: u64 = slices(events, "kernel")
+            .chain(slices(events, "attribution"))
+            .map(cycles)
+            .sum();
+        assert_eq!(covered, s.cycles, "{}", scene.name);
+        assert!(slices(events, "memory").count() > 0, "{}", scene.name);
+        assert_eq!(t["displayTimeUnit"], "ns");
     }
 }
 

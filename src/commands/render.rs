@@ -54,6 +54,12 @@ pub struct RenderArgs {
     /// Also write the reference renderer's frame as PNG
     #[arg(long)]
     reference_png: Option<PathBuf>,
+    /// Write the frame as a timeline (Trace Event JSON, opened by ui.perfetto.dev and
+    /// chrome://tracing): kernel calls, memory operations, host transfers, waits, and
+    /// DRAM bandwidth, cluster busy share and scoreboard counters; slices carry their core
+    /// cycles for --vcd-window
+    #[arg(long, value_name = "F.json")]
+    timeline: Option<PathBuf>,
     /// Compile every kernel afresh: neither read nor write the compile cache
     /// ($IMAGINE_CACHE_DIR, else the platform's cache directory)
     #[arg(long)]
@@ -90,6 +96,7 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     outputs.add_opt("--reference-png", a.reference_png.as_ref())?;
     outputs.add_opt("--stats", a.stats.as_ref())?;
     outputs.add_opt("--stats-csv", a.stats_csv.as_ref())?;
+    outputs.add_opt("--timeline", a.timeline.as_ref())?;
     a.waves.check_outputs(&mut outputs)?;
     let desc = MachineDesc::resolve(&a.machine)?;
     let scene = load_scene(&a)?;
@@ -112,6 +119,7 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
         },
         max_cycles: a.max_cycles,
         batch: a.batch.map(|b| b as usize),
+        timeline: a.timeline.is_some(),
         ..RenderOptions::default()
     };
     let frame = render_with(&scene, &desc, options, on_start, |done, total| {
@@ -146,6 +154,10 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     if let Some(p) = &a.stats {
         let json = serde_json::json!({ "frame": frame.stats, "reference_error": metrics });
         std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")
+            .with_context(|| format!("cannot write `{}`", p.display()))?;
+    }
+    if let (Some(p), Some(timeline)) = (&a.timeline, &frame.timeline) {
+        std::fs::write(p, serde_json::to_string(timeline)? + "\n")
             .with_context(|| format!("cannot write `{}`", p.display()))?;
     }
     if let Some(p) = &a.stats_csv {

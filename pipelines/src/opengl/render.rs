@@ -75,6 +75,7 @@ use crate::kernels::turbulence;
 use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene, Shader};
 use crate::scene::{MAX_WINDOW, bump_map};
 use crate::stream::attribution::{self, Attribution};
+use crate::stream::timeline::{self, ProgramInfo, TimelineInput};
 use crate::stream::{
     Buffer, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS, PlanError,
     SrfPlan, SrfPlanner, StreamHost, StreamId, live, pipelined, split_to_fit, strip_mine,
@@ -121,6 +122,9 @@ pub struct Frame {
     /// Packed RGBA8 (red in the low byte), row 0 at the bottom.
     pub pixels: Vec<u32>,
     pub stats: FrameStats,
+    /// The frame as a timeline in the Trace Event format (see [`timeline`]), when
+    /// [`RenderOptions::timeline`] asks for it.
+    pub timeline: Option<serde_json::Value>,
 }
 
 /// A frame that could not be rendered.
@@ -169,6 +173,8 @@ pub struct RenderOptions {
     /// The most triangles per batch, instead of the scene's `pipeline.batch` or
     /// [`DEFAULT_BATCH`].
     pub batch: Option<usize>,
+    /// Build the frame's timeline ([`Frame::timeline`]).
+    pub timeline: bool,
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
@@ -189,6 +195,7 @@ impl Default for RenderOptions {
             step_idle: false,
             reverse_eval_order: false,
             batch: None,
+            timeline: false,
         }
     }
 }
@@ -1431,7 +1438,31 @@ pub fn render_with(
         readback_cycles: read - rendered,
     };
     stats.cycles = rendered - cleared;
-    finish_stats(&mut stats, &host, desc, &pp, cleared..rendered);
+    let segments = finish_stats(&mut stats, &host, desc, &pp, cleared..rendered);
+    let timeline = options.timeline.then(|| {
+        let controller = processor::processor(host.sim()).controller();
+        let programs: Vec<ProgramInfo> = controller
+            .programs()
+            .iter()
+            .enumerate()
+            .map(|(p, program)| ProgramInfo {
+                name: program.name.clone(),
+                ii: host.kernels.ii_of_program(p),
+            })
+            .collect();
+        timeline::timeline(
+            &TimelineInput {
+                records: controller.records(),
+                programs: &programs,
+                batch_tags: host.batch_tags(),
+                segments: &segments,
+                window: cleared..rendered,
+                core_mhz: desc.clocks.core_mhz as f64,
+                address_generators: desc.memory.address_generators,
+            },
+            timeline::MAX_EVENTS,
+        )
+    });
     stats.compile_seconds = host.kernels.compile_seconds();
     stats.kernels_from_cache = host.kernels.from_cache();
     stats.kernel_programs = host.kernels.built().len();
@@ -1445,6 +1476,7 @@ pub fn render_with(
         height: scene.height,
         pixels: pixels_out,
         stats,
+        timeline,
     })
 }
 
@@ -2142,7 +2174,7 @@ fn finish_stats(
     desc: &MachineDesc,
     pp: &PipelinePlan,
     frame: Range<u64>,
-) {
+) -> Vec<attribution::Segment> {
     let sim = host.sim();
     let p = processor::processor(sim);
     // Every frame cycle in one category; each batch's window follows the last one's.
@@ -2250,4 +2282,5 @@ fn finish_stats(
         words_per_vertex: pp.words_per_vertex(),
         words_per_fragment: 4,
     };
+    segments
 }

@@ -129,6 +129,13 @@ impl KernelLibrary {
         Ok(())
     }
 
+    /// The initiation interval of the compiled loop of the kernel loaded as program
+    /// `program` (`None`: not loaded, or no loop).
+    pub fn ii_of_program(&self, program: usize) -> Option<u32> {
+        let e = self.entries.iter().find(|e| e.program == Some(program))?;
+        e.compiled.as_ref()?.report.ii
+    }
+
     /// The stream names of a kernel in binding order: its declared streams, then its
     /// parameters' stream (`params`) if the compiler gave it one.
     pub fn binding_names(&self, k: KernelId) -> Vec<(String, Dir)> {

@@ -12,6 +12,7 @@
 //!   interface.
 //! * [`attribution`]: every cycle of a run in one category (a kernel, waiting on a stream
 //!   operation, dispatch, issue, host), from the stream controller's records.
+//! * [`timeline`]: a run in the Trace Event format trace viewers open.
 //! * [`batch`]: strip-mining, two batches in flight, and spilling by splitting work.
 
 pub mod attribution;
@@ -20,6 +21,7 @@ pub mod dram;
 pub mod host;
 pub mod kernels;
 pub mod srf;
+pub mod timeline;
 
 pub use batch::{Fit, pipelined, split_to_fit, strip_mine};
 pub use dram::{Buffer, DramMap};
