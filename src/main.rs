@@ -44,6 +44,9 @@ enum Command {
     /// Time whole frames: simulated cycles per host second, host seconds per frame, compile
     /// time cold and from the cache
     Bench(commands::bench::BenchArgs),
+    /// Two renders' statistics (`render --stats`) side by side: cycles, frames/s, where the
+    /// cycles went, kernels, bandwidths and error, with ratios, largest differences first
+    Compare(commands::compare::CompareArgs),
 }
 
 /// Output into a closed pipe (`imagine kernel show vertex --microcode | head -1`) ends the
@@ -69,6 +72,7 @@ fn main() -> ExitCode {
         Command::Dram(a) => commands::dram::run(a),
         Command::Demo(a) => commands::demo::run(a),
         Command::Bench(a) => commands::bench::frames(a),
+        Command::Compare(a) => commands::compare::run(a),
     };
     match result {
         Ok(code) => code,

@@ -1004,6 +1004,22 @@ fn render_reports_its_pipeline_and_one_csv_row_per_batch() {
     let timeline: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&timeline).unwrap()).unwrap();
     assert!(timeline["traceEvents"].as_array().unwrap().len() > 10);
+    // `compare`: a copy whose frame took twice the cycles shows that difference first.
+    let mut doubled = json.clone();
+    doubled["frame"]["cycles"] = (2 * frame["cycles"].as_u64().unwrap()).into();
+    let other = dir.join("s2.json");
+    std::fs::write(&other, doubled.to_string()).unwrap();
+    let (a, b) = (stats.to_str().unwrap(), other.to_str().unwrap());
+    let compared = imagine(&["compare", a, b, "--json"]);
+    assert!(compared.status.success(), "{}", stderr(&compared));
+    let cmp: serde_json::Value = serde_json::from_slice(&compared.stdout).unwrap();
+    let first = &cmp["rows"][0];
+    assert_eq!(
+        (first["name"].as_str(), first["ratio"].as_f64()),
+        (Some("cycles"), Some(2.0))
+    );
+    assert_eq!(cmp["rows"][1]["ratio"].as_f64(), Some(1.0));
+    assert_clear_error(&["compare", a, csv.to_str().unwrap()]);
     // An unlit scene: no lighting kernel built, the merge stage never reached.
     let sp = &frame["specialisation"];
     let built: Vec<&str> = sp["kernels_built"]
