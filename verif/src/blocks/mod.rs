@@ -14,6 +14,7 @@ pub mod address_gen;
 pub mod alu;
 pub mod cdc;
 pub mod comm;
+pub mod condstream;
 pub mod fu;
 pub mod lrf;
 pub mod scheduler;
@@ -100,6 +101,11 @@ pub const BLOCKS: &[Block] = &[
         name: "scoreboard",
         about: "stream controller scoreboard: SRF and DRAM hazards, oldest-ready issue, units, completion",
         run: scoreboard::run,
+    },
+    Block {
+        name: "condstream",
+        about: "conditional streams: input and output in cluster order, flush at kernel end, network and scratchpad reservation",
+        run: condstream::run,
     },
 ];
 
