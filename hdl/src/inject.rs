@@ -37,6 +37,9 @@ pub enum Bug {
     /// The stream controller's scoreboard lets a write pass an older read of the same SRF
     /// words.
     ScoreboardIgnoresWriteAfterRead,
+    /// The packing of a conditional output loses the last selected cluster's word when
+    /// every cluster is selected (its word count saturates one short of a full row).
+    CondOutputDropsLastWord,
 }
 
 thread_local! {

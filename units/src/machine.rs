@@ -115,6 +115,14 @@ impl StreamSink for Streams<'_> {
                         n += 1;
                     }
                 }
+                #[cfg(feature = "inject-bugs")]
+                if n == self.lanes
+                    && imagine_hdl::inject::active(
+                        imagine_hdl::inject::Bug::CondOutputDropsLastWord,
+                    )
+                {
+                    n -= 1;
+                }
                 self.srf.write_conditional(stream as usize, &packed[..n])
             }
         }
@@ -833,6 +841,10 @@ impl Machine {
             self.comms[i].send(data, cs.perm, regs, pc)?;
         }
         let stream_latency = self.desc.latency.stream;
+        // The network and the scratchpad carry every conditional access of the instruction
+        // (up to `srf.conditional_words_per_cycle`, as the program check allows): claimed
+        // once, by the first.
+        let mut claimed = false;
         for (i, s) in inst.sin.iter().enumerate() {
             let Some(s) = s else { continue };
             if !live.live(s.stage) {
@@ -850,8 +862,7 @@ impl Machine {
                     // Conditional input: clusters whose code is set take the next elements
                     // in cluster order, routed over the intercluster network and buffered
                     // in the scratchpad.
-                    self.comms[0].reserve()?;
-                    self.scratchpads[0].claim_for_conditional_stream()?;
+                    self.claim_for_conditional_streams(&mut claimed)?;
                     self.mask.copy_from_slice(self.cc.read(cc)?);
                     let n = self.mask.iter().filter(|&&b| b).count();
                     let words = self.srf.read_conditional(stream, n)?;
@@ -867,15 +878,14 @@ impl Machine {
         }
         if let Some(s) = inst.sout {
             if live.live(s.stage) {
+                if s.cond.is_some() {
+                    // Conditional output is compacted over the intercluster network and
+                    // buffered in the scratchpad.
+                    self.claim_for_conditional_streams(&mut claimed)?;
+                }
                 let data = self.lrfs[self.sout_input].read(s.data)?;
                 let mask = match s.cond {
-                    Some(cc) => {
-                        // Conditional output is compacted over the intercluster network
-                        // and buffered in the scratchpad.
-                        self.comms[0].reserve()?;
-                        self.scratchpads[0].claim_for_conditional_stream()?;
-                        Some(self.cc.read(cc)?)
-                    }
+                    Some(cc) => Some(self.cc.read(cc)?),
                     None => None,
                 };
                 Streams {
@@ -898,6 +908,16 @@ impl Machine {
             } else {
                 stats.squashed += 1;
             }
+        }
+        Ok(())
+    }
+
+    /// Claims the intercluster network and the scratchpad for this instruction's
+    /// conditional stream accesses, unless `claimed` says an earlier one did.
+    fn claim_for_conditional_streams(&mut self, claimed: &mut bool) -> Result<(), ContractError> {
+        if !std::mem::replace(claimed, true) {
+            self.comms[0].reserve()?;
+            self.scratchpads[0].claim_for_conditional_stream()?;
         }
         Ok(())
     }

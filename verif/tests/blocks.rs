@@ -143,6 +143,36 @@ fn scoreboard_passes() {
 }
 
 #[test]
+fn condstream_passes() {
+    passes_on_the_built_in_machines("condstream");
+}
+
+/// Two conditional words per cluster per cycle: the conditional read and write of one
+/// instruction share the network and scratchpad claim the program check allows them.
+#[test]
+fn condstream_passes_with_two_conditional_words_per_cycle() {
+    let mut desc = MachineDesc::resolve("gold8").unwrap();
+    desc.srf.conditional_words_per_cycle = 2;
+    desc.name = "gold8 with 2 conditional words per cycle".into();
+    let r = blocks::run_block(
+        blocks::find("condstream").unwrap(),
+        &desc,
+        &Config::new(7, TRANSACTIONS),
+    );
+    assert!(r.passed(), "{}", r.first_mismatch().unwrap_or_default());
+    let fused = r
+        .coverage
+        .bins()
+        .iter()
+        .find(|(n, _)| n == "two conditional accesses in one instruction");
+    assert!(
+        fused.is_some_and(|(_, hits)| *hits > 0),
+        "{:?}",
+        r.coverage.bins()
+    );
+}
+
+#[test]
 fn lrf_catches_a_write_dropped_on_a_same_entry_read() {
     catches("lrf", Bug::LrfDropsWriteOnSameEntryRead);
 }
@@ -205,6 +235,11 @@ fn srf_catches_a_flush_that_keeps_the_partial_line() {
 #[test]
 fn scoreboard_catches_a_write_passing_an_older_read() {
     catches("scoreboard", Bug::ScoreboardIgnoresWriteAfterRead);
+}
+
+#[test]
+fn condstream_catches_a_conditional_word_lost_in_a_full_row() {
+    catches("condstream", Bug::CondOutputDropsLastWord);
 }
 
 #[test]

@@ -15,6 +15,7 @@ pub mod alu;
 pub mod ccfile;
 pub mod cdc;
 pub mod comm;
+pub mod condstream;
 pub mod fpu;
 pub mod fu;
 pub mod lrf;
@@ -127,6 +128,11 @@ pub const BLOCKS: &[Block] = &[
         name: "scoreboard",
         about: "stream controller scoreboard: SRF and DRAM hazards, oldest-ready issue, units, completion",
         run: scoreboard::run,
+    },
+    Block {
+        name: "condstream",
+        about: "conditional streams: input and output in cluster order, flush at kernel end, network and scratchpad reservation",
+        run: condstream::run,
     },
 ];
 
