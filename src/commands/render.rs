@@ -146,13 +146,20 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     if let Some(p) = &a.png {
         image.write_png(p).map_err(anyhow::Error::msg)?;
     }
+    let reference_start = std::time::Instant::now();
     let reference_image = reference::render(&scene)?;
     let metrics = compare(&image, &reference_image).map_err(anyhow::Error::msg)?;
+    let reference_seconds = reference_start.elapsed().as_secs_f64();
+    let write_start = std::time::Instant::now();
     if let Some(p) = &a.reference_png {
         reference_image.write_png(p).map_err(anyhow::Error::msg)?;
     }
     if let Some(p) = &a.stats {
-        let json = serde_json::json!({ "frame": frame.stats, "reference_error": metrics });
+        let json = serde_json::json!({
+            "frame": frame.stats,
+            "reference_error": metrics,
+            "reference_seconds": reference_seconds,
+        });
         std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")
             .with_context(|| format!("cannot write `{}`", p.display()))?;
     }
@@ -164,11 +171,31 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
         std::fs::write(p, frame.stats.batches_csv())
             .with_context(|| format!("cannot write `{}`", p.display()))?;
     }
-    print_stats(&frame, &metrics);
+    let host = HostTimes {
+        reference: reference_seconds,
+        write: write_start.elapsed().as_secs_f64(),
+    };
+    print_stats(&frame, &metrics, &desc, &host);
     Ok(ExitCode::SUCCESS)
 }
 
-fn print_stats(f: &Frame, m: &Metrics) {
+/// Host time the CLI spends around the render: the reference renderer and the comparison,
+/// and writing the outputs (before the summary).
+struct HostTimes {
+    reference: f64,
+    write: f64,
+}
+
+/// A rate in cycles per second with a unit that keeps three significant digits.
+fn cycles_per_second(x: f64) -> String {
+    if x >= 1e6 {
+        format!("{:.2} M cycles/s", x / 1e6)
+    } else {
+        format!("{:.1} k cycles/s", x / 1e3)
+    }
+}
+
+fn print_stats(f: &Frame, m: &Metrics, desc: &MachineDesc, host: &HostTimes) {
     let s = &f.stats;
     println!(
         "scene              {} ({}x{}, {} triangles)",
@@ -190,25 +217,38 @@ fn print_stats(f: &Frame, m: &Metrics) {
         s.fragments_per_second / 1e6,
         s.fragments
     );
-    println!("ops/cycle          {:.1}", s.ops_per_cycle);
     println!(
-        "cluster occupancy  {:.1} % ({:.1} % without stalls)",
-        100.0 * s.cluster_occupancy,
-        100.0 * s.cluster_occupancy_without_stalls
+        "ops/cycle          {:.1} (arithmetic ops issued per core cycle, each cluster's counted)",
+        s.ops_per_cycle
     );
     println!(
-        "batches            {} of {} triangles, {} spills, {} composite rounds ({} merged, \
+        "cluster occupancy  {:.1} % of frame cycles running a kernel ({:.1} % issuing, {:.1} % \
+         stalled on stream buffers)",
+        100.0 * s.cluster_occupancy,
+        100.0 * s.cluster_occupancy_without_stalls,
+        100.0 * (s.cluster_occupancy - s.cluster_occupancy_without_stalls)
+    );
+    println!(
+        "batches            {} of {} triangles, {} tile splits, {} composite rounds ({} merged, \
          {} fragments dropped)",
         s.batches,
         s.batch_triangles,
-        s.spills,
+        s.tile_splits,
         s.composite_rounds,
         s.merge_rounds,
         s.merged_fragments
     );
+    // Peaks: a word per DRAM cycle per channel; the SRF's words per core cycle; a read and
+    // a write port per LRF per cluster.
+    let dram_peak = (desc.dram.channels * 4) as f64 * desc.clocks.dram_mhz as f64 / 1e3;
+    let srf_peak = desc.srf.words_per_cycle as f64;
+    let lrf_peak = (2 * desc.lrf_names().len() * desc.cluster.count) as f64;
+    let of_peak = |x: f64, peak: f64| 100.0 * x / peak.max(1e-12);
     println!(
-        "DRAM               {:.3} GB/s, row hits {:.1} %",
+        "DRAM               {:.3} GB/s ({:.1} % of {:.2} GB/s peak), row hits {:.1} % of accesses",
         s.dram_gbs,
+        of_peak(s.dram_gbs, dram_peak),
+        dram_peak,
         100.0 * s.dram_row_hit_rate
     );
     println!(
@@ -216,15 +256,20 @@ fn print_stats(f: &Frame, m: &Metrics) {
         s.bytes_per_vertex, s.bytes_per_fragment, s.texel_bytes_per_fragment
     );
     println!(
-        "SRF                {:.2} words/cycle",
-        s.srf_words_per_cycle
+        "SRF                {:.2} words/cycle ({:.1} % of {} words/cycle peak)",
+        s.srf_words_per_cycle,
+        of_peak(s.srf_words_per_cycle, srf_peak),
+        desc.srf.words_per_cycle
     );
     let lrf_words = s.lrf_reads_per_cycle + s.lrf_writes_per_cycle;
     println!(
-        "LRF                {:.1} words/cycle ({:.1} read, {:.1} written), {:.1} GB/s",
+        "LRF                {:.1} words/cycle ({:.1} read, {:.1} written; {:.1} % of the {} \
+         its ports can move), {:.1} GB/s",
         lrf_words,
         s.lrf_reads_per_cycle,
         s.lrf_writes_per_cycle,
+        of_peak(lrf_words, lrf_peak),
+        lrf_peak,
         lrf_words * 4.0 * s.core_mhz * 1e6 / 1e9
     );
     let sp = &s.specialisation;
@@ -269,7 +314,8 @@ fn print_stats(f: &Frame, m: &Metrics) {
         );
     }
     println!(
-        "reference error    PSNR {:.2} dB, max abs {} , {:.3} % pixels differ, {:.3} % coverage",
+        "reference error    PSNR {:.2} dB, max abs error {} of 255 (an 8-bit channel), {:.3} % \
+         of pixels differ, {:.3} % differ in coverage",
         m.psnr_db,
         m.max_abs_error,
         100.0 * m.differing_share,
@@ -285,14 +331,19 @@ fn print_stats(f: &Frame, m: &Metrics) {
     } else {
         String::new()
     };
+    let prepare = (s.host_seconds - s.compile_seconds - s.simulate_seconds).max(0.0);
     println!(
-        "host               {:.2} s: compiling {:.2} s ({} of {} kernels from the cache), \
-         simulating {:.2} s ({:.2} M cycles/s{jumped})",
-        s.host_seconds,
+        "host               {:.2} s: compile {:.2} s ({} of {} kernels from the cache), \
+         prepare {:.2} s, simulate {:.2} s ({} over every phase simulated{jumped}), \
+         reference {:.2} s, write {:.2} s",
+        s.host_seconds + host.reference + host.write,
         s.compile_seconds,
         s.kernels_from_cache,
         s.kernel_programs,
+        prepare,
         s.simulate_seconds,
-        s.simulated_cycles_per_second / 1e6
+        cycles_per_second(s.simulated_cycles_per_second),
+        host.reference,
+        host.write
     );
 }

@@ -1737,9 +1737,9 @@ impl FrameRun<'_> {
             },
             RenderError,
         )?;
-        self.stats.spills += splits;
+        self.stats.tile_splits += splits;
         if let Some(row) = self.stats.batch_rows.last_mut() {
-            row.spills = splits;
+            row.tile_splits = splits;
         }
         h.set_batch(None);
         Ok(())

@@ -63,8 +63,9 @@ pub struct BatchRow {
     /// Cycles of the kernels queued for this batch.
     pub kernel_cycles: u64,
     pub fragments: u64,
-    /// Scissor splits (spills) of this batch.
-    pub spills: u64,
+    /// Scissor-tile splits of this batch (its fragments overflowed the SRF, so the screen
+    /// was cut into tiles rasterized one at a time).
+    pub tile_splits: u64,
     pub composite_rounds: u64,
     /// Words the batch's memory operations moved.
     pub dram_words: u64,
@@ -126,7 +127,7 @@ pub struct FrameStats {
     pub batch_triangles: usize,
     pub batches: u64,
     /// Scissor splits made because a batch's fragments overflowed the SRF.
-    pub spills: u64,
+    pub tile_splits: u64,
     pub composite_rounds: u64,
     /// Composite rounds whose conflicting fragments were sorted and merged.
     pub merge_rounds: u64,
@@ -164,7 +165,7 @@ impl FrameStats {
     /// The per-batch rows as CSV.
     pub fn batches_csv(&self) -> String {
         let mut out = String::from(
-            "batch,object,triangles,vertices,cycles,kernel_cycles,fragments,spills,\
+            "batch,object,triangles,vertices,cycles,kernel_cycles,fragments,tile_splits,\
              composite_rounds,dram_words,srf_words,srf_fragment_words",
         );
         for (name, _) in Attribution::default().rows() {
@@ -184,7 +185,7 @@ impl FrameStats {
                 r.cycles,
                 r.kernel_cycles,
                 r.fragments,
-                r.spills,
+                r.tile_splits,
                 r.composite_rounds,
                 r.dram_words,
                 r.srf_words,
