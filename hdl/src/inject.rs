@@ -33,6 +33,9 @@ pub enum Bug {
     /// The stream controller's scoreboard lets a write pass an older read of the same SRF
     /// words.
     ScoreboardIgnoresWriteAfterRead,
+    /// The microcontroller squashes a software-pipeline stage one pass late in the
+    /// epilogue: stage `s` of a loop of `N` iterations is still live in pass `N + s`.
+    MicrocontrollerSquashesOneStageLate,
 }
 
 thread_local! {

@@ -103,6 +103,11 @@ fn scoreboard_passes() {
 }
 
 #[test]
+fn microcontroller_passes() {
+    passes_on_the_built_in_machines("microcontroller");
+}
+
+#[test]
 fn lrf_catches_a_write_dropped_on_a_same_entry_read() {
     catches("lrf", Bug::LrfDropsWriteOnSameEntryRead);
 }
@@ -155,6 +160,11 @@ fn srf_catches_a_flush_that_keeps_the_partial_line() {
 #[test]
 fn scoreboard_catches_a_write_passing_an_older_read() {
     catches("scoreboard", Bug::ScoreboardIgnoresWriteAfterRead);
+}
+
+#[test]
+fn microcontroller_catches_a_stage_squashed_one_pass_late() {
+    catches("microcontroller", Bug::MicrocontrollerSquashesOneStageLate);
 }
 
 #[test]

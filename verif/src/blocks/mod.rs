@@ -16,6 +16,7 @@ pub mod cdc;
 pub mod comm;
 pub mod fu;
 pub mod lrf;
+pub mod microcontroller;
 pub mod scheduler;
 pub mod scoreboard;
 pub mod scratchpad;
@@ -100,6 +101,11 @@ pub const BLOCKS: &[Block] = &[
         name: "scoreboard",
         about: "stream controller scoreboard: SRF and DRAM hazards, oldest-ready issue, units, completion",
         run: scoreboard::run,
+    },
+    Block {
+        name: "microcontroller",
+        about: "microcontroller: counted, stream and condition loops, nesting, multi-pass bodies, squash, refusals",
+        run: microcontroller::run,
     },
 ];
 
