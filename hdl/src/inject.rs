@@ -40,6 +40,9 @@ pub enum Bug {
     /// The packing of a conditional output loses the last selected cluster's word when
     /// every cluster is selected (its word count saturates one short of a full row).
     CondOutputDropsLastWord,
+    /// The microcontroller squashes a software-pipeline stage one pass late in the
+    /// epilogue: stage `s` of a loop of `N` iterations is still live in pass `N + s`.
+    MicrocontrollerSquashesOneStageLate,
 }
 
 thread_local! {

@@ -287,6 +287,15 @@ impl Microcontroller {
         self.d.pc = pc;
         let live = match self.d.frames.last() {
             Some(f) => {
+                #[cfg(feature = "inject-bugs")]
+                let f = &Frame {
+                    iterations: f.iterations.map(|n| {
+                        n + u64::from(imagine_hdl::inject::active(
+                            imagine_hdl::inject::Bug::MicrocontrollerSquashesOneStageLate,
+                        ))
+                    }),
+                    ..*f
+                };
                 let mut bits = 0u64;
                 for s in 0..f.stages.min(64) as u64 {
                     let live = match f.iterations {

@@ -173,6 +173,11 @@ fn condstream_passes_with_two_conditional_words_per_cycle() {
 }
 
 #[test]
+fn microcontroller_passes() {
+    passes_on_the_built_in_machines("microcontroller");
+}
+
+#[test]
 fn lrf_catches_a_write_dropped_on_a_same_entry_read() {
     catches("lrf", Bug::LrfDropsWriteOnSameEntryRead);
 }
@@ -240,6 +245,11 @@ fn scoreboard_catches_a_write_passing_an_older_read() {
 #[test]
 fn condstream_catches_a_conditional_word_lost_in_a_full_row() {
     catches("condstream", Bug::CondOutputDropsLastWord);
+}
+
+#[test]
+fn microcontroller_catches_a_stage_squashed_one_pass_late() {
+    catches("microcontroller", Bug::MicrocontrollerSquashesOneStageLate);
 }
 
 #[test]

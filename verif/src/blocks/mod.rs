@@ -19,6 +19,7 @@ pub mod condstream;
 pub mod fpu;
 pub mod fu;
 pub mod lrf;
+pub mod microcontroller;
 pub mod scheduler;
 pub mod scoreboard;
 pub mod scratchpad;
@@ -133,6 +134,11 @@ pub const BLOCKS: &[Block] = &[
         name: "condstream",
         about: "conditional streams: input and output in cluster order, flush at kernel end, network and scratchpad reservation",
         run: condstream::run,
+    },
+    Block {
+        name: "microcontroller",
+        about: "microcontroller: counted, stream and condition loops, nesting, multi-pass bodies, squash, refusals",
+        run: microcontroller::run,
     },
 ];
 
