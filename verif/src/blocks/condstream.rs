@@ -362,6 +362,14 @@ fn reg(r: usize, adders: usize) -> (usize, usize) {
 
 /// The microcode of `spec` for `desc`, scheduled by its latencies; `None` if this machine
 /// cannot hold it.
+/// The software-pipelined filter, as the generator draws it.
+const PIPELINED: Spec = Spec {
+    kind: Kind::Pipelined,
+    twice: false,
+    echo: false,
+    fused: false,
+};
+
 fn kernel_text(spec: &Spec, desc: &MachineDesc) -> Option<String> {
     let ls = desc.latency.stream as usize;
     let li = desc.latency.int as usize;
@@ -375,7 +383,9 @@ fn kernel_text(spec: &Spec, desc: &MachineDesc) -> Option<String> {
     let mut body = Body::default();
     match spec.kind {
         Kind::Pipelined => {
-            if adders < 2 {
+            // Every cycle reads `x` and writes `v` and `w`: three unconditional words per
+            // cluster, which the clusters' stream bandwidth must allow.
+            if adders < 2 || desc.srf.cluster_words_per_cycle < 3 {
                 return None;
             }
             let a = ls + 1;
@@ -876,6 +886,15 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
         // The pipelined kernel's three full streams must outrun the SRF port to stall.
         .filter(|b| {
             3 * lanes > desc.srf.words_per_cycle || *b != "kernel stalled on its stream buffers"
+        })
+        // A machine that cannot run the pipelined kernel reaches neither of its bins.
+        .filter(|b| {
+            kernel_text(&PIPELINED, desc).is_some()
+                || !matches!(
+                    *b,
+                    "kernel stalled on its stream buffers"
+                        | "conditional output every cycle (software-pipelined)"
+                )
         })
         .collect();
     let dut = Dut::new(desc);
