@@ -154,3 +154,80 @@ fn gtkwave_accepts_a_machine_vcd() {
     );
     assert_gtkwave_accepts(&vcd);
 }
+
+/// The values (as text, a Verilog string right-justified in its bits) the variable
+/// `name` of scope `scope` took.
+fn text_values(path: &Path, scope: &str, name: &str) -> BTreeSet<String> {
+    let mut parser = vcd::Parser::new(BufReader::new(File::open(path).unwrap()));
+    let header = parser.parse_header().unwrap();
+    let var = header
+        .find_var(&[scope, name].concat().split('.').collect::<Vec<_>>())
+        .unwrap_or_else(|| panic!("{scope}{name} missing"));
+    let code = var.code;
+    let mut out = BTreeSet::new();
+    for cmd in parser {
+        if let vcd::Command::ChangeVector(c, bits) = cmd.unwrap()
+            && c == code
+        {
+            let bytes: Vec<u8> = bits
+                .iter()
+                .collect::<Vec<_>>()
+                .chunks(8)
+                .map(|b| {
+                    b.iter()
+                        .fold(0u8, |a, &v| (a << 1) | u8::from(v == vcd::Value::V1))
+                })
+                .filter(|&b| b != 0)
+                .collect();
+            out.insert(String::from_utf8(bytes).unwrap());
+        }
+    }
+    out
+}
+
+#[test]
+fn a_render_waveform_names_its_kernels_and_decodes_coded_fields() {
+    let vcd = run_with_vcd(
+        "render-names",
+        &[
+            "render",
+            "RATE-1",
+            "--size",
+            "16",
+            "--vcd-scope",
+            "top.sc",
+            "--vcd-scope",
+            "top.uc",
+            "--vcd-scope",
+            "top.mem.ch0*",
+        ],
+    );
+    // The running kernel and the issued stream instruction, as text.
+    let kernels = text_values(&vcd, "top.sc.", "kernel");
+    assert!(
+        kernels.contains("xyrast") && kernels.contains("vertex_unlit"),
+        "{kernels:?}"
+    );
+    let issued = text_values(&vcd, "top.sc.", "issue");
+    assert!(
+        issued.contains("kernel xyrast") && issued.contains("load"),
+        "{issued:?}"
+    );
+    // The save file: the control path first, text as ASCII, DRAM commands by name.
+    let gtkw = std::fs::read_to_string(vcd.with_extension("gtkw")).unwrap();
+    let at = |s: &str| {
+        gtkw.find(s)
+            .unwrap_or_else(|| panic!("`{s}` missing:\n{gtkw}"))
+    };
+    assert!(at("-top.uc") < at("-top.mem.ch0") && at("-top.sc") < at("-top.mem.ch0"));
+    assert!(gtkw.contains("@820\ntop.sc.kernel[191:0]"), "{gtkw}");
+    let cmd = at("top.mem.ch0.cmd[2:0]");
+    let filter_line = gtkw[..cmd].lines().last().unwrap();
+    let file = filter_line.split_once(' ').unwrap().1;
+    assert!(filter_line.starts_with('^'), "{filter_line}");
+    let names = std::fs::read_to_string(file).unwrap();
+    assert!(
+        names.contains("1 ACT\n") && names.contains("4 PRE\n"),
+        "{names}"
+    );
+}

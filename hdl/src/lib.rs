@@ -31,7 +31,7 @@ pub use clock::{ClockDomain, ClockError, Clocks, DomainId, DomainSet, Edge, defa
 pub use error::{Contract, ContractError, Violation};
 pub use fifo::{FifoRx, FifoTx};
 pub use pipe::{PipeRx, PipeTx};
-pub use probe::{ProbeRegistry, SignalDecl, SignalId, SignalKind, Trace, Tracer};
+pub use probe::{Display, ProbeRegistry, SignalDecl, SignalId, SignalKind, Trace, Tracer};
 pub use recorder::{Recorder, Recording};
 pub use reg::Reg;
 pub use sim::{Channel, Design, DesignError, Module, Scope, Sim};

@@ -22,6 +22,18 @@ pub enum SignalKind {
     Clock,
 }
 
+/// How a waveform viewer should show a signal's values.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Display {
+    /// As a number (binary for one bit, hexadecimal otherwise).
+    #[default]
+    Number,
+    /// As ASCII text, first character in the most significant byte (a name).
+    Text,
+    /// Value `i` is `names[i]` (a coded field: a command, a state, an opcode).
+    Names(&'static [&'static str]),
+}
+
 /// A registered signal.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct SignalDecl {
@@ -29,6 +41,7 @@ pub struct SignalDecl {
     pub path: String,
     pub width: u32,
     pub kind: SignalKind,
+    pub display: Display,
 }
 
 impl SignalDecl {
@@ -67,8 +80,18 @@ impl ProbeRegistry {
             !self.signals.iter().any(|s| s.path == path),
             "signal `{path}` registered twice"
         );
-        self.signals.push(SignalDecl { path, width, kind });
+        self.signals.push(SignalDecl {
+            path,
+            width,
+            kind,
+            display: Display::Number,
+        });
         SignalId(self.signals.len() as u32 - 1)
+    }
+
+    /// Says how a viewer should show signal `id`'s values.
+    pub fn set_display(&mut self, id: SignalId, display: Display) {
+        self.signals[id.0 as usize].display = display;
     }
 
     pub fn signals(&self) -> &[SignalDecl] {
@@ -190,6 +213,22 @@ impl Trace {
         }
     }
 
+    /// Reports `text` on a [`Display::Text`] signal as a Verilog string is held: the last
+    /// character in the lowest byte, leading bytes zero; a longer text is cut to its first
+    /// characters.
+    pub fn text(&mut self, id: SignalId, text: &str) {
+        let i = id.0 as usize;
+        let bytes = (self.widths[i] / 8) as usize;
+        let mut words = [0u64; 8];
+        let n = (self.widths[i] as usize).div_ceil(64).min(words.len());
+        let kept = &text.as_bytes()[..text.len().min(bytes).min(8 * words.len())];
+        for (k, &b) in kept.iter().enumerate() {
+            let bit = 8 * (kept.len() - 1 - k);
+            words[bit / 64] |= u64::from(b) << (bit % 64);
+        }
+        self.wide(id, &words[..n]);
+    }
+
     /// Reports a typed value of up to 128 bits.
     #[inline]
     pub fn bits<T: crate::Bits>(&mut self, id: SignalId, v: T) {
@@ -238,6 +277,23 @@ mod tests {
         assert_eq!(reg.get(w).words(), 3);
         assert_eq!(reg.get(a).scope(), "top");
         assert_eq!(reg.get(a).name(), "a");
+    }
+
+    #[test]
+    fn text_is_held_as_a_verilog_string() {
+        let mut reg = ProbeRegistry::new();
+        let k = reg.register("top.kernel".into(), 32, SignalKind::Reg);
+        let recorder = Recorder::default();
+        let mut t = Trace::new(&reg, Box::new(recorder.clone()));
+        t.text(k, "ab");
+        t.text(k, "xyrast"); // cut to the 4 characters the signal holds
+        let values: Vec<u64> = recorder
+            .recording()
+            .changes
+            .iter()
+            .map(|(_, _, v)| v[0])
+            .collect();
+        assert_eq!(values, vec![0x6162, 0x7879_7261]);
     }
 
     #[test]

@@ -171,6 +171,19 @@ impl Scope<'_> {
         self.design.probes.register(path, width, kind)
     }
 
+    /// Registers a probe `self.name` that a viewer shows as `display`.
+    pub fn signal_shown(
+        &mut self,
+        name: &str,
+        width: u32,
+        kind: SignalKind,
+        display: crate::Display,
+    ) -> SignalId {
+        let id = self.signal(name, width, kind);
+        self.design.probes.set_display(id, display);
+        id
+    }
+
     /// A register probed as `self.name`.
     pub fn reg<T: Bits>(&mut self, name: &str, init: T) -> Reg<T> {
         Reg::new(self, name, init)

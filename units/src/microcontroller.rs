@@ -28,7 +28,9 @@
 //!
 //! State changes are computed during the cycle and committed at the edge, like every block.
 
-use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
+use imagine_hdl::{
+    ContractError, Display, Scope, SignalId, SignalKind, Trace, Violation, bits_for,
+};
 
 use crate::microcode::{Control, Instruction, LoopBegin, LoopKind};
 
@@ -129,7 +131,12 @@ impl Microcontroller {
         let pc_bits = bits_for(store_words as u64);
         let probes = [
             s.signal("pc", pc_bits, SignalKind::Reg),
-            s.signal("phase", 2, SignalKind::Reg),
+            s.signal_shown(
+                "phase",
+                2,
+                SignalKind::Reg,
+                Display::Names(&["idle", "running", "finishing"]),
+            ),
             s.signal("loop_depth", bits_for(loop_depth as u64), SignalKind::Reg),
             s.signal("pass", 32, SignalKind::Reg),
             s.signal("iterations", 32, SignalKind::Reg),

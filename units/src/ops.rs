@@ -388,6 +388,13 @@ impl Op {
         self.latency_class().of(l)
     }
 
+    /// How a waveform shows an opcode probe: by mnemonic.
+    pub fn display() -> imagine_hdl::Display {
+        static NAMES: std::sync::LazyLock<Vec<&'static str>> =
+            std::sync::LazyLock::new(|| Op::ALL.iter().map(|o| o.name()).collect());
+        imagine_hdl::Display::Names(&NAMES)
+    }
+
     /// The opcode: the op's index in [`Op::ALL`] (fits [`Op::OPCODE_BITS`] bits).
     #[inline]
     pub const fn opcode(self) -> u8 {

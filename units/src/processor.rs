@@ -25,8 +25,8 @@ use std::cell::Cell;
 use std::rc::Rc;
 
 use imagine_hdl::{
-    ClockDomain, ContractError, Design, DomainId, Module, SignalId, SignalKind, Sim, Trace,
-    Violation, bits_for,
+    ClockDomain, ContractError, Design, Display, DomainId, Module, SignalId, SignalKind, Sim,
+    Trace, Violation, bits_for,
 };
 
 use crate::desc::MachineDesc;
@@ -40,6 +40,9 @@ use crate::stream_controller::{InstrRecord, Issue, StreamController, StreamInstr
 
 pub mod idle;
 pub use idle::run_until;
+
+/// Characters of the text probes `sc.kernel` and `sc.issue` (longer names are cut).
+const TEXT_CHARS: u32 = 24;
 
 /// Kernels and the stream instructions that use them.
 #[derive(Clone, Debug, Default)]
@@ -111,6 +114,11 @@ pub struct Processor {
     maybe_idle: Rc<Cell<bool>>,
     path: String,
     ids: [SignalId; 5],
+    /// `sc.kernel` and `sc.issue`: the running kernel's name and the stream instruction
+    /// issued at the last edge, as text.
+    text_ids: [SignalId; 2],
+    /// The instruction issued at the last edge, for `sc.issue`.
+    issued_last: Option<usize>,
 }
 
 impl Processor {
@@ -270,6 +278,7 @@ impl Processor {
             self.sc.complete(t.id, cycle);
         }
         let issue = self.issue.take();
+        self.issued_last = issue.as_ref().map(|is| is.id);
         if let Some(is) = &issue {
             self.start(is)?;
         }
@@ -336,6 +345,17 @@ impl Module for Processor {
             self.ags.iter().filter(|a| a.is_busy()).count() as u64,
         );
         t.value(self.ids[4], self.host_transfer.is_some() as u64);
+        let programs = self.sc.programs();
+        let kernel = self
+            .kernel
+            .as_ref()
+            .map_or("", |k| &programs[k.program].name);
+        t.text(self.text_ids[0], kernel);
+        let issued = self
+            .issued_last
+            .map(|id| self.sc.records()[id].kind(programs))
+            .unwrap_or_default();
+        t.text(self.text_ids[1], &issued);
     }
 }
 
@@ -428,6 +448,10 @@ pub fn build(
         ),
         s.signal("host_busy", 1, SignalKind::Reg),
     ];
+    let text_ids = [
+        s.signal_shown("kernel", 8 * TEXT_CHARS, SignalKind::Reg, Display::Text),
+        s.signal_shown("issue", 8 * TEXT_CHARS, SignalKind::Wire, Display::Text),
+    ];
     let path = s.path().to_string();
     let n_ags = ags.len();
     design.add(Processor {
@@ -449,6 +473,8 @@ pub fn build(
         maybe_idle: Rc::default(),
         path,
         ids,
+        text_ids,
+        issued_last: None,
     });
     let mut sim = Sim::new(design);
     if let Some(f) = opts.on_start.take() {

@@ -2,8 +2,13 @@
 //!
 //! A save file written next to `out.vcd` as `out.gtkw` opens with `gtkwave out.gtkw`: it
 //! names the dump file, starts the view at the first dumped instant zoomed to a few dozen
-//! core cycles, shows the clocks first and then one group per scope (module) holding that
-//! scope's selected signals, 1-bit signals in binary and vectors in hexadecimal.
+//! core cycles, shows the clocks first, then the control path (the groups of the stream
+//! controller `sc` and the microcontroller `uc`, and any scope with a text signal such as
+//! the running kernel's name), then one group per other scope (module) holding that
+//! scope's selected signals. 1-bit signals show in binary and vectors in hexadecimal;
+//! text signals ([`Display::Text`]) as ASCII; coded fields ([`Display::Names`]: DRAM
+//! commands, bank states, opcodes) through GTKWave translate filter files written next to
+//! the save file (`out.gtkw` → `out-filters/N.txt`), so they show by name.
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -11,12 +16,15 @@ use std::fs;
 use std::io;
 use std::path::{Path, PathBuf};
 
-use imagine_hdl::{ProbeRegistry, SignalDecl, SignalId, SignalKind};
+use imagine_hdl::{Display, ProbeRegistry, SignalDecl, SignalId, SignalKind};
 
 /// GTKWave trace flags (`@…` lines, hexadecimal), from GTKWave's `TR_*` bits.
 mod flags {
     pub const HEX: u32 = 0x2;
+    pub const DEC: u32 = 0x4;
     pub const BIN: u32 = 0x8;
+    pub const ASCII: u32 = 0x800;
+    pub const FTRANSLATED: u32 = 0x2000;
     pub const RJUSTIFY: u32 = 0x20;
     pub const BLANK: u32 = 0x200;
     pub const COLLAPSED: u32 = 0x1000;
@@ -76,9 +84,46 @@ pub fn write_gtkw(
     // Absolute paths for both files: GTKWave uses them to find a dump moved together with
     // its save file, too.
     let abs = |p: &Path| -> PathBuf { std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf()) };
-    let text = render_gtkw(&abs(vcd_path), &abs(&path), probes, selected, view);
+    let save = abs(&path);
+    let text = render_gtkw(&abs(vcd_path), &save, probes, selected, view);
+    let filters = filter_files(&save, probes, selected);
+    if let Some((first, _)) = filters.first() {
+        fs::create_dir_all(first.parent().expect("a file in a directory"))?;
+    }
+    for (file, table) in &filters {
+        let mut text = String::new();
+        for (value, name) in table.iter().enumerate() {
+            let _ = writeln!(text, "{value} {name}");
+        }
+        fs::write(file, text)?;
+    }
     fs::write(&path, text)?;
     Ok(path)
+}
+
+/// The translate filter files of the coded signals among `selected`: one per distinct
+/// table of names, in the order first met, in the directory `<save stem>-filters` next to
+/// the save file `save`.
+fn filter_files(
+    save: &Path,
+    probes: &ProbeRegistry,
+    selected: &[SignalId],
+) -> Vec<(PathBuf, &'static [&'static str])> {
+    let stem = save.file_stem().unwrap_or_default().to_string_lossy();
+    let dir = save.with_file_name(format!("{stem}-filters"));
+    let mut tables: Vec<&'static [&'static str]> = Vec::new();
+    for &id in selected {
+        if let Display::Names(t) = probes.get(id).display
+            && !tables.contains(&t)
+        {
+            tables.push(t);
+        }
+    }
+    tables
+        .into_iter()
+        .enumerate()
+        .map(|(i, t)| (dir.join(format!("{}.txt", i + 1)), t))
+        .collect()
 }
 
 /// The text of a save file (see [`write_gtkw`]), for the dump at `dump` and the save file at
@@ -141,13 +186,20 @@ pub fn render_gtkw(
             flags_now = Some(f);
         }
     };
+    let filters = filter_files(save, probes, selected);
     let trace = |o: &mut String, s: &SignalDecl, set: &mut dyn FnMut(&mut String, u32)| {
-        let f = if s.width == 1 {
-            flags::BIN | flags::RJUSTIFY
-        } else {
-            flags::HEX | flags::RJUSTIFY
+        let f = match s.display {
+            Display::Text => flags::ASCII | flags::RJUSTIFY,
+            Display::Names(_) => flags::FTRANSLATED | flags::DEC | flags::RJUSTIFY,
+            Display::Number if s.width == 1 => flags::BIN | flags::RJUSTIFY,
+            Display::Number => flags::HEX | flags::RJUSTIFY,
         };
         set(o, f);
+        if let Display::Names(t) = s.display
+            && let Some(i) = filters.iter().position(|(_, u)| *u == t)
+        {
+            let _ = writeln!(o, "^{} {}", i + 1, filters[i].0.display());
+        }
         o.push_str(&gtkw_signal_name(s));
         o.push('\n');
     };
@@ -171,9 +223,16 @@ pub fn render_gtkw(
         groups.entry(scope).or_default().push(s);
     }
     let mut groups: Vec<(&str, Vec<&SignalDecl>)> = groups.into_iter().collect();
-    groups.sort_by_key(|(scope, _)| rank[scope]);
-    let closed = decls.len() > OPEN_GROUPS_MAX_SIGNALS;
+    // The control path first, open; then every other scope in order.
+    let control = |scope: &str, signals: &[&SignalDecl]| {
+        scope.ends_with(".sc")
+            || scope.ends_with(".uc")
+            || signals.iter().any(|s| s.display == Display::Text)
+    };
+    groups.sort_by_key(|(scope, signals)| (!control(scope, signals), rank[scope]));
+    let many = decls.len() > OPEN_GROUPS_MAX_SIGNALS;
     for (scope, signals) in &groups {
+        let closed = many && !control(scope, signals);
         let name = if scope.is_empty() {
             "(top level)"
         } else {

@@ -5,7 +5,7 @@
 //! when is the scheduler's. Probes: `state` (1 bit: 0 idle, 1 active) and `row` (the open
 //! row, `bits_for(rows - 1)` bits).
 
-use imagine_hdl::{Scope, SignalId, SignalKind, Trace, bits_for};
+use imagine_hdl::{Display, Scope, SignalId, SignalKind, Trace, bits_for};
 
 /// The state of a bank.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -30,7 +30,12 @@ impl Bank {
             q: BankState::Idle,
             d: BankState::Idle,
             ids: (
-                scope.signal("state", 1, SignalKind::Reg),
+                scope.signal_shown(
+                    "state",
+                    1,
+                    SignalKind::Reg,
+                    Display::Names(&["idle", "active"]),
+                ),
                 scope.signal("row", bits_for(rows as u64 - 1), SignalKind::Reg),
             ),
         }

@@ -19,8 +19,8 @@
 use std::collections::VecDeque;
 
 use imagine_hdl::{
-    AsyncFifoRx, AsyncFifoTx, ContractError, DomainId, FifoRx, FifoTx, Module, Scope, SignalId,
-    SignalKind, Trace, Violation, bits_for,
+    AsyncFifoRx, AsyncFifoTx, ContractError, Display, DomainId, FifoRx, FifoTx, Module, Scope,
+    SignalId, SignalKind, Trace, Violation, bits_for,
 };
 
 use super::scheduler::{Entry, Scheduler};
@@ -137,7 +137,12 @@ impl DramChannel {
         let p = cfg.params;
         let sched_p = cfg.scheduler_params.unwrap_or_else(|| p.clone());
         let ids = Probes {
-            cmd: scope.signal("cmd", 3, SignalKind::Reg),
+            cmd: scope.signal_shown(
+                "cmd",
+                3,
+                SignalKind::Reg,
+                Display::Names(&["NOP", "ACT", "READ", "WRITE", "PRE", "REF"]),
+            ),
             bank: scope.signal("cmd_bank", bits_for(p.banks as u64 - 1), SignalKind::Reg),
             row: scope.signal("cmd_row", bits_for(p.rows as u64 - 1), SignalKind::Reg),
             column: scope.signal(

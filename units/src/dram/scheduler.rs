@@ -37,7 +37,7 @@
 //! `refresh_pending`.
 
 use imagine_hdl::bits::{u4, u12};
-use imagine_hdl::{Scope, SignalId, SignalKind, Trace, bits_for};
+use imagine_hdl::{Display, Scope, SignalId, SignalKind, Trace, bits_for};
 
 use super::{Command, DramParams, Location, Policy, Request, Tag};
 
@@ -151,7 +151,19 @@ impl Scheduler {
         let banks = p.banks;
         let ids = Probes {
             depth: scope.signal("queue_depth", bits_for(capacity as u64), SignalKind::Reg),
-            decision: scope.signal("decision", 3, SignalKind::Reg),
+            decision: scope.signal_shown(
+                "decision",
+                3,
+                SignalKind::Reg,
+                Display::Names(&[
+                    "none",
+                    "column",
+                    "precharge",
+                    "activate",
+                    "refresh-precharge",
+                    "refresh",
+                ]),
+            ),
             entry: scope.signal(
                 "decision_entry",
                 bits_for(capacity.saturating_sub(1) as u64),

@@ -153,7 +153,7 @@ impl DivSqrt {
                 let mut s = u.child("core");
                 CoreIds {
                     valid: s.signal("valid", 1, SignalKind::Reg),
-                    op: s.signal("op", Op::OPCODE_BITS, SignalKind::Reg),
+                    op: s.signal_shown("op", Op::OPCODE_BITS, SignalKind::Reg, Op::display()),
                     rem: s.signal("rem", REM_BITS, SignalKind::Reg),
                     quotient: s.signal("quotient", QUOTIENT_BITS, SignalKind::Reg),
                     step: s.signal("step", bits_for(u64::from(STEPS)), SignalKind::Reg),

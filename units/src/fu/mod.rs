@@ -431,7 +431,7 @@ impl UnitProbes {
             .map(|c| {
                 let mut cl = scope.child(&format!("cluster{c}"));
                 let mut u = cl.child(name);
-                let op = u.signal("op", Op::OPCODE_BITS, SignalKind::Reg);
+                let op = u.signal_shown("op", Op::OPCODE_BITS, SignalKind::Reg, Op::display());
                 let issue = u.signal("issue", 1, SignalKind::Reg);
                 let operands = ["a", "b", "c"][..ports]
                     .iter()
@@ -446,7 +446,7 @@ impl UnitProbes {
                         let mut s = u.child(&format!("stage{k}"));
                         (
                             s.signal("valid", 1, SignalKind::Reg),
-                            s.signal("op", Op::OPCODE_BITS, SignalKind::Reg),
+                            s.signal_shown("op", Op::OPCODE_BITS, SignalKind::Reg, Op::display()),
                         )
                     })
                     .collect();
