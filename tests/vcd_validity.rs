@@ -231,3 +231,52 @@ fn a_render_waveform_names_its_kernels_and_decodes_coded_fields() {
         "{names}"
     );
 }
+
+#[test]
+fn a_kernel_call_is_dumped_by_name_and_a_waveform_over_its_limit_stops_the_run() {
+    // Call 2 of `xyrast`: the dump's running kernel is xyrast (or nothing, as it ends).
+    let vcd = run_with_vcd(
+        "render-kernel",
+        &[
+            "render",
+            "RATE-1",
+            "--size",
+            "16",
+            "--vcd-scope",
+            "top.sc",
+            "--vcd-kernel",
+            "xyrast",
+            "--vcd-call",
+            "2",
+        ],
+    );
+    let kernels = text_values(&vcd, "top.sc.", "kernel");
+    assert!(kernels.contains("xyrast"), "{kernels:?}");
+    assert!(
+        kernels.iter().all(|k| k == "xyrast" || k.is_empty()),
+        "{kernels:?}"
+    );
+
+    let dir = vcd.parent().unwrap();
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_imagine"))
+            .args(["render", "RATE-1", "--size", "16", "--vcd"])
+            .arg(dir.join("limit.vcd"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let o = run(&["--vcd-max-bytes", "20K"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("--vcd-max-bytes is 20.0 kB"),
+        "{err}"
+    );
+    assert!(std::fs::metadata(dir.join("limit.vcd")).unwrap().len() < 200_000);
+    let o = run(&["--vcd-kernel", "nosuch"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("it calls") && err.contains("xyrast"),
+        "{err}"
+    );
+}

@@ -134,6 +134,11 @@ pub trait Tracer {
     fn wants_changes(&self) -> bool {
         true
     }
+    /// Why the run must stop now (say, a waveform grown past its size limit); the
+    /// simulator then returns an error with this text.
+    fn abort(&self) -> Option<String> {
+        None
+    }
 }
 
 /// Change detector between modules and a tracer: keeps the last value of every signal and

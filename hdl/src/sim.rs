@@ -462,6 +462,10 @@ impl Sim {
                     c.borrow().trace(t);
                 }
             }
+            if let Some(why) = t.tracer().abort() {
+                let path = format!("{}.waveform", self.design.top);
+                return Err(ContractError::at(&path, crate::Violation::Other(why)));
+            }
         }
         Ok(edge)
     }

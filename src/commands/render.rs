@@ -69,6 +69,19 @@ pub struct RenderArgs {
     max_cycles: u64,
     #[command(flatten)]
     waves: WaveArgs,
+    /// Dump the cycles of a call of kernel NAME (the render runs once to find it on the
+    /// timeline, then again dumping them); a name of the kernel breakdown
+    #[arg(
+        long,
+        value_name = "NAME",
+        requires = "vcd",
+        conflicts_with = "vcd_window"
+    )]
+    vcd_kernel: Option<String>,
+    /// Which call of --vcd-kernel to dump, counting from 1
+    #[arg(long, value_name = "N", default_value_t = 1, requires = "vcd_kernel",
+          value_parser = clap::value_parser!(u64).range(1..))]
+    vcd_call: u64,
 }
 
 fn load_scene(a: &RenderArgs) -> Result<Scene> {
@@ -83,6 +96,71 @@ fn load_scene(a: &RenderArgs) -> Result<Scene> {
         subdivisions: a.subdivisions,
     };
     Ok(scene::load(name, &opts)?)
+}
+
+/// The core cycles of call `--vcd-call` of kernel `name`, found on the timeline of a first
+/// render (the same frame, cycle for cycle, as the one that is dumped).
+fn kernel_window(
+    a: &RenderArgs,
+    scene: &Scene,
+    desc: &MachineDesc,
+    name: &str,
+) -> Result<imagine_waves::CycleWindow> {
+    eprintln!(
+        "finding call {} of `{name}` (a first render, without a waveform)",
+        a.vcd_call
+    );
+    let options = RenderOptions {
+        timeline: true,
+        ..render_options(a)
+    };
+    let frame = render_with(scene, desc, options, None, |_, _| {})?;
+    let timeline = frame.timeline.expect("asked for");
+    let calls: Vec<&serde_json::Value> = timeline["traceEvents"]
+        .as_array()
+        .map(|e| e.iter().filter(|e| e["cat"] == "kernel").collect())
+        .unwrap_or_default();
+    let of_name: Vec<&&serde_json::Value> = calls.iter().filter(|e| e["name"] == name).collect();
+    let Some(call) = of_name.get(a.vcd_call as usize - 1) else {
+        if of_name.is_empty() {
+            let mut names: Vec<&str> = calls.iter().filter_map(|e| e["name"].as_str()).collect();
+            names.sort_unstable();
+            names.dedup();
+            bail!(
+                "--vcd-kernel {name}: the frame calls no kernel of that name; it calls {}",
+                names.join(", ")
+            );
+        }
+        bail!(
+            "--vcd-call {}: the frame calls `{name}` {} times",
+            a.vcd_call,
+            of_name.len()
+        );
+    };
+    let cycle = |k: &str| call["args"][k].as_u64().expect("slices carry their cycles");
+    let window = imagine_waves::CycleWindow::new(cycle("from_cycle"), Some(cycle("to_cycle")))
+        .expect("a call lasts a cycle at least");
+    eprintln!(
+        "dumping core cycles {window} (call {} of `{name}`)",
+        a.vcd_call
+    );
+    Ok(window)
+}
+
+/// The render the options ask for.
+fn render_options(a: &RenderArgs) -> RenderOptions {
+    RenderOptions {
+        specialise: !a.no_specialize,
+        cache: if a.no_cache {
+            CompileCache::disabled()
+        } else {
+            CompileCache::from_env()
+        },
+        max_cycles: a.max_cycles,
+        batch: a.batch.map(|b| b as usize),
+        timeline: a.timeline.is_some(),
+        ..RenderOptions::default()
+    }
 }
 
 /// The machine's frame as an image.
@@ -100,8 +178,12 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     a.waves.check_outputs(&mut outputs)?;
     let desc = MachineDesc::resolve(&a.machine)?;
     let scene = load_scene(&a)?;
-    let on_start: Option<imagine_units::runner::OnStart> = a.waves.wants_vcd().then(|| {
-        let waves = a.waves.clone();
+    let waves = match &a.vcd_kernel {
+        Some(name) => a.waves.with_window(kernel_window(&a, &scene, &desc, name)?),
+        None => a.waves.clone(),
+    };
+    let on_start: Option<imagine_units::runner::OnStart> = waves.wants_vcd().then(|| {
+        let waves = waves.clone();
         Box::new(move |sim: &mut imagine_hdl::Sim| {
             waves.attach(sim).map(|_| ()).map_err(|e| format!("{e:#}"))
         }) as imagine_units::runner::OnStart
@@ -110,18 +192,7 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     // The bar is redrawn at each whole percent, and only on a terminal (a log gets no bar).
     let terminal = stderr.is_terminal();
     let mut drawn = None;
-    let options = RenderOptions {
-        specialise: !a.no_specialize,
-        cache: if a.no_cache {
-            CompileCache::disabled()
-        } else {
-            CompileCache::from_env()
-        },
-        max_cycles: a.max_cycles,
-        batch: a.batch.map(|b| b as usize),
-        timeline: a.timeline.is_some(),
-        ..RenderOptions::default()
-    };
+    let options = render_options(&a);
     let frame = render_with(&scene, &desc, options, on_start, |done, total| {
         let width = 40;
         let filled = done * width / total.max(1);

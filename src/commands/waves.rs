@@ -21,6 +21,27 @@ pub struct WaveArgs {
     /// (repeatable; clocks are always dumped)
     #[arg(long, value_name = "GLOB", requires = "vcd")]
     vcd_scope: Vec<String>,
+    /// Stop the run at once when the waveform passes this size, or is projected to pass it
+    /// over a bounded window after its first 1,000 cycles (bytes; K, M and G suffixes)
+    #[arg(long, value_name = "BYTES", default_value = "4G", value_parser = parse_bytes)]
+    vcd_max_bytes: u64,
+}
+
+/// A byte count: digits with an optional K, M or G (powers of 1024).
+fn parse_bytes(s: &str) -> Result<u64, String> {
+    let (digits, scale) = match s.trim().char_indices().last() {
+        Some((i, 'K' | 'k')) => (&s[..i], 1u64 << 10),
+        Some((i, 'M' | 'm')) => (&s[..i], 1 << 20),
+        Some((i, 'G' | 'g')) => (&s[..i], 1 << 30),
+        _ => (s, 1),
+    };
+    let n: u64 = digits
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a byte count (digits, then K, M or G)"))?;
+    n.checked_mul(scale)
+        .filter(|&b| b > 0)
+        .ok_or_else(|| format!("`{s}` is not a byte count between 1 and 2^64 - 1"))
 }
 
 /// The files a traced run writes.
@@ -33,6 +54,14 @@ impl WaveArgs {
     /// Whether `--vcd` was given.
     pub fn wants_vcd(&self) -> bool {
         self.vcd.is_some()
+    }
+
+    /// The same options dumping `window` instead.
+    pub fn with_window(&self, window: CycleWindow) -> WaveArgs {
+        WaveArgs {
+            vcd_window: Some(window),
+            ..self.clone()
+        }
     }
 
     /// Adds the waveform and its GTKWave save file to a command's outputs.
@@ -60,6 +89,7 @@ impl WaveArgs {
         let options = VcdOptions {
             window: self.vcd_window.unwrap_or_default(),
             scopes: self.vcd_scope.clone(),
+            max_bytes: Some(self.vcd_max_bytes),
         };
         let unmatched = options
             .unmatched_scopes(sim.probes())

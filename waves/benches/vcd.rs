@@ -100,6 +100,7 @@ fn bench(c: &mut Criterion) {
             let opts = VcdOptions {
                 window: parse_window(&format!("{}:", CYCLES - 100)).unwrap(),
                 scopes: vec![],
+                max_bytes: None,
             };
             let w = VcdWriter::new(io::sink(), &opts).unwrap();
             sim.attach(Box::new(w)).unwrap();

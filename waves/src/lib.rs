@@ -17,6 +17,7 @@
 //! let options = VcdOptions {
 //!     window: parse_window("1000:1100")?,
 //!     scopes: vec!["top.mac".into()],
+//!     max_bytes: None,
 //! };
 //! for p in options.unmatched_scopes(sim.probes())? {
 //!     eprintln!("warning: --vcd-scope {p} matches no signal");

@@ -24,6 +24,8 @@ pub struct VcdOptions {
     /// Glob patterns over signal paths (see [`ScopeFilter`] for the matching rule); empty
     /// selects everything. Clocks are always selected.
     pub scopes: Vec<String>,
+    /// The most bytes the dump may hold (`--vcd-max-bytes`): see [`VcdWriter`]'s limit.
+    pub max_bytes: Option<u64>,
 }
 
 impl VcdOptions {
@@ -137,7 +139,17 @@ pub struct VcdWriter<W: Write> {
     shared: Option<Rc<RefCell<VcdSummary>>>,
     buf: Vec<u8>,
     error: Option<io::Error>,
+    /// Bytes handed to the output so far.
+    bytes: u64,
+    max_bytes: Option<u64>,
+    /// Core cycle at which the window opened, once it has.
+    opened_at: Option<u64>,
+    /// Why the run must stop: the dump would pass `max_bytes`.
+    over_limit: Option<String>,
 }
+
+/// Window cycles after which the dump's size is projected over a bounded window.
+const PROJECT_AFTER_CYCLES: u64 = 1_000;
 
 impl VcdWriter<BufWriter<File>> {
     /// Creates (truncates) the dump file at `path`; [`Tracer::finish`] also writes the
@@ -188,6 +200,10 @@ impl<W: Write> VcdWriter<W> {
             shared: None,
             buf: Vec::with_capacity(CHUNK + 4096),
             error: None,
+            bytes: 0,
+            max_bytes: options.max_bytes,
+            opened_at: None,
+            over_limit: None,
         }
     }
 
@@ -425,7 +441,40 @@ impl<W: Write> VcdWriter<W> {
         if let Err(e) = self.vcd.writer().write_all(&self.buf) {
             self.fail(e);
         }
+        self.bytes += self.buf.len() as u64;
         self.buf.clear();
+    }
+
+    /// Checks the size limit in core cycle `core_cycle` of the window: past it, or (over a
+    /// bounded window, after [`PROJECT_AFTER_CYCLES`]) projected past it, the dump ends and
+    /// [`Tracer::abort`] says why.
+    fn check_size(&mut self, core_cycle: u64) {
+        let Some(max) = self.max_bytes else { return };
+        let opened = *self.opened_at.get_or_insert(core_cycle);
+        let cycles = core_cycle.saturating_sub(opened).max(1);
+        let bytes = self.bytes + self.buf.len() as u64;
+        let per_cycle = bytes as f64 / cycles as f64;
+        let window = self.window.to.map(|to| to.saturating_sub(opened));
+        let projected = window.map(|w| (per_cycle * w as f64) as u64);
+        let over =
+            bytes > max || (cycles >= PROJECT_AFTER_CYCLES && projected.is_some_and(|p| p > max));
+        if !over {
+            return;
+        }
+        let estimate = match (projected, window) {
+            (Some(p), Some(w)) => format!("about {} over the window's {w} core cycles", size(p)),
+            _ => format!("more than {} (the window runs to the end)", size(max)),
+        };
+        self.over_limit = Some(format!(
+            "the waveform would be {estimate}: {} in its first {cycles} cycles, {} per cycle; \
+             --vcd-max-bytes is {}. Narrow it with --vcd-window FROM:TO (`render --timeline` \
+             gives each kernel call's cycles), --vcd-scope GLOB or --vcd-kernel NAME, or raise \
+             --vcd-max-bytes",
+            size(bytes),
+            size(per_cycle as u64),
+            size(max)
+        ));
+        self.close_window(None);
     }
 
     fn fail(&mut self, e: io::Error) {
@@ -525,6 +574,7 @@ impl<W: Write> Tracer for VcdWriter<W> {
                         self.flush_instant();
                     }
                     self.pending_ps = t;
+                    self.check_size(core_cycle);
                 }
             }
         }
@@ -533,6 +583,10 @@ impl<W: Write> Tracer for VcdWriter<W> {
     #[inline]
     fn wants_changes(&self) -> bool {
         self.phase != Phase::Done
+    }
+
+    fn abort(&self) -> Option<String> {
+        self.over_limit.clone()
     }
 
     fn change(&mut self, id: SignalId, value: &[u64]) {
@@ -699,6 +753,16 @@ fn utc_date(secs: u64) -> String {
         rem / 60 % 60,
         rem % 60
     )
+}
+
+/// A byte count as a person reads it.
+fn size(bytes: u64) -> String {
+    match bytes {
+        b if b >= 1 << 30 => format!("{:.1} GB", b as f64 / (1u64 << 30) as f64),
+        b if b >= 1 << 20 => format!("{:.1} MB", b as f64 / (1u64 << 20) as f64),
+        b if b >= 1 << 10 => format!("{:.1} kB", b as f64 / 1024.0),
+        b => format!("{b} bytes"),
+    }
 }
 
 #[cfg(test)]

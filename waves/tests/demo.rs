@@ -113,6 +113,7 @@ fn a_demo_window_with_scopes_writes_a_matching_save_file() {
     let opts = VcdOptions {
         window: parse_window("1000:1100").unwrap(),
         scopes: vec!["top.mac".into(), "*.valid".into()],
+        max_bytes: None,
     };
     let (events, reg) = dump_demo(&vcd, 2000, &opts);
     let text = std::fs::read(&vcd).unwrap();
@@ -179,6 +180,7 @@ fn a_window_past_the_end_of_the_run_writes_only_the_header() {
             to: None,
         },
         scopes: vec![],
+        max_bytes: None,
     };
     let mut sim = demo_sim();
     let mut w = VcdWriter::create(&vcd, &opts).unwrap();

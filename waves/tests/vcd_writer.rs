@@ -224,6 +224,7 @@ fn a_window_opens_with_the_state_at_from_and_stops_at_to() {
         let opts = VcdOptions {
             window: parse_window(w).unwrap(),
             scopes: vec![],
+            max_bytes: None,
         };
         let dump = check(&reg, &ev, &opts);
         let from = opts.window.from;
@@ -249,6 +250,7 @@ fn values_before_the_window_appear_in_its_dumpvars() {
     let opts = VcdOptions {
         window: parse_window("10:12").unwrap(),
         scopes: vec![],
+        max_bytes: None,
     };
     let mut w = VcdWriter::new(Vec::new(), &opts).unwrap();
     w.start(&reg, &[]).unwrap();
@@ -294,6 +296,7 @@ fn scope_filters_select_subtrees_and_keep_the_clocks() {
         let opts = VcdOptions {
             window: CycleWindow::ALL,
             scopes: scopes.iter().map(|s| s.to_string()).collect(),
+            max_bytes: None,
         };
         check(&reg, &ev, &opts).vars.into_keys().collect()
     };
@@ -316,6 +319,7 @@ fn scope_filters_select_subtrees_and_keep_the_clocks() {
     let opts = VcdOptions {
         window: CycleWindow::ALL,
         scopes: vec!["top.a".into(), "top.zz*".into()],
+        max_bytes: None,
     };
     assert_eq!(opts.unmatched_scopes(&reg).unwrap(), ["top.zz*"]);
     let mut w = VcdWriter::new(Vec::new(), &opts).unwrap();

@@ -119,6 +119,7 @@ impl Waves {
         let options = VcdOptions {
             window: request.window,
             scopes: Vec::new(),
+            max_bytes: None,
         };
         let started = VcdWriter::create(&request.path, &options).and_then(|mut w| {
             w.start(probes, &[ours, other])?;
@@ -155,6 +156,7 @@ impl Waves {
         let options = VcdOptions {
             window: request.window,
             scopes: Vec::new(),
+            max_bytes: None,
         };
         let attached = VcdWriter::create(&request.path, &options).and_then(|mut writer| {
             let summary = writer.summary_handle();
