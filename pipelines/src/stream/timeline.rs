@@ -13,7 +13,9 @@
 //!   records, DRAM base and SRF start), one for the host interface (SRF writes and reads) and
 //!   one for the microcode loader;
 //! * counter tracks over buckets of the window: DRAM bandwidth (each operation's words spread
-//!   evenly over its time), the clusters' busy share and the scoreboard's occupancy.
+//!   evenly over its time), the clusters' busy share, the scoreboard's occupancy and the
+//!   SRF words bound to the instructions running (a kernel's streams, a memory operation's
+//!   or host transfer's words) during each bucket.
 //!
 //! Times are simulated time in microseconds (the format's unit) with nanosecond precision
 //! and `displayTimeUnit` `ns`; every slice also carries its core cycles (`from_cycle`,
@@ -238,8 +240,8 @@ fn merge_runs(mut slices: Vec<Slice>) -> Vec<Slice> {
     out
 }
 
-/// Counter tracks: DRAM bandwidth, the clusters' busy share and the scoreboard occupancy,
-/// one value per bucket of the window.
+/// Counter tracks: DRAM bandwidth, the clusters' busy share, the scoreboard occupancy and
+/// the SRF words bound to running instructions, one value per bucket of the window.
 fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
     let w = &input.window;
     let span = w.end.saturating_sub(w.start);
@@ -251,7 +253,17 @@ fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
     let index = |c: u64| ((c.clamp(w.start, w.end - 1) - w.start) / bucket) as usize;
     // Words moved per bucket, each operation's words spread evenly over its span.
     let mut words = vec![0f64; n];
+    // Differences by bucket: an amount counts in every bucket from `from`'s to `to`'s.
     let mut occupancy = vec![0i64; n + 1];
+    let mut srf_bound = vec![0i64; n + 1];
+    let span = |diff: &mut [i64], from: u64, to: u64, amount: i64| {
+        if to > w.start && from < w.end {
+            diff[index(from.max(w.start))] += amount;
+            if to < w.end {
+                diff[index(to) + 1] -= amount;
+            }
+        }
+    };
     for r in input.records {
         if let (StreamInstr::Memory(op), Some(i), Some(c)) = (&r.instr, r.issued, r.completed) {
             let (from, to) = (i.max(w.start), c.min(w.end));
@@ -265,14 +277,18 @@ fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
                 }
             }
         }
-        if let (Some(e), Some(c)) = (r.entered, r.completed)
-            && c > w.start
-            && e < w.end
-        {
-            occupancy[index(e.max(w.start))] += 1;
-            if c < w.end {
-                occupancy[index(c) + 1] -= 1;
-            }
+        if let (Some(e), Some(c)) = (r.entered, r.completed) {
+            span(&mut occupancy, e, c, 1);
+        }
+        let bound = match &r.instr {
+            StreamInstr::Kernel { bindings, .. } => bindings.iter().map(|b| b.words).sum(),
+            StreamInstr::Memory(op) => op.words(),
+            StreamInstr::WriteSrf { words, .. } => words.len(),
+            StreamInstr::ReadSrf { len, .. } => *len,
+            StreamInstr::LoadMicrocode { .. } => 0,
+        };
+        if let (Some(i), Some(c)) = (r.issued, r.completed) {
+            span(&mut srf_bound, i, c, bound as i64);
         }
     }
     let mut busy = vec![0u64; n];
@@ -287,10 +303,11 @@ fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
         }
     }
     let seconds_per_bucket = bucket as f64 / (input.core_mhz * 1e6);
-    let mut live = 0i64;
+    let (mut live, mut bound) = (0i64, 0i64);
     for b in 0..n {
         let ts = (w.start + b as u64 * bucket) as f64 / input.core_mhz;
         live += occupancy[b];
+        bound += srf_bound[b];
         let cycles = bucket.min(w.end - (w.start + b as u64 * bucket));
         events.push(json!({"ph": "C", "pid": PID, "name": "DRAM GB/s", "ts": ts,
             "args": {"GB/s": 4.0 * words[b] / seconds_per_bucket / 1e9}}));
@@ -302,5 +319,7 @@ fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
             json!({"ph": "C", "pid": PID, "name": "scoreboard instructions", "ts": ts,
             "args": {"instructions": live}}),
         );
+        events.push(json!({"ph": "C", "pid": PID, "ts": ts,
+            "name": "SRF words bound to running instructions", "args": {"words": bound}}));
     }
 }
