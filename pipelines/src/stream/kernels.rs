@@ -66,6 +66,23 @@ impl KernelLibrary {
         KernelId(self.entries.len() - 1)
     }
 
+    /// Every registered kernel with its name, in the order registered.
+    pub fn into_kernels(self) -> Vec<(String, Kernel)> {
+        self.entries
+            .into_iter()
+            .map(|e| (e.name, e.kernel))
+            .collect()
+    }
+
+    /// The name `program` (an index in the stream controller's programs) was registered
+    /// under, if it is one of these kernels'.
+    pub fn name_of_program(&self, program: usize) -> Option<&str> {
+        self.entries
+            .iter()
+            .find(|e| e.program == Some(program))
+            .map(|e| e.name.as_str())
+    }
+
     pub fn name(&self, k: KernelId) -> &str {
         &self.entries[k.0].name
     }
