@@ -183,14 +183,103 @@ fn machine_list_and_show_describe_every_builtin() {
         );
         let o = imagine(&["machine", "show", name]);
         assert!(o.status.success(), "{name}: {}", stderr(&o));
+        let first = stdout(&o).lines().next().unwrap_or("").to_string();
         assert!(
-            stdout(&o).contains(&format!("machine      {name}")),
+            first.split_whitespace().take(2).eq(["machine", name]),
             "{}",
             stdout(&o)
         );
     }
     let show = stdout(&imagine(&["machine", "show", "gold8+F"]));
     assert!(show.contains("6 adders, 4 multipliers"), "{show}");
+}
+
+/// `machine show` prints every section of the description, and every key of the sections
+/// whose values are not plain counts (latency, dram, memory, stream controller) as the
+/// file names it, beside its value.
+#[test]
+fn machine_show_prints_every_section_of_the_description() {
+    let gold8 = concat!(env!("CARGO_MANIFEST_DIR"), "/machines/gold8.toml");
+    for (machine, file, wants) in [
+        (
+            "gold8",
+            gold8,
+            &[
+                "core 500 MHz",
+                "DRAM 167 MHz",
+                "8 × (3 adders, 2 multipliers, 1 divide/sqrt unit, 1 scratchpad",
+                "16 condition codes",
+                "fp32 subnormals kept",
+                "17 per cluster, 304 entries",
+                "add0.a       32 entries",
+                "256 words (1024 bytes) per scratchpad",
+                "32768 words (128 KB), 8 banks, 32-word blocks, 16 words/cycle, 22 stream buffers",
+                "4 stream words/cycle unconditional, 1 conditional",
+                "2048 instructions of microcode store, loops nested 4 deep",
+                "4 channels × 4 banks × 4096 rows × 256 columns",
+                "peak 2.67 GB/s",
+                "min_kernel_cycles 300 core cycles",
+            ][..],
+        ),
+        (
+            "unfamiliar",
+            UNFAMILIAR_MACHINE,
+            &[
+                "core 400 MHz",
+                "6 × (2 adders, 3 multipliers",
+                "8 condition codes",
+                "flushed to zero",
+                "24 entries each, 48 in the large ones (add0.a, mul2.b)",
+                "512 words",
+                "16384 words (64 KB), 4 banks, 16-word blocks",
+            ][..],
+        ),
+    ] {
+        let o = imagine(&["machine", "show", file]);
+        assert!(o.status.success(), "{machine}: {}", stderr(&o));
+        let out = stdout(&o);
+        for section in [
+            "machine",
+            "clocks",
+            "cluster",
+            "arithmetic",
+            "latency",
+            "lrf",
+            "scratchpad",
+            "srf",
+            "microcontroller",
+            "dram",
+            "memory",
+            "stream controller",
+        ] {
+            assert!(
+                out.lines().any(|l| l.starts_with(&format!("{section}  "))),
+                "{machine}: section `{section}` missing:\n{out}"
+            );
+        }
+        for want in wants {
+            assert!(out.contains(want), "{machine}: `{want}` missing:\n{out}");
+        }
+        // Every key of these sections, by its name in the file, with its value (the DRAM's
+        // geometry is printed as `4 channels × 4 banks × …`).
+        let text = std::fs::read_to_string(file).unwrap();
+        let mut section = String::new();
+        let mut keys = 0;
+        for line in text.lines() {
+            let line = line.split('#').next().unwrap().trim();
+            if let Some(name) = line.strip_prefix('[') {
+                section = name.trim_end_matches(']').to_string();
+            } else if let Some((key, value)) = line.split_once('=')
+                && ["latency", "dram", "memory", "stream_controller"].contains(&section.as_str())
+                && !["channels", "banks", "rows", "columns"].contains(&key.trim())
+            {
+                let want = format!("{} {}", key.trim(), value.trim().trim_matches('"'));
+                assert!(out.contains(&want), "{machine}: `{want}` missing:\n{out}");
+                keys += 1;
+            }
+        }
+        assert!(keys >= 25, "{machine}: {keys} keys checked");
+    }
 }
 
 fn temp(name: &str) -> std::path::PathBuf {
@@ -251,6 +340,56 @@ fn kernel_run_prints_output_streams_and_cycles() {
     assert!(out.contains("z (8 words):"), "{out}");
     assert!(out.contains("2.5 4.5 6.5 8.5 10.5 12.5 14.5 16.5"), "{out}");
     assert!(out.contains("cycles "), "{out}");
+}
+
+/// With `--format f32` a decimal integer input is the float it names: madd's
+/// `x·y + w` of 10, 1 and 0.5 is 10.5 (it read 10 as the bit pattern 10, a subnormal, and
+/// printed 0.5). Hex stays a bit pattern; the range errors stay.
+#[test]
+fn kernel_run_reads_integers_as_floats_in_f32_format() {
+    let run = |format: &str, x: &str| {
+        imagine(&[
+            "kernel",
+            "run",
+            MADD,
+            "--format",
+            format,
+            "--input",
+            &format!("x={x},2,3,4,5,6,7,8"),
+            "--input",
+            "y=1,1,1,1,1,1,1,1",
+            "--input",
+            "w=0.5,0.5,0.5,0.5,0.5,0.5,0.5,0.5",
+        ])
+    };
+    let o = run("f32", "10");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("10.5 2.5 3.5 4.5 5.5 6.5 7.5 8.5"),
+        "{}",
+        stdout(&o)
+    );
+    let o = run("f32", "0x41200000");
+    assert!(stdout(&o).contains("  10.5 2.5"), "{}", stdout(&o));
+    let o = run("f32", "-10");
+    assert!(stdout(&o).contains("  -9.5 2.5"), "{}", stdout(&o));
+    // The other formats read integers as integers, as before.
+    let o = run("hex", "10");
+    assert!(stdout(&o).contains("  3f000000 "), "{}", stdout(&o));
+    for (x, want) in [
+        (
+            "99999999999999999999999999999999999999999",
+            "beyond the range of fp32",
+        ),
+        ("1e-50", "rounds to zero"),
+    ] {
+        let o = run("f32", x);
+        assert!(
+            !o.status.success() && stderr(&o).contains(want),
+            "{}",
+            stderr(&o)
+        );
+    }
 }
 
 #[test]
@@ -629,19 +768,36 @@ fn kernel_library_list_show_check() {
         "marble",
         "prefix_sum",
         "compact",
-        "hash",
-        "sort32",
+        "hash_xy",
+        "sort32_keys",
         "merge",
     ] {
-        assert!(out.contains(name), "{out}");
+        assert!(
+            out.lines()
+                .any(|l| l.split_whitespace().next() == Some(name)),
+            "{out}"
+        );
     }
     let o = imagine(&["kernel", "show", "transform", "--machine", "gold8"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = stdout(&o);
-    assert!(out.contains("II 8 (ResMII 8 set by multipliers"), "{out}");
+    assert!(
+        out.contains("II 8 (bound 8: ResMII 8 set by multipliers"),
+        "{out}"
+    );
     assert!(
         out.contains("schedule (op/stage)") && out.contains("fmul/"),
         "{out}"
+    );
+    // `check` names the interval, its bound and the rate as `show` does, word for word.
+    let interval = out.lines().find(|l| l.starts_with("II ")).unwrap();
+    let interval = &interval[..interval.find(" ops/cycle").unwrap() + " ops/cycle".len()];
+    let o = imagine(&["kernel", "check", "transform", "--machine", "gold8"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains(interval),
+        "`{interval}`: {}",
+        stdout(&o)
     );
     let o = imagine(&[
         "kernel",
@@ -661,16 +817,157 @@ fn kernel_library_list_show_check() {
     let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(json[0]["pass"], true);
     assert!(json[0]["words"].as_u64().unwrap() > 0);
-    let o = imagine(&["kernel", "check", "sort32", "--machine", "gold32"]);
+    // The same keys as `show --json` for the same quantities.
+    let o = imagine(&["kernel", "show", "compact", "--machine", "gold8", "--json"]);
+    let shown: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    for key in ["ii", "res_mii", "res_limit", "rec_mii", "ops_per_cycle"] {
+        assert_eq!(json[0][key], shown[key], "{key}");
+    }
+    let o = imagine(&["kernel", "check", "sort32_keys", "--machine", "gold32"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
-        stdout(&o).contains("sort32: pass on gold32"),
+        stdout(&o).contains("sort32_keys: pass on gold32"),
         "{}",
         stdout(&o)
     );
-    let o = imagine(&["kernel", "show", "nope"]);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("no kernel `nope`"), "{}", stderr(&o));
+    for command in ["show", "check"] {
+        let o = imagine(&["kernel", command, "nope"]);
+        assert_clear_error(&["kernel", command, "nope"]);
+        let err = stderr(&o);
+        // The error lists the valid names: the library's and the pipeline's.
+        assert!(
+            err.contains("no kernel `nope`")
+                && err.contains("transform")
+                && err.contains("xyrast")
+                && err.contains("compact_recycle:z,colour"),
+            "{err}"
+        );
+    }
+}
+
+/// The names of SPHERE's kernel breakdown (`render SPHERE`, `kernels built`): the kernels
+/// `kernel list` lists as its pipeline's by default.
+const SPHERE_KERNELS: [&str; 16] = [
+    "perbegin:vertex_lit3_s16",
+    "perlight:vertex_lit3_s16",
+    "vertex_lit3_s16",
+    "assemble_clip",
+    "viewport_cull",
+    "baryprep",
+    "xyprep",
+    "xyrast",
+    "irast",
+    "hash",
+    "zcompare",
+    "compact_recycle:z,colour",
+    "compact_recycle:addr,prim",
+    "clear",
+    "sort32",
+    "mergefrag",
+];
+
+/// `kernel list|show|check` take the pipeline's kernels by the render's names. Compiling
+/// every one takes too long for a debug test (the vertex program, `assemble_clip`, `sort32`
+/// and `mergefrag` take seconds each): those are shown and checked by hand in a release
+/// build (`for k in $(imagine kernel list --json | ...)`); the rest are checked here.
+#[test]
+fn kernel_list_show_check_take_the_pipelines_kernels() {
+    let o = imagine(&["kernel", "list", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let list: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let pipeline: Vec<&str> = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|e| e["in_pipeline"] == true)
+        .map(|e| e["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        pipeline, SPHERE_KERNELS,
+        "SPHERE's kernels, in the render's order"
+    );
+    let text = stdout(&imagine(&["kernel", "list"]));
+    for name in SPHERE_KERNELS {
+        assert!(
+            text.lines()
+                .any(|l| l.split_whitespace().next() == Some(name)),
+            "{name} missing:\n{text}"
+        );
+    }
+
+    let o = imagine(&["kernel", "show", "xyrast"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.starts_with("kernel xyrast on gold8 (8 clusters)"),
+        "{out}"
+    );
+    assert!(out.contains("render SPHERE"), "{out}");
+    let ii = out.lines().find(|l| l.starts_with("II ")).unwrap();
+    assert!(ii.contains("(bound ") && ii.contains("ops/cycle"), "{out}");
+    assert!(out.contains("schedule (op/stage)"), "{out}");
+    // Its II is the one `check` names.
+    let ii = &ii[..ii.find(" ops/cycle").unwrap()];
+    let o = imagine(&["kernel", "check", "xyrast"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.starts_with("xyrast: pass on gold8") && out.contains(ii),
+        "{out}"
+    );
+
+    let slow = [
+        "vertex_lit3_s16",
+        "assemble_clip",
+        "hash",
+        "sort32",
+        "mergefrag",
+    ];
+    for name in SPHERE_KERNELS
+        .iter()
+        .filter(|n| !slow.contains(n) && **n != "xyrast")
+    {
+        let o = imagine(&["kernel", "check", name, "--rows", "2"]);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        assert!(
+            stdout(&o).starts_with(&format!("{name}: pass on gold8")),
+            "{}",
+            stdout(&o)
+        );
+    }
+    // A kernel's own name (the one its microcode carries) selects each of its kind.
+    let o = imagine(&["kernel", "check", "compact_recycle", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let checked: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let names: Vec<&str> = checked
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["kernel"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        ["compact_recycle:z,colour", "compact_recycle:addr,prim"]
+    );
+    let o = imagine(&["kernel", "show", "perbegin", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let shown: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(shown["kernel"], "perbegin:vertex_lit3_s16");
+    assert_eq!(shown["source"], "pipeline");
+
+    // Another scene's pipeline: its own kernels, built for it.
+    let o = imagine(&["kernel", "list", "--scene", "MARBLE", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("\"fragment:marble\""), "{}", stdout(&o));
+    let o = imagine(&["kernel", "show", "fragment:marble"]);
+    assert!(!o.status.success(), "SPHERE has no marble");
+    assert!(
+        stderr(&o).contains("no kernel `fragment:marble`"),
+        "{}",
+        stderr(&o)
+    );
+    assert_clear_error(&["kernel", "list", "--scene", "TEAPOT-9"]);
+    assert_clear_error(&["kernel", "show", "xyrast", "--size", "0"]);
 }
 
 #[test]
@@ -864,7 +1161,7 @@ fn machine_shapes_the_kernels_cannot_serve_are_named() {
             "c64",
             "[cluster]\ncount = 64",
             "kernel `sort32` needs a power-of-two cluster count up to 32 (machine `c64` has 64 clusters)",
-            "kernel `sort32` needs a power-of-two cluster count up to 32 (machine `c64` has 64 clusters)",
+            "kernel `sort32_keys` needs a power-of-two cluster count up to 32 (machine `c64` has 64 clusters)",
         ),
         (
             "cc1",
@@ -1213,4 +1510,47 @@ fn verify_refuses_bad_blocks_machines_and_counts() {
     assert_clear_error(&["verify", "lrf", "--vcd-on-fail", "fail.txt"]);
     assert_clear_error(&["verify", "all", "--vcd-on-fail", "/no/such/dir/fail.vcd"]);
     assert_clear_error(&["verify", "fpu", "--ftz"]);
+}
+
+/// Every argument and option of the `kernel` and `machine` subcommands says what it does.
+#[test]
+fn kernel_and_machine_options_all_have_help() {
+    for [command, sub] in [
+        ["kernel", "asm"],
+        ["kernel", "disasm"],
+        ["kernel", "run"],
+        ["kernel", "list"],
+        ["kernel", "show"],
+        ["kernel", "check"],
+        ["machine", "list"],
+        ["machine", "show"],
+        ["machine", "bench"],
+    ] {
+        let o = imagine(&[command, sub, "--help"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = stdout(&o);
+        // An argument's line (`  -o, --output <OUTPUT>`) says what it does beside it, or,
+        // when the help is long, on the more indented lines under it.
+        let lines: Vec<&str> = out.lines().collect();
+        let indent = |l: &str| l.len() - l.trim_start().len();
+        let mut arguments = 0;
+        for (i, l) in lines.iter().enumerate() {
+            let t = l.trim_start();
+            if indent(l) <= 6 && (t.starts_with('-') || t.starts_with('<')) {
+                arguments += 1;
+                let beside = t
+                    .split_once("  ")
+                    .is_some_and(|(_, h)| !h.trim().is_empty());
+                let under = lines
+                    .get(i + 1)
+                    .is_some_and(|n| !n.trim().is_empty() && indent(n) > indent(l));
+                let described = beside || under;
+                assert!(described, "{command} {sub}: `{t}` has no help:\n{out}");
+            }
+        }
+        assert!(
+            arguments >= 1,
+            "{command} {sub}: no arguments found:\n{out}"
+        );
+    }
 }

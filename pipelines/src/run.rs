@@ -138,3 +138,74 @@ pub fn check(
         stats: run.stats,
     })
 }
+
+/// Random inputs for any kernel, from its IR alone (`imagine kernel check` of the
+/// pipeline's kernels, which have no generator of their own): each input stream gets the
+/// words `rows` iterations of a loop over a stream (a counted loop: its count) and the
+/// code before and after the loop read, a conditional read counted as if every cluster
+/// read; each word is drawn by the type the kernel reads it as — fp32 uniform in
+/// [−2, 2), int32 and untyped words in [0, 64), packed and condition words any bits —
+/// and parameters likewise. The words need not be ones the kernel meets in a frame: the
+/// check compares the machine with the interpreter word for word, whatever the words.
+pub fn random_inputs(kernel: &Kernel, desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
+    use crate::kernel::{LoopSpec, Node, Region, Ty};
+    use imagine_units::arith::fp32::testgen::SplitMix64;
+    let mut rng = SplitMix64::new(seed);
+    let mut word = |ty: Option<Ty>| match ty {
+        Some(Ty::F32) => {
+            let unit = (rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32;
+            (4.0 * unit - 2.0).to_bits()
+        }
+        Some(Ty::I32 | Ty::Word) | None => rng.next_u32() % 64,
+        Some(Ty::P16 | Ty::P8 | Ty::Cc) => rng.next_u32(),
+    };
+    let iterations = match kernel.main_loop {
+        Some(LoopSpec::OverStream(_)) => rows,
+        Some(LoopSpec::Counted(n)) => n as usize,
+        None => 0,
+    };
+    let clusters = desc.cluster.count;
+    let streams = (0..kernel.streams.len())
+        .map(|s| {
+            if kernel.streams[s].dir != Dir::In {
+                return Vec::new();
+            }
+            // The stream's reads in program order: those before the loop, the loop's
+            // `iterations` times, those after it; each takes a word per cluster.
+            let reads = |region: Region| -> Vec<Option<Ty>> {
+                kernel
+                    .nodes
+                    .iter()
+                    .filter(|d| {
+                        d.region == region
+                            && matches!(d.node, Node::Read { stream, .. } if stream.0 as usize == s)
+                    })
+                    .map(|d| d.ty)
+                    .collect()
+            };
+            let body = reads(Region::Loop);
+            let order = reads(Region::Pre)
+                .into_iter()
+                .chain((0..iterations).flat_map(|_| body.iter().copied()))
+                .chain(reads(Region::Post));
+            let mut words = Vec::new();
+            for ty in order {
+                for _ in 0..clusters {
+                    words.push(word(ty));
+                }
+            }
+            words
+        })
+        .collect();
+    let params = (0..kernel.params.len())
+        .map(|p| {
+            let ty = kernel
+                .nodes
+                .iter()
+                .find(|d| matches!(d.node, Node::Param(i) if i as usize == p))
+                .and_then(|d| d.ty);
+            word(ty)
+        })
+        .collect();
+    KernelInputs { streams, params }
+}

@@ -673,7 +673,7 @@ fn hash_matches_reference() {
         let desc = machine(name);
         let c = desc.cluster.count;
         let rows = if c == 1 { 96 } else { 12 };
-        let (inputs, out) = run("hash", &desc, rows, 16);
+        let (inputs, out) = run("hash_xy", &desc, rows, 16);
         let mut stamps = vec![[0u32; 32]; c];
         let (mut ok, mut conflict) = (Vec::new(), Vec::new());
         for row in 0..rows {
@@ -720,7 +720,7 @@ fn sorts_chunks(name: &str, chunk: usize, seed: u64) {
 
 #[test]
 fn sort32_matches_reference() {
-    sorts_chunks("sort32", 32, 17);
+    sorts_chunks("sort32_keys", 32, 17);
 }
 
 #[test]
@@ -821,7 +821,7 @@ fn library_kernels_name_what_the_machine_lacks() {
     };
     for clusters in [6, 12, 64] {
         let desc = shaped(clusters, 256, 16);
-        for name in ["sort32", "merge"] {
+        for name in ["sort32_keys", "merge"] {
             assert_eq!(
                 error(name, &desc),
                 format!(
@@ -840,12 +840,12 @@ fn library_kernels_name_what_the_machine_lacks() {
     }
     let e = error("turbulence", &shaped(8, 255, 16));
     assert!(e.contains("256 scratchpad words"), "{e}");
-    let e = error("hash", &shaped(8, 8, 16));
+    let e = error("hash_xy", &shaped(8, 8, 16));
     assert!(
         e.contains("34 scratchpad words") && e.contains("has 8 words"),
         "{e}"
     );
-    let e = error("sort32", &shaped(8, 256, 2));
+    let e = error("sort32_keys", &shaped(8, 256, 2));
     assert!(
         e.contains("condition codes") && e.contains("has 2 condition codes"),
         "{e}"
@@ -856,7 +856,7 @@ fn library_kernels_name_what_the_machine_lacks() {
         "vertex",
         "prefix_sum",
         "compact",
-        "hash",
+        "hash_xy",
         "turbulence_ward",
     ] {
         for clusters in [3, 6, 12, 64] {

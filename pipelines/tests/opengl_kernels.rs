@@ -904,3 +904,40 @@ fn zcompare_blends_each_channel_as_the_equations_say() {
         }
     }
 }
+
+/// The kernels `imagine kernel list|show|check` take from the pipeline (built by its own
+/// registration) are those its plan names (`scene show`, and the render's `kernels built`
+/// and kernel breakdown), for every built-in scene, specialised and general.
+#[test]
+fn pipeline_kernels_are_the_ones_the_plan_names() {
+    use imagine_pipelines::opengl::render::{RenderOptions, pipeline_kernels, plan_pipeline};
+    use imagine_pipelines::scene::{LoadOptions, file::BUILTIN, load};
+    let desc = MachineDesc::gold8();
+    for (name, _) in BUILTIN {
+        let scene = load(
+            name,
+            &LoadOptions {
+                size: Some(64),
+                subdivisions: Some(1),
+            },
+        )
+        .unwrap();
+        for specialise in [true, false] {
+            let options = RenderOptions {
+                specialise,
+                ..RenderOptions::default()
+            };
+            let kernels = pipeline_kernels(&scene, &desc, &options);
+            let Ok(plan) = plan_pipeline(&scene, &desc, &options) else {
+                assert!(kernels.is_err(), "{name}: built without a plan");
+                continue;
+            };
+            let kernels = kernels.unwrap_or_else(|e| panic!("{name}: {e}"));
+            let mut built: Vec<&str> = kernels.iter().map(|(n, _)| n.as_str()).collect();
+            let mut planned = plan.kernel_names();
+            built.sort_unstable();
+            planned.sort_unstable();
+            assert_eq!(built, planned, "{name} (specialised: {specialise})");
+        }
+    }
+}

@@ -42,69 +42,180 @@ pub fn run(c: MachineCommand) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// A readable summary of a machine description.
+/// Every section of a machine description, one titled block each, with units. Keys that
+/// are not plain counts are named as the description file names them (`t_rcd`,
+/// `queue_entries`), so a value can be found in, or written to, a `.toml` file.
 pub fn describe(m: &MachineDesc) -> String {
-    use std::fmt::Write;
     let mut s = String::new();
+    let mut line = |title: &str, text: String| {
+        s += &format!("{title:<18} {text}\n");
+    };
     let c = &m.cluster;
     let l = &m.latency;
-    let _ = writeln!(s, "machine      {}  ({})", m.name, m.description);
-    let _ = writeln!(
-        s,
-        "clocks       core {} MHz, DRAM {} MHz",
-        m.clocks.core_mhz, m.clocks.dram_mhz
+    let ns = |mhz: u64| 1000.0 / mhz.max(1) as f64;
+    line("machine", format!("{}  ({})", m.name, m.description));
+    line(
+        "clocks",
+        format!(
+            "core {} MHz ({:.2} ns), DRAM {} MHz ({:.2} ns)",
+            m.clocks.core_mhz,
+            ns(m.clocks.core_mhz),
+            m.clocks.dram_mhz,
+            ns(m.clocks.dram_mhz)
+        ),
     );
-    let _ = writeln!(
-        s,
-        "clusters     {} × ({} adders, {} multipliers, {} divide/sqrt, {} scratchpads, {} comm units, {} condition codes)",
-        c.count, c.adders, c.multipliers, c.divsqrt, c.scratchpads, c.comm_units, c.condition_codes
+    let plural =
+        |n: usize, one: &str, many: &str| format!("{n} {}", if n == 1 { one } else { many });
+    line(
+        "cluster",
+        format!(
+            "{} × ({} adders, {} multipliers, {}, {}, {}, {} condition codes)",
+            c.count,
+            c.adders,
+            c.multipliers,
+            plural(c.divsqrt, "divide/sqrt unit", "divide/sqrt units"),
+            plural(c.scratchpads, "scratchpad", "scratchpads"),
+            plural(c.comm_units, "comm unit", "comm units"),
+            c.condition_codes
+        ),
     );
-    let _ = writeln!(
-        s,
-        "latencies    int {}, fp add {}, mul {}, div {}, sqrt {} (issue every {}), scratchpad read {} / write {}, comm {}, stream {}",
-        l.int,
-        l.fp_add,
-        l.mul,
-        l.div,
-        l.sqrt,
-        l.divsqrt_issue_interval,
-        l.scratchpad_read,
-        l.scratchpad_write,
-        l.comm,
-        l.stream
+    line(
+        "arithmetic",
+        if m.arithmetic.flush_to_zero {
+            "fp32 subnormal inputs and results flushed to zero (flush_to_zero)".into()
+        } else {
+            "fp32 subnormals kept, IEEE 754 (flush_to_zero off)".into()
+        },
+    );
+    line(
+        "latency",
+        format!(
+            "core cycles: int {}, fp_add {}, mul {}, div {}, sqrt {} (divsqrt_issue_interval {}), \
+             scratchpad_read {}, scratchpad_write {}, comm {}, stream {}",
+            l.int,
+            l.fp_add,
+            l.mul,
+            l.div,
+            l.sqrt,
+            l.divsqrt_issue_interval,
+            l.scratchpad_read,
+            l.scratchpad_write,
+            l.comm,
+            l.stream
+        ),
     );
     let names = m.lrf_names();
     let entries: usize = names.iter().map(|n| m.lrf_entries(n)).sum();
-    let _ = writeln!(
-        s,
-        "LRFs         {} per cluster, {entries} entries:",
-        names.len()
+    line(
+        "lrf",
+        format!(
+            "{} per cluster, {entries} entries of 32 bits: {} entries each, \
+             {} in the large ones ({})",
+            names.len(),
+            m.lrf.entries,
+            m.lrf.large_entries,
+            if m.lrf.large.is_empty() {
+                "none".into()
+            } else {
+                m.lrf.large.join(", ")
+            }
+        ),
     );
     for n in &names {
-        let _ = writeln!(s, "               {n:<12} {} entries", m.lrf_entries(n));
+        line("", format!("  {n:<12} {} entries", m.lrf_entries(n)));
     }
-    let _ = writeln!(s, "scratchpad   {} words per cluster", m.scratchpad.words);
+    let sp = &m.scratchpad;
+    line(
+        "scratchpad",
+        format!("{} words ({} bytes) per scratchpad", sp.words, sp.words * 4),
+    );
     let r = &m.srf;
-    let _ = writeln!(
-        s,
-        "SRF          {} words ({} KB), {} banks, {}-word blocks, {} words/cycle, {} stream buffers, {} streams per kernel",
-        r.words,
-        r.words * 4 / 1024,
-        r.banks,
-        r.block_words,
-        r.words_per_cycle,
-        r.stream_buffers,
-        r.kernel_streams
+    line(
+        "srf",
+        format!(
+            "{} words ({} KB), {} banks, {}-word blocks, {} words/cycle, {} stream buffers, \
+             {} streams per kernel",
+            r.words,
+            r.words * 4 / 1024,
+            r.banks,
+            r.block_words,
+            r.words_per_cycle,
+            r.stream_buffers,
+            r.kernel_streams
+        ),
     );
-    let _ = writeln!(
-        s,
-        "cluster I/O  {} stream words/cycle unconditional, {} conditional",
-        r.cluster_words_per_cycle, r.conditional_words_per_cycle
+    line(
+        "",
+        format!(
+            "per cluster {} stream words/cycle unconditional, {} conditional",
+            r.cluster_words_per_cycle, r.conditional_words_per_cycle
+        ),
     );
-    let _ = writeln!(
-        s,
-        "microcode    {} instructions, loops nested {} deep",
-        m.microcontroller.store_words, m.microcontroller.loop_depth
+    line(
+        "microcontroller",
+        format!(
+            "{} instructions of microcode store, loops nested {} deep",
+            m.microcontroller.store_words, m.microcontroller.loop_depth
+        ),
+    );
+    let d = &m.dram;
+    let bytes = d.channels * d.banks * d.rows * d.columns * 4;
+    let peak = d.channels as f64 * 4.0 * m.clocks.dram_mhz as f64 / 1000.0;
+    line(
+        "dram",
+        format!(
+            "{} channels × {} banks × {} rows × {} columns of 32-bit words ({} MB), \
+             burst_words {}, peak {peak:.2} GB/s",
+            d.channels,
+            d.banks,
+            d.rows,
+            d.columns,
+            bytes >> 20,
+            d.burst_words
+        ),
+    );
+    line(
+        "",
+        format!(
+            "DRAM cycles: cas_latency {}, t_rcd {}, t_rp {}, t_ras {}, t_rc {}, t_rrd {}, t_wr {}, \
+             turnaround {}, t_rfc {}, refresh_interval {} ({:.1} µs)",
+            d.cas_latency,
+            d.t_rcd,
+            d.t_rp,
+            d.t_ras,
+            d.t_rc,
+            d.t_rrd,
+            d.t_wr,
+            d.turnaround,
+            d.t_rfc,
+            d.refresh_interval,
+            d.refresh_interval as f64 * ns(m.clocks.dram_mhz) / 1000.0
+        ),
+    );
+    let mem = &m.memory;
+    line(
+        "memory",
+        format!(
+            "policy {}, pending_references {} per channel, address_generators {} \
+             (ag_words_per_cycle {} words/cycle, ag_reorder_words {} words outstanding), \
+             crossing_entries {} per clock-crossing FIFO, sync_stages {} flip-flops",
+            mem.policy,
+            mem.pending_references,
+            mem.address_generators,
+            mem.ag_words_per_cycle,
+            mem.ag_reorder_words,
+            mem.crossing_entries,
+            mem.sync_stages
+        ),
+    );
+    let sc = &m.stream_controller;
+    line(
+        "stream controller",
+        format!(
+            "queue_entries {} instructions, scoreboard_entries {} instructions, \
+             min_kernel_cycles {} core cycles, host_words_per_cycle {} (host interface)",
+            sc.queue_entries, sc.scoreboard_entries, sc.min_kernel_cycles, sc.host_words_per_cycle
+        ),
     );
     s
 }

@@ -374,10 +374,18 @@ fn print_stats(f: &Frame, m: &Metrics, desc: &MachineDesc, host: &HostTimes) {
             );
         }
     }
+    // Kernels by the names the pipeline registered them under (`imagine kernel show NAME`).
     println!("kernel breakdown   (share of frame cycles)");
+    let width = s
+        .kernels
+        .iter()
+        .map(|k| k.kernel.len())
+        .max()
+        .unwrap_or(0)
+        .max(16);
     for k in &s.kernels {
         println!(
-            "  {:<16} {:>6} calls {:>12} cycles {:>5.1} %",
+            "  {:<width$} {:>6} calls {:>12} cycles {:>5.1} %",
             k.kernel,
             k.calls,
             k.cycles,

@@ -208,6 +208,23 @@ impl Report {
         self.res_mii.max(self.rec_mii).max(1)
     }
 
+    /// The interval against its bound and the loop's rate, as `imagine kernel show` and
+    /// `imagine kernel check` print them: `II 8 (bound 8: ResMII 8 set by multipliers,
+    /// RecMII 2), 28.0 ops/cycle`, or `no main loop`.
+    pub fn interval(&self) -> String {
+        match self.ii {
+            Some(ii) => format!(
+                "II {ii} (bound {}: ResMII {} set by {}, RecMII {}), {:.1} ops/cycle",
+                self.mii(),
+                self.res_mii,
+                self.res_limit,
+                self.rec_mii,
+                self.ops_per_cycle
+            ),
+            None => "no main loop".into(),
+        }
+    }
+
     /// The text `imagine kernel show` prints.
     pub fn text(&self) -> String {
         let mut s = String::new();
@@ -231,23 +248,16 @@ impl Report {
             c.stream_in,
             c.stream_out
         );
-        match self.ii {
-            Some(ii) => {
-                let _ = writeln!(
-                    s,
-                    "II {ii} (ResMII {} set by {}, RecMII {}), {} stage{}, {:.1} ops/cycle",
-                    self.res_mii,
-                    self.res_limit,
-                    self.rec_mii,
-                    self.stages,
-                    if self.stages == 1 { "" } else { "s" },
-                    self.ops_per_cycle
-                );
-            }
-            None => {
-                let _ = writeln!(s, "no main loop");
-            }
+        let _ = write!(s, "{}", self.interval());
+        if self.ii.is_some() {
+            let _ = write!(
+                s,
+                ", {} stage{}",
+                self.stages,
+                if self.stages == 1 { "" } else { "s" }
+            );
         }
+        s.push('\n');
         let _ = writeln!(
             s,
             "{} instructions: {} before the loop, {} in it{}, {} after",

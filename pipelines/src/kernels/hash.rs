@@ -1,6 +1,8 @@
-//! `hash`: the composite stamp test of the OpenGL pipeline (Owens et al., "Polygon
+//! `hash_xy`: the composite stamp test of the OpenGL pipeline (Owens et al., "Polygon
 //! Rendering on a Stream Architecture", Graphics Hardware 2000; Kapasi et al.,
-//! "Efficient Conditional Operations for Data-parallel Architectures", MICRO 2000).
+//! "Efficient Conditional Operations for Data-parallel Architectures", MICRO 2000), on
+//! (x, y) records; the pipeline's own `hash` ([`crate::opengl::kernels::hash`]) tests pixel
+//! addresses.
 //! Fragments that fall on a pixel an earlier fragment of the batch already covered must
 //! wait for it (OpenGL's ordering); the others may be composited at once.
 //!
@@ -26,8 +28,8 @@ pub const STAMP_ROWS: u16 = 32;
 
 /// Needs a scratchpad that holds the stamp besides the words of its conditional outputs.
 pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
-    Needs::new("hash", desc).scratchpad_words(usize::from(STAMP_ROWS), "the stamp", true)?;
-    let mut b = KernelBuilder::new("hash");
+    Needs::new("hash_xy", desc).scratchpad_words(usize::from(STAMP_ROWS), "the stamp", true)?;
+    let mut b = KernelBuilder::new("hash_xy");
     let fragments = b.input("fragments");
     let ok = b.output("ok");
     let conflict = b.output("conflict");

@@ -7,7 +7,11 @@
 //! [`Needs`](crate::kernel::Needs)) and returns a
 //! [`MachineRequirementError`] for a machine it cannot serve. The
 //! [`library`] registry names every kernel with a builder and a generator of random valid
-//! inputs, so tools and tests can run any of them by name.
+//! inputs, so tools and tests can run any of them by name. Its names differ from those the
+//! OpenGL pipeline registers its own kernels under
+//! ([`crate::opengl::render::pipeline_kernels`]), which `imagine kernel` lists beside
+//! them, but where the pipeline builds the very kernel the library does (`filter8`;
+//! VERONA's `vertex_bump_env`).
 //!
 //! | kernel | computes |
 //! |---|---|
@@ -17,8 +21,8 @@
 //! | `marble` ([`turbulence::build_fragment`]) | `turbulence` as the OpenGL pipeline's fragment program: `irast`'s varyings in, packed RGBA8 out; `marble_ward` over Ward's noise |
 //! | [`prefix_sum`] | inclusive prefix sum of an int32 stream |
 //! | [`compact`] | keeps the fp32 words below a threshold, in order |
-//! | [`hash`] | the composite stamp test of the OpenGL pipeline (per-cluster 32×32 stamp) |
-//! | [`sort32`] | bitonic sort of 32-word chunks of u32 keys |
+//! | `hash_xy` ([`hash`]) | the composite stamp test of the OpenGL pipeline (per-cluster 32×32 stamp) on (x, y) records |
+//! | `sort32_keys` ([`sort32`]) | bitonic sort of 32-word chunks of u32 keys |
 //! | [`merge`] | bitonic merge of pairs of sorted 32-word chunks into 64-word chunks |
 //! | [`texture`] | texture sampling: `texaddr` (texel addresses), `filter8` (trilinear filter), `fragment` (texture environment) |
 //! | [`bump_env`] | VERONA's shader split at its lookups: `vtexaddr` and `vertex_bump_env` (vertex texture, displacement), `bumpaddr` (depth 2), `envaddr` (depth 1: bumped normal, reflection, sphere map), `envshade` (depth 0) |
@@ -103,13 +107,13 @@ static LIBRARY: &[LibraryKernel] = &[
         inputs: compact::inputs,
     },
     LibraryKernel {
-        name: "hash",
+        name: "hash_xy",
         description: "composite stamp test: splits (x, y) fragments into ok and conflict",
         build: hash::build,
         inputs: hash::inputs,
     },
     LibraryKernel {
-        name: "sort32",
+        name: "sort32_keys",
         description: "bitonic sort of 32-word chunks of u32 keys",
         build: sort32::build,
         inputs: sort32::inputs,

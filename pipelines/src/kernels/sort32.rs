@@ -1,7 +1,8 @@
-//! `sort32`: sorts 32-word chunks of u32 keys in place with Batcher's bitonic sorting
+//! `sort32_keys`: sorts 32-word chunks of u32 keys in place with Batcher's bitonic sorting
 //! network (Batcher, "Sorting Networks and their Applications", AFIPS 1968), as the sort
 //! stage of the OpenGL pipeline does (Owens et al., "Polygon Rendering on a Stream
-//! Architecture", Graphics Hardware 2000).
+//! Architecture", Graphics Hardware 2000; the pipeline's own `sort32`,
+//! [`crate::opengl::mergefrag::sort32`], sorts fragments by address).
 //!
 //! Input `keys`, output `sorted`: each 32-word chunk of the stream is sorted ascending
 //! (unsigned compares). The kernel is built for the machine's cluster count `C` (a power of
@@ -191,9 +192,9 @@ pub(crate) fn words_per_cluster(needs: Needs) -> Result<usize, MachineRequiremen
 /// a step between clusters (they are kept across the loop).
 pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let clusters = desc.cluster.count;
-    let needs = Needs::new("sort32", desc);
+    let needs = Needs::new("sort32_keys", desc);
     let k = words_per_cluster(needs)?;
-    let mut b = KernelBuilder::new("sort32");
+    let mut b = KernelBuilder::new("sort32_keys");
     let keys = b.input("keys");
     let sorted = b.output("sorted");
     let steps = sort_steps(CHUNK);

@@ -710,6 +710,62 @@ fn register_kernels(
     })
 }
 
+/// The kernels of the pipeline planned for `scene` on `desc` (see [`plan_pipeline`]),
+/// built but not compiled, under the names a frame registers them by — the names of its
+/// kernel breakdown and of [`Specialisation::kernels_built`] — in the order a frame
+/// registers them. `imagine kernel list|show|check` show and check them.
+pub fn pipeline_kernels(
+    scene: &Scene,
+    desc: &MachineDesc,
+    options: &RenderOptions,
+) -> Result<Vec<(String, crate::kernel::Kernel)>, RenderError> {
+    let pp = plan_pipeline(scene, desc, options)?;
+    let mut lib = KernelLibrary::new(desc, CompileCache::disabled());
+    register_kernels(&mut lib, desc, pp.shape, &pp, options)
+        .map_err(|e| RenderError(format!("cannot build the pipeline: {e}")))?;
+    Ok(lib.into_kernels())
+}
+
+/// What a pipeline kernel registered as `name` (see [`pipeline_kernels`]) computes, per
+/// element.
+pub fn kernel_description(name: &str) -> String {
+    let (stem, of) = name.split_once(':').unwrap_or((name, ""));
+    let about = match stem {
+        "perbegin" => "once per object: the vertex program's matrices from the OpenGL state",
+        "perlight" => "once per object: the lights in eye space and their colour products",
+        "clear" => "pixel: the clear colour and depth (the framebuffer's clear)",
+        "assemble_clip" => "triangle: its three shaded vertices into one cluster, trivial reject",
+        "viewport_cull" => "triangle: window corners, edge functions, facing and cull, box",
+        "baryprep" => "triangle: the interpolation record",
+        "xyprep" => "triangle, per scissor tile: the box clamped to the tile, xyrast's cost",
+        "xyrast" => "run of 4 candidate pixels: coverage by the three edge functions",
+        "irast" => "fragment: perspective-correct depth and colour (or varyings)",
+        "hash" => "fragment: held back if an earlier fragment of the round shares its stamp",
+        "zcompare" => "fragment: the depth test and the blend",
+        "compact_recycle" => "fragment: keeps the held-back fragments for the next round",
+        "sort32" => "group of 32 fragments: the held-back ones sorted by address",
+        "mergefrag" => "sorted group: one fragment per address, the one zcompare would keep",
+        "filter8" => "fragment: trilinear filter of 8 texels",
+        "texaddr" => "fragment: the texel addresses of the fragment program's textures",
+        "fragment" if of.starts_with("marble") => {
+            "fragment: the marble shader (four octaves of Perlin noise, a colour ramp)"
+        }
+        "fragment" if of.starts_with("bump_env") => {
+            "fragment: environment texel times the colour (bump_env, depth 0)"
+        }
+        "fragment" => "fragment: the fragment program's colour from its texels",
+        "vtexaddr" => "vertex: the vertex texture's addresses (bump_env)",
+        "bumpaddr" => "fragment: the bump-map normal's addresses (bump_env, depth 2)",
+        "envaddr" => "fragment: bumped normal, reflection, sphere-map address (bump_env, depth 1)",
+        _ if stem.starts_with("vertex_") && of.starts_with("pass") => {
+            "vertex: the vertex program's next lights (a light pass)"
+        }
+        _ if stem.starts_with("vertex_") => "vertex: the vertex program (clip position, colour)",
+        _ => "a kernel of the OpenGL pipeline",
+    };
+    about.to_string()
+}
+
 /// A fragment program's kernels: the texel addresses (`texaddr`, or `bump_env`'s depth-2
 /// `bumpaddr`; none without textures), the dependent read's addresses (`bump_env`'s
 /// `envaddr`) and the colour (`fragment`, `marble`).
@@ -1446,7 +1502,11 @@ pub fn render_with(
             .iter()
             .enumerate()
             .map(|(p, program)| ProgramInfo {
-                name: program.name.clone(),
+                // The breakdown's names: the pipeline's registered ones.
+                name: host
+                    .kernels
+                    .name_of_program(p)
+                    .map_or_else(|| program.name.clone(), String::from),
                 ii: host.kernels.ii_of_program(p),
             })
             .collect();
@@ -2192,11 +2252,18 @@ fn finish_stats(
     s.frames_per_second = 1.0 / seconds.max(1e-12);
     s.vertices_per_second = s.vertices as f64 / seconds.max(1e-12);
     s.fragments_per_second = s.fragments as f64 / seconds.max(1e-12);
+    // Each program by the name the pipeline registered it under (`compact_recycle:z,colour`,
+    // `perbegin:vertex_lit3_s16`): unique, and the name `imagine kernel show` takes.
     let names: Vec<String> = p
         .controller()
         .programs()
         .iter()
-        .map(|pr| pr.name.clone())
+        .enumerate()
+        .map(|(i, pr)| {
+            host.kernels
+                .name_of_program(i)
+                .map_or_else(|| pr.name.clone(), String::from)
+        })
         .collect();
     let mut shares: Vec<KernelShare> = Vec::new();
     let (mut busy, mut stalls, mut ops) = (0, 0, 0);

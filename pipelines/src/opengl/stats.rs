@@ -122,6 +122,9 @@ pub struct FrameStats {
     /// operation by kind, issue, host, drain; see `stream::attribution`); they sum to
     /// `cycles`.
     pub attribution: Attribution,
+    /// Per kernel called in the frame (the clear apart), by the name the pipeline
+    /// registered it under (`perbegin:vertex_lit3_s16`, `compact_recycle:z,colour`): the
+    /// names of [`Specialisation::kernels_built`] and of `imagine kernel show`.
     pub kernels: Vec<KernelShare>,
     pub specialisation: Specialisation,
     pub batch_triangles: usize,

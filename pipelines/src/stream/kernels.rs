@@ -66,6 +66,24 @@ impl KernelLibrary {
         KernelId(self.entries.len() - 1)
     }
 
+    /// Every registered kernel with its name, in the order registered.
+    pub fn into_kernels(self) -> Vec<(String, Kernel)> {
+        self.entries
+            .into_iter()
+            .map(|e| (e.name, e.kernel))
+            .collect()
+    }
+
+    /// The name `program` (an index in the stream controller's programs) was registered
+    /// under, if it is one of these kernels'.
+    pub fn name_of_program(&self, program: usize) -> Option<&str> {
+        self.entry_of_program(program).map(|e| e.name.as_str())
+    }
+
+    fn entry_of_program(&self, program: usize) -> Option<&Entry> {
+        self.entries.iter().find(|e| e.program == Some(program))
+    }
+
     pub fn name(&self, k: KernelId) -> &str {
         &self.entries[k.0].name
     }
@@ -132,8 +150,7 @@ impl KernelLibrary {
     /// The initiation interval of the compiled loop of the kernel loaded as program
     /// `program` (`None`: not loaded, or no loop).
     pub fn ii_of_program(&self, program: usize) -> Option<u32> {
-        let e = self.entries.iter().find(|e| e.program == Some(program))?;
-        e.compiled.as_ref()?.report.ii
+        self.entry_of_program(program)?.compiled.as_ref()?.report.ii
     }
 
     /// The stream names of a kernel in binding order: its declared streams, then its

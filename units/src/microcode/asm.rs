@@ -454,19 +454,7 @@ pub fn parse_word(s: &str) -> Result<u32, String> {
         ));
     }
     if body.contains(['.', 'e', 'E']) {
-        let ok = body
-            .bytes()
-            .all(|b| b.is_ascii_digit() || matches!(b, b'.' | b'e' | b'E' | b'+' | b'-'));
-        let mantissa = body.split(['e', 'E']).next().unwrap_or("");
-        let nonzero = mantissa.bytes().any(|b| (b'1'..=b'9').contains(&b));
-        return match s.parse::<f32>() {
-            Ok(f) if ok && f == 0.0 && nonzero => Err(format!(
-                "`{s}` is below the range of fp32 (it rounds to zero)"
-            )),
-            Ok(f) if ok && f.is_finite() => Ok(f.to_bits()),
-            Ok(_) if ok => Err(format!("`{s}` is beyond the range of fp32")),
-            _ => Err(format!("`{s}` is not a number")),
-        };
+        return parse_fp32(s, body);
     }
     if !body.bytes().all(|b| b.is_ascii_digit()) {
         return Err(format!("`{s}` is not a number"));
@@ -480,6 +468,35 @@ pub fn parse_word(s: &str) -> Result<u32, String> {
         ));
     }
     Ok(v as u32)
+}
+
+/// [`parse_word`] for fp32 values (`imagine kernel run --format f32`): a decimal integer is
+/// the float it names (`10` is 10.0, `0x41200000`), not a bit pattern; hex stays a bit
+/// pattern, and floats are read as [`parse_word`] reads them, with the same range errors.
+pub fn parse_f32_word(s: &str) -> Result<u32, String> {
+    let body = s.strip_prefix('-').unwrap_or(s);
+    if !body.is_empty() && body.bytes().all(|b| b.is_ascii_digit()) {
+        return parse_fp32(s, body);
+    }
+    parse_word(s)
+}
+
+/// `s` (unsigned part `body`) as fp32 bits: an error beyond fp32's range, or for a nonzero
+/// value that rounds to zero.
+fn parse_fp32(s: &str, body: &str) -> Result<u32, String> {
+    let ok = body
+        .bytes()
+        .all(|b| b.is_ascii_digit() || matches!(b, b'.' | b'e' | b'E' | b'+' | b'-'));
+    let mantissa = body.split(['e', 'E']).next().unwrap_or("");
+    let nonzero = mantissa.bytes().any(|b| (b'1'..=b'9').contains(&b));
+    match s.parse::<f32>() {
+        Ok(f) if ok && f == 0.0 && nonzero => Err(format!(
+            "`{s}` is below the range of fp32 (it rounds to zero)"
+        )),
+        Ok(f) if ok && f.is_finite() => Ok(f.to_bits()),
+        Ok(_) if ok => Err(format!("`{s}` is beyond the range of fp32")),
+        _ => Err(format!("`{s}` is not a number")),
+    }
 }
 
 // ---- assembler ------------------------------------------------------------------------
@@ -1396,5 +1413,27 @@ fn imm_comment(v: u32) -> String {
         format!("int {i}")
     } else {
         format!("f32 {:?}", f32::from_bits(v))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{parse_f32_word, parse_word};
+
+    #[test]
+    fn fp32_words_read_decimal_integers_as_floats_and_hex_as_bits() {
+        assert_eq!(parse_word("10"), Ok(10));
+        assert_eq!(parse_f32_word("10"), Ok(10.0f32.to_bits()));
+        assert_eq!(parse_f32_word("-10"), Ok((-10.0f32).to_bits()));
+        assert_eq!(parse_f32_word("0"), Ok(0));
+        assert_eq!(parse_f32_word("16777217"), Ok(16777216.0f32.to_bits()));
+        assert_eq!(parse_f32_word("0x41200000"), Ok(10.0f32.to_bits()));
+        assert_eq!(parse_f32_word("2.5"), parse_word("2.5"));
+        let e = parse_f32_word(&"9".repeat(40)).unwrap_err();
+        assert!(e.contains("beyond the range of fp32"), "{e}");
+        let e = parse_f32_word("1e-50").unwrap_err();
+        assert!(e.contains("rounds to zero"), "{e}");
+        assert!(parse_f32_word("-").is_err());
+        assert!(parse_f32_word("1x").is_err());
     }
 }
