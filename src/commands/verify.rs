@@ -116,8 +116,9 @@ pub fn run(c: VerifyCommand) -> Result<ExitCode> {
             })
         }
         VerifyCommand::List => {
+            let w = name_width();
             for b in BLOCKS {
-                println!("{:<12} {}", b.name, b.about);
+                println!("{:<w$} {}", b.name, b.about);
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -219,6 +220,11 @@ fn report_waves(r: &Report) -> Result<()> {
     }
 }
 
+/// The width of the block-name column: the longest name.
+fn name_width() -> usize {
+    BLOCKS.iter().map(|b| b.name.len()).max().unwrap_or(5)
+}
+
 fn exit_code(passed: bool) -> ExitCode {
     if passed {
         ExitCode::SUCCESS
@@ -302,13 +308,14 @@ fn all(run: &RunArgs, json: bool) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&summary)?);
         return Ok(exit_code(failed == 0));
     }
+    let w = name_width();
     println!(
-        "{:<12} {:>12} {:>10} {:>9} {:>9}",
+        "{:<w$} {:>12} {:>10} {:>9} {:>9}",
         "block", "transactions", "mismatches", "coverage", "host s"
     );
     for r in &reports {
         println!(
-            "{:<12} {:>12} {:>10} {:>9} {:>9.3}",
+            "{:<w$} {:>12} {:>10} {:>9} {:>9.3}",
             r.block,
             r.scoreboard.transactions,
             r.scoreboard.mismatches,
