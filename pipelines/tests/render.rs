@@ -418,20 +418,25 @@ fn jumping_over_idle_time_changes_nothing_in_the_frame() {
     }
 }
 
-/// The two-phase contract on whole frames: every block computes its next state from
-/// committed state only, so evaluating the blocks in the reverse order, and stepping every
-/// idle cycle as well, gives the same image, cycles and statistics — on an untextured and a
-/// textured scene, on two cluster counts.
-#[test]
-fn frames_are_the_same_cycle_for_cycle_in_either_evaluation_order() {
-    let advs = scene::load(
+/// ADVS-1 (textured) at 24 × 24.
+fn advs1_24x24() -> Scene {
+    scene::load(
         "ADVS-1",
         &LoadOptions {
             size: Some(24),
             subdivisions: None,
         },
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// The two-phase contract on whole frames: every block computes its next state from
+/// committed state only, so evaluating the blocks in the reverse order, and stepping every
+/// idle cycle as well, gives the same image, cycles and statistics — on an untextured and a
+/// textured scene, on two cluster counts.
+#[test]
+fn frames_are_the_same_cycle_for_cycle_in_either_evaluation_order() {
+    let advs = advs1_24x24();
     let cases = [
         (rate1_16x16(), MachineDesc::gold8()),
         (rate1_16x16(), MachineDesc::resolve("gold16").unwrap()),
@@ -465,14 +470,7 @@ fn frames_are_the_same_cycle_for_cycle_in_either_evaluation_order() {
 /// and each batch's to its cycles, and kernels run exactly the breakdown's cycles.
 #[test]
 fn every_frame_cycle_is_attributed_once() {
-    let advs = scene::load(
-        "ADVS-1",
-        &LoadOptions {
-            size: Some(24),
-            subdivisions: None,
-        },
-    )
-    .unwrap();
+    let advs = advs1_24x24();
     for scene in [rate1_16x16(), advs] {
         let options = RenderOptions {
             timeline: true,
