@@ -251,12 +251,22 @@ fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
     let bucket = span.div_ceil(COUNTER_BUCKETS).max(1);
     let n = span.div_ceil(bucket) as usize;
     let index = |c: u64| ((c.clamp(w.start, w.end - 1) - w.start) / bucket) as usize;
+    // Calls `add(bucket, cycles)` for the cycles of `from..to` (clipped to the window) in
+    // each bucket they cover.
+    let per_bucket = |from: u64, to: u64, add: &mut dyn FnMut(usize, u64)| {
+        let (mut t, to) = (from.max(w.start), to.min(w.end));
+        while t < to {
+            let end = (w.start + (index(t) as u64 + 1) * bucket).min(to);
+            add(index(t), end - t);
+            t = end;
+        }
+    };
     // Words moved per bucket, each operation's words spread evenly over its span.
     let mut words = vec![0f64; n];
     // Differences by bucket: an amount counts in every bucket from `from`'s to `to`'s.
     let mut occupancy = vec![0i64; n + 1];
     let mut srf_bound = vec![0i64; n + 1];
-    let span = |diff: &mut [i64], from: u64, to: u64, amount: i64| {
+    let count_over = |diff: &mut [i64], from: u64, to: u64, amount: i64| {
         if to > w.start && from < w.end {
             diff[index(from.max(w.start))] += amount;
             if to < w.end {
@@ -266,19 +276,11 @@ fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
     };
     for r in input.records {
         if let (StreamInstr::Memory(op), Some(i), Some(c)) = (&r.instr, r.issued, r.completed) {
-            let (from, to) = (i.max(w.start), c.min(w.end));
-            if to > from {
-                let per_cycle = op.words() as f64 / (c - i).max(1) as f64;
-                let mut t = from;
-                while t < to {
-                    let end = (w.start + (index(t) as u64 + 1) * bucket).min(to);
-                    words[index(t)] += per_cycle * (end - t) as f64;
-                    t = end;
-                }
-            }
+            let per_cycle = op.words() as f64 / (c - i).max(1) as f64;
+            per_bucket(i, c, &mut |b, cycles| words[b] += per_cycle * cycles as f64);
         }
         if let (Some(e), Some(c)) = (r.entered, r.completed) {
-            span(&mut occupancy, e, c, 1);
+            count_over(&mut occupancy, e, c, 1);
         }
         let bound = match &r.instr {
             StreamInstr::Kernel { bindings, .. } => bindings.iter().map(|b| b.words).sum(),
@@ -288,18 +290,15 @@ fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
             StreamInstr::LoadMicrocode { .. } => 0,
         };
         if let (Some(i), Some(c)) = (r.issued, r.completed) {
-            span(&mut srf_bound, i, c, bound as i64);
+            count_over(&mut srf_bound, i, c, bound as i64);
         }
     }
     let mut busy = vec![0u64; n];
     for s in input.segments {
         if matches!(s.category, Category::Kernel(_)) {
-            let mut t = s.cycles.start.max(w.start);
-            while t < s.cycles.end.min(w.end) {
-                let end = (w.start + (index(t) as u64 + 1) * bucket).min(s.cycles.end);
-                busy[index(t)] += end - t;
-                t = end;
-            }
+            per_bucket(s.cycles.start, s.cycles.end, &mut |b, cycles| {
+                busy[b] += cycles
+            });
         }
     }
     let seconds_per_bucket = bucket as f64 / (input.core_mhz * 1e6);
