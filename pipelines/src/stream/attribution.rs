@@ -54,15 +54,6 @@ pub enum Wait {
 }
 
 impl Wait {
-    pub const ALL: [Wait; 6] = [
-        Wait::Load,
-        Wait::Store,
-        Wait::Gather,
-        Wait::Scatter,
-        Wait::HostTransfer,
-        Wait::MicrocodeLoad,
-    ];
-
     pub fn name(self) -> &'static str {
         match self {
             Wait::Load => "load",
