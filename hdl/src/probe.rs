@@ -42,6 +42,10 @@ pub struct SignalDecl {
     pub width: u32,
     pub kind: SignalKind,
     pub display: Display,
+    /// One of the few signals that say what its module is doing (a unit's op in each
+    /// cluster): a waveform viewer shows it in an open group of its module's module
+    /// (`top.cluster0` for `top.cluster0.add0.op`) ahead of the closed detail groups.
+    pub glance: bool,
 }
 
 impl SignalDecl {
@@ -85,6 +89,7 @@ impl ProbeRegistry {
             width,
             kind,
             display: Display::Number,
+            glance: false,
         });
         SignalId(self.signals.len() as u32 - 1)
     }
@@ -92,6 +97,11 @@ impl ProbeRegistry {
     /// Says how a viewer should show signal `id`'s values.
     pub fn set_display(&mut self, id: SignalId, display: Display) {
         self.signals[id.0 as usize].display = display;
+    }
+
+    /// Marks signal `id` as one to show at a glance ([`SignalDecl::glance`]).
+    pub fn set_glance(&mut self, id: SignalId) {
+        self.signals[id.0 as usize].glance = true;
     }
 
     pub fn signals(&self) -> &[SignalDecl] {

@@ -184,6 +184,11 @@ impl Scope<'_> {
         id
     }
 
+    /// Marks signal `id` as one to show at a glance (see [`crate::SignalDecl::glance`]).
+    pub fn glance(&mut self, id: SignalId) {
+        self.design.probes.set_glance(id);
+    }
+
     /// A register probed as `self.name`.
     pub fn reg<T: Bits>(&mut self, name: &str, init: T) -> Reg<T> {
         Reg::new(self, name, init)

@@ -488,14 +488,18 @@ fn every_frame_cycle_is_attributed_once() {
             "{}: {a:?}",
             scene.name
         );
+        // What the waits waited on covers them exactly; gathers wait for DRAM to move data.
+        assert_eq!(s.waiting_on.total(), a.waiting(), "{}", scene.name);
+        assert!(
+            s.waiting_on.dram_bandwidth > 0,
+            "{}: {:?}",
+            scene.name,
+            s.waiting_on
+        );
         for row in &s.batch_rows {
-            assert_eq!(
-                row.attribution.total(),
-                row.cycles,
-                "{} batch {}",
-                scene.name,
-                row.batch
-            );
+            let what = format!("{} batch {}", scene.name, row.batch);
+            assert_eq!(row.attribution.total(), row.cycles, "{what}");
+            assert_eq!(row.waiting_on.total(), row.attribution.waiting(), "{what}");
         }
         let csv = s.batches_csv();
         let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
@@ -528,8 +532,42 @@ fn every_frame_cycle_is_attributed_once() {
             .sum();
         assert_eq!(covered, s.cycles, "{}", scene.name);
         assert!(slices(events, "memory").count() > 0, "{}", scene.name);
+        // The waits' slices say what they waited on, and DRAM's row hits are a counter.
+        let waited_on: u64 = slices(events, "attribution")
+            .flat_map(|a| a.as_object().unwrap().iter())
+            .filter(|(k, _)| k.starts_with("waiting_on_"))
+            .map(|(_, v)| v.as_u64().unwrap())
+            .sum();
+        assert_eq!(waited_on, s.waiting_on.total(), "{}", scene.name);
+        let row_hits: f64 = events
+            .iter()
+            .filter(|e| e["ph"] == "C" && e["name"] == "DRAM row hits and misses per µs")
+            .map(|e| e["args"]["row hits"].as_f64().unwrap())
+            .sum();
+        assert!(row_hits > 0.0, "{}", scene.name);
         assert_eq!(t["displayTimeUnit"], "ns");
     }
+}
+
+/// Slower row switches show as bank conflicts: with precharge and activate four times as
+/// long, the clusters wait more cycles on them.
+#[test]
+fn slower_row_switches_are_waited_on_as_bank_conflicts() {
+    let scene = advs1_24x24();
+    let quick = render_with(&scene, &MachineDesc::gold8(), cached(), None, |_, _| {}).unwrap();
+    let mut desc = MachineDesc::gold8();
+    desc.dram.t_rp *= 4;
+    desc.dram.t_rcd *= 4;
+    desc.dram.t_ras *= 4;
+    desc.dram.t_rc *= 4;
+    desc.validate().unwrap();
+    let slow = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
+    let (q, s) = (&quick.stats.waiting_on, &slow.stats.waiting_on);
+    assert!(
+        s.bank_conflicts > 2 * q.bank_conflicts.max(1),
+        "{q:?} then {s:?}"
+    );
+    assert_eq!(quick.pixels, slow.pixels);
 }
 
 /// The longest minimum kernel time a machine may ask for: the frame finishes (its idle

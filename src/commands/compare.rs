@@ -125,20 +125,25 @@ fn rows(a: &Value, b: &Value) -> Vec<Row> {
             .map(|o| o.keys().cloned().collect())
             .unwrap_or_default()
     };
-    let mut categories = keys(&fa["attribution"]);
-    for k in keys(&fb["attribution"]) {
-        if !categories.contains(&k) {
-            categories.push(k);
+    for (section, key) in [
+        ("where cycles went", "attribution"),
+        ("waiting, on what", "waiting_on"),
+    ] {
+        let mut categories = keys(&fa[key]);
+        for k in keys(&fb[key]) {
+            if !categories.contains(&k) {
+                categories.push(k);
+            }
         }
-    }
-    for c in categories {
-        rows.push(Row {
-            section: "where cycles went",
-            name: c.replace('_', " "),
-            unit: "cycles",
-            a: number(&fa["attribution"][&c]),
-            b: number(&fb["attribution"][&c]),
-        });
+        for c in categories {
+            rows.push(Row {
+                section,
+                name: c.replace('_', " "),
+                unit: "cycles",
+                a: number(&fa[key][&c]),
+                b: number(&fb[key][&c]),
+            });
+        }
     }
     let kernels = |v: &Value| -> Vec<(String, f64)> {
         v["kernels"]

@@ -55,8 +55,9 @@ pub struct RenderArgs {
     #[arg(long)]
     reference_png: Option<PathBuf>,
     /// Write the frame as a timeline (Trace Event JSON, opened by ui.perfetto.dev and
-    /// chrome://tracing): kernel calls, memory operations, host transfers, waits, and
-    /// DRAM bandwidth, cluster busy share and scoreboard counters; slices carry their core
+    /// chrome://tracing): kernel calls, memory operations, host transfers, waits (with
+    /// what they waited on), and counters of DRAM bandwidth, DRAM row hits and misses,
+    /// cluster busy share, scoreboard occupancy and SRF words; slices carry their core
     /// cycles for --vcd-window
     #[arg(long, value_name = "F.json")]
     timeline: Option<PathBuf>,
@@ -372,6 +373,20 @@ fn print_stats(f: &Frame, m: &Metrics, desc: &MachineDesc, host: &HostTimes) {
                 cycles,
                 100.0 * cycles as f64 / s.cycles.max(1) as f64
             );
+        }
+    }
+    let waiting = s.waiting_on.total();
+    if waiting > 0 {
+        println!("  waiting, on what         (share of the waiting cycles)");
+        for (on, cycles) in s.waiting_on.rows() {
+            if cycles > 0 {
+                println!(
+                    "    {:<22} {:>12} cycles {:>5.1} %",
+                    on,
+                    cycles,
+                    100.0 * cycles as f64 / waiting as f64
+                );
+            }
         }
     }
     // Kernels by the names the pipeline registered them under (`imagine kernel show NAME`).

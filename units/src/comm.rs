@@ -34,7 +34,9 @@ impl CommUnit {
         for c in 0..lanes {
             let mut s = scope.child(&format!("cluster{c}"));
             let mut s = s.child(name);
-            lane_src.push(s.signal("source", bits_for(lanes as u64 - 1), SignalKind::Wire));
+            let source = s.signal("source", bits_for(lanes as u64 - 1), SignalKind::Wire);
+            s.glance(source);
+            lane_src.push(source);
             lane_data.push(s.signal("data", 32, SignalKind::Wire));
         }
         CommUnit {

@@ -4,8 +4,10 @@
 //! names the dump file, starts the view at the first dumped instant zoomed to a few dozen
 //! core cycles, shows the clocks first, then the control path (the groups of the stream
 //! controller `sc` and the microcontroller `uc`, and any scope with a text signal such as
-//! the running kernel's name), then one group per other scope (module) holding that
-//! scope's selected signals. 1-bit signals show in binary and vectors in hexadecimal;
+//! the running kernel's name), then, open, a few signals per module that say what it is
+//! doing (those registered as [`SignalDecl::glance`]: each unit's op in each cluster,
+//! grouped as `top.cluster0 at a glance`), then one group per other scope (module) holding
+//! that scope's selected signals, closed when there are many. 1-bit signals show in binary and vectors in hexadecimal;
 //! text signals ([`Display::Text`]) as ASCII; coded fields ([`Display::Names`]: DRAM
 //! commands, bank states, opcodes) through GTKWave translate filter files written next to
 //! the save file (`out.gtkw` → `out-filters/N.txt`), so they show by name.
@@ -230,9 +232,37 @@ pub fn render_gtkw(
             || signals.iter().any(|s| s.display == Display::Text)
     };
     groups.sort_by_key(|(scope, signals)| (!control(scope, signals), rank[scope]));
+    // The at-a-glance signals, by their module's module, in the order those first appear.
+    let mut glances: Vec<(String, Vec<&SignalDecl>)> = Vec::new();
+    for s in decls.iter().filter(|s| s.glance) {
+        let owner = s.scope().rsplit_once('.').map_or("", |(o, _)| o);
+        let name = format!("{owner} at a glance");
+        match glances.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, signals)) => signals.push(s),
+            None => glances.push((name, vec![s])),
+        }
+    }
+    let controls = groups
+        .iter()
+        .take_while(|(scope, signals)| control(scope, signals))
+        .count();
+    let groups: Vec<(&str, Vec<&SignalDecl>, bool)> = groups[..controls]
+        .iter()
+        .map(|(scope, signals)| (*scope, signals.clone(), true))
+        .chain(
+            glances
+                .iter()
+                .map(|(name, signals)| (name.as_str(), signals.clone(), true)),
+        )
+        .chain(
+            groups[controls..]
+                .iter()
+                .map(|(scope, signals)| (*scope, signals.clone(), false)),
+        )
+        .collect();
     let many = decls.len() > OPEN_GROUPS_MAX_SIGNALS;
-    for (scope, signals) in &groups {
-        let closed = many && !control(scope, signals);
+    for (scope, signals, open) in &groups {
+        let closed = many && !open;
         let name = if scope.is_empty() {
             "(top level)"
         } else {
@@ -334,6 +364,56 @@ mod tests {
             ]
         );
         assert!(text.contains("[treeopen] top.\n[treeopen] top.mac.\n[treeopen] top.mac.s1.\n"));
+    }
+
+    #[test]
+    fn glance_signals_come_open_after_the_control_path_and_before_closed_details() {
+        let mut r = ProbeRegistry::new();
+        let kernel = r.register("top.sc.kernel".into(), 64, SignalKind::Reg);
+        r.set_display(kernel, Display::Text);
+        let mut ids = vec![kernel];
+        for c in 0..2 {
+            for unit in ["add0", "mul0"] {
+                let op = r.register(format!("top.cluster{c}.{unit}.op"), 7, SignalKind::Reg);
+                r.set_glance(op);
+                ids.push(op);
+                // Enough detail signals that the detail groups start closed.
+                for k in 0..OPEN_GROUPS_MAX_SIGNALS / 4 {
+                    let path = format!("top.cluster{c}.{unit}.d{k}");
+                    ids.push(r.register(path, 8, SignalKind::Reg));
+                }
+            }
+        }
+        let text = render_gtkw(
+            Path::new("o.vcd"),
+            Path::new("o.gtkw"),
+            &r,
+            &ids,
+            &GtkwView::default(),
+        );
+        // Group openings in order, with whether they start closed.
+        let lines: Vec<&str> = text.lines().collect();
+        let groups: Vec<(&str, bool)> = lines
+            .windows(2)
+            .filter_map(|w| {
+                let flags = u32::from_str_radix(w[0].strip_prefix('@')?, 16).ok()?;
+                let name = w[1].strip_prefix('-')?;
+                (flags & flags::GRP_BEGIN != 0).then_some((name, flags & flags::CLOSED != 0))
+            })
+            .collect();
+        assert_eq!(
+            groups[..4],
+            [
+                ("top.sc", false),
+                ("top.cluster0 at a glance", false),
+                ("top.cluster1 at a glance", false),
+                ("top.cluster0.add0", true),
+            ],
+            "{groups:?}"
+        );
+        let glance = text.split("-top.cluster1 at a glance").nth(1).unwrap();
+        assert!(glance.contains("top.cluster1.add0.op[6:0]\n"), "{glance}");
+        assert!(glance.contains("top.cluster1.mul0.op[6:0]\n"), "{glance}");
     }
 
     #[test]

@@ -54,8 +54,9 @@
 use std::ops::Range;
 use std::time::Instant;
 
+use imagine_hdl::Sim;
 use imagine_units::desc::MachineDesc;
-use imagine_units::dram::ReplayReport;
+use imagine_units::dram::{DramChannel, ReplayReport};
 use imagine_units::machine::{KernelStats, StreamBinding};
 use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
@@ -74,7 +75,7 @@ use crate::kernels::texture::{self, FragmentProgram};
 use crate::kernels::turbulence;
 use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene, Shader};
 use crate::scene::{MAX_WINDOW, bump_map};
-use crate::stream::attribution::{self, Attribution};
+use crate::stream::attribution::{self, Attribution, DramActivity, WaitingOn};
 use crate::stream::timeline::{self, ProgramInfo, TimelineInput};
 use crate::stream::{
     Buffer, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS, PlanError,
@@ -1516,6 +1517,7 @@ pub fn render_with(
                 programs: &programs,
                 batch_tags: host.batch_tags(),
                 segments: &segments,
+                dram: &dram_activity(host.sim(), desc),
                 window: cleared..rendered,
                 core_mhz: desc.clocks.core_mhz as f64,
                 address_generators: desc.memory.address_generators,
@@ -2228,6 +2230,17 @@ impl FrameRun<'_> {
     }
 }
 
+/// What the DRAM channels did over the run.
+fn dram_activity<'a>(sim: &'a Sim, desc: &MachineDesc) -> DramActivity<'a> {
+    DramActivity {
+        channels: sim
+            .modules_of::<DramChannel>()
+            .map(DramChannel::activity_log)
+            .collect(),
+        dram_per_core: desc.clocks.dram_mhz as f64 / desc.clocks.core_mhz as f64,
+    }
+}
+
 fn finish_stats(
     s: &mut FrameStats,
     host: &StreamHost,
@@ -2238,11 +2251,15 @@ fn finish_stats(
     let sim = host.sim();
     let p = processor::processor(sim);
     // Every frame cycle in one category; each batch's window follows the last one's.
-    let segments = attribution::attribute(p.controller().records(), frame.clone());
+    let dram = dram_activity(sim, desc);
+    let segments = attribution::attribute(p.controller().records(), &dram, frame.clone());
     s.attribution = Attribution::of(&segments, frame.clone());
+    s.waiting_on = WaitingOn::of(&segments, frame.clone());
     let mut batch_start = frame.start;
     for row in &mut s.batch_rows {
-        row.attribution = Attribution::of(&segments, batch_start..batch_start + row.cycles);
+        let window = batch_start..batch_start + row.cycles;
+        row.attribution = Attribution::of(&segments, window.clone());
+        row.waiting_on = WaitingOn::of(&segments, window);
         batch_start += row.cycles;
     }
     let cycles = s.cycles.max(1);

@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use crate::stream::attribution::Attribution;
+use crate::stream::attribution::{Attribution, WaitingOn};
 use crate::stream::srf::PlanRow;
 
 /// One kernel's share of the frame.
@@ -75,6 +75,8 @@ pub struct BatchRow {
     pub srf_fragment_words: usize,
     /// The batch's `cycles`, each in one category (they sum to `cycles`).
     pub attribution: Attribution,
+    /// What the batch's waiting cycles were spent on.
+    pub waiting_on: WaitingOn,
 }
 
 /// Statistics of a frame.
@@ -122,6 +124,9 @@ pub struct FrameStats {
     /// operation by kind, issue, host, drain; see `stream::attribution`); they sum to
     /// `cycles`.
     pub attribution: Attribution,
+    /// What the waiting cycles of `attribution` were spent on (scoreboard, DRAM bandwidth,
+    /// bank conflicts, memory latency, the unit at work); they sum to its waiting cycles.
+    pub waiting_on: WaitingOn,
     /// Per kernel called in the frame (the clear apart), by the name the pipeline
     /// registered it under (`perbegin:vertex_lit3_s16`, `compact_recycle:z,colour`): the
     /// names of [`Specialisation::kernels_built`] and of `imagine kernel show`.
@@ -177,6 +182,9 @@ impl FrameStats {
                 name.replace("waiting: ", "waiting_").replace(' ', "_")
             );
         }
+        for (name, _) in WaitingOn::default().rows() {
+            out += &format!(",waiting_on_{}_cycles", name.replace(' ', "_"));
+        }
         out += "\n";
         for r in &self.batch_rows {
             out += &format!(
@@ -194,7 +202,7 @@ impl FrameStats {
                 r.srf_words,
                 r.srf_fragment_words
             );
-            for (_, cycles) in r.attribution.rows() {
+            for (_, cycles) in r.attribution.rows().into_iter().chain(r.waiting_on.rows()) {
                 out += &format!(",{cycles}");
             }
             out += "\n";

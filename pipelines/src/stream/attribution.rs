@@ -21,11 +21,22 @@
 //! * **drain** — after the window's last kernel: waiting on the last instruction to
 //!   complete (under its kind, as above), then the cycles until the window ends.
 //!
-//! What the memory operations waited on in turn (DRAM bandwidth, bank conflicts) is not
-//! split further here; the DRAM statistics give row hits and bandwidth.
+//! What the clusters waited on ([`WaitingOn`]), for every waiting cycle: before the
+//! instruction waited for had issued, **the scoreboard** (it waited there for a dependence
+//! or a free unit); after, for a memory operation, what DRAM did meanwhile — **DRAM
+//! bandwidth** (the data bus carried words), **bank conflicts** (references waited while
+//! banks were precharged, activated or refreshed: row misses, conflicts, refresh) or
+//! neither, **memory latency** (address generation, the clock crossings, CAS latency, SRF
+//! writes) — and for a host transfer or a microcode load, **the unit at work**. DRAM's side
+//! comes from the channels' activity counters ([`ActivityLog`]), sampled every
+//! [`SAMPLE_CYCLES`](imagine_units::dram::activity::SAMPLE_CYCLES) DRAM cycles: a stretch
+//! of waiting is split in proportion to the busiest channel's transfer and row-switch
+//! cycles over it (the busiest, because one saturated channel limits a stream however
+//! idle the others are).
 
 use std::ops::Range;
 
+use imagine_units::dram::activity::ActivityLog;
 use imagine_units::memory::{MemOpKind, Pattern};
 use imagine_units::stream_controller::{InstrRecord, StreamInstr};
 use serde::Serialize;
@@ -94,15 +105,146 @@ impl Category {
     }
 }
 
-/// Cycles `start..end` in one category.
+/// What waiting cycles were spent on (see the module's documentation); the fields sum to
+/// the waiting cycles.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct WaitingOn {
+    /// The instruction waited for had not yet issued.
+    pub scoreboard: u64,
+    /// A memory operation had issued and DRAM's data bus carried words.
+    pub dram_bandwidth: u64,
+    /// It had issued and references waited on precharges, activates and refreshes.
+    pub bank_conflicts: u64,
+    /// It had issued and DRAM neither moved data nor switched rows.
+    pub memory_latency: u64,
+    /// A host transfer or microcode load was at work.
+    pub unit_busy: u64,
+}
+
+impl WaitingOn {
+    /// Every field with its name, in a fixed order.
+    pub fn rows(&self) -> [(&'static str, u64); 5] {
+        [
+            ("scoreboard", self.scoreboard),
+            ("dram bandwidth", self.dram_bandwidth),
+            ("bank conflicts", self.bank_conflicts),
+            ("memory latency", self.memory_latency),
+            ("unit busy", self.unit_busy),
+        ]
+    }
+
+    pub fn total(&self) -> u64 {
+        self.rows().iter().map(|(_, c)| c).sum()
+    }
+
+    fn add(&mut self, o: &WaitingOn) {
+        self.scoreboard += o.scoreboard;
+        self.dram_bandwidth += o.dram_bandwidth;
+        self.bank_conflicts += o.bank_conflicts;
+        self.memory_latency += o.memory_latency;
+        self.unit_busy += o.unit_busy;
+    }
+
+    /// The share `part / whole` of these cycles, rounded so that the fields sum to `part`.
+    fn part(&self, part: u64, whole: u64) -> WaitingOn {
+        if part >= whole {
+            return *self;
+        }
+        let (mut cum, mut taken) = (0u128, 0u64);
+        let mut share = |c: u64| {
+            cum += c as u128;
+            let upto = (cum * part as u128 / whole.max(1) as u128) as u64;
+            let mine = upto - taken;
+            taken = upto;
+            mine
+        };
+        WaitingOn {
+            scoreboard: share(self.scoreboard),
+            dram_bandwidth: share(self.dram_bandwidth),
+            bank_conflicts: share(self.bank_conflicts),
+            memory_latency: share(self.memory_latency),
+            unit_busy: share(self.unit_busy),
+        }
+    }
+
+    /// The waiting cycles of `segments` inside `window`.
+    pub fn of(segments: &[Segment], window: Range<u64>) -> Self {
+        let mut on = WaitingOn::default();
+        for s in segments {
+            let from = s.cycles.start.max(window.start);
+            let overlap = s.cycles.end.min(window.end).saturating_sub(from);
+            if overlap > 0 {
+                on.add(&s.waiting_on.part(overlap, s.cycles.end - s.cycles.start));
+            }
+        }
+        on
+    }
+}
+
+/// What DRAM did over a run: each channel's activity, and the clocks to map core cycles to
+/// DRAM cycles.
+#[derive(Clone, Debug, Default)]
+pub struct DramActivity<'a> {
+    pub channels: Vec<&'a ActivityLog>,
+    /// DRAM cycles per core cycle.
+    pub dram_per_core: f64,
+}
+
+impl DramActivity<'_> {
+    /// Column accesses and activates of all channels over the core cycles `cycles`.
+    pub fn accesses(&self, cycles: &Range<u64>) -> (f64, f64) {
+        let (from, to) = (
+            cycles.start as f64 * self.dram_per_core,
+            cycles.end as f64 * self.dram_per_core,
+        );
+        self.channels.iter().fold((0.0, 0.0), |(c, a), log| {
+            let s = log.between(from, to);
+            (c + s.columns, a + s.activates)
+        })
+    }
+
+    /// Of the core cycles `cycles`, those when the busiest channel carried data and those
+    /// when it switched rows with references waiting, in proportion to its cycles.
+    fn split(&self, cycles: &Range<u64>) -> (u64, u64) {
+        let (from, to) = (
+            cycles.start as f64 * self.dram_per_core,
+            cycles.end as f64 * self.dram_per_core,
+        );
+        let span = to - from;
+        let busiest = self
+            .channels
+            .iter()
+            .map(|log| log.between(from, to))
+            .max_by(|a, b| {
+                (a.transfer_cycles + a.row_switch_cycles)
+                    .total_cmp(&(b.transfer_cycles + b.row_switch_cycles))
+            });
+        let (Some(b), true) = (busiest, span > 0.0) else {
+            return (0, 0);
+        };
+        let n = (cycles.end - cycles.start) as f64;
+        let transfer = (b.transfer_cycles / span).clamp(0.0, 1.0);
+        let rows = (b.row_switch_cycles / span).clamp(0.0, 1.0 - transfer);
+        let transfer = (n * transfer).round() as u64;
+        let rows = ((n * rows).round() as u64).min(cycles.end - cycles.start - transfer);
+        (transfer, rows)
+    }
+}
+
+/// Cycles `start..end` in one category, and for a wait what it waited on.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Segment {
     pub cycles: Range<u64>,
     pub category: Category,
+    pub waiting_on: WaitingOn,
 }
 
 /// Every cycle of `window` in one category, as consecutive segments covering it exactly.
-pub fn attribute(records: &[InstrRecord], window: Range<u64>) -> Vec<Segment> {
+pub fn attribute(
+    records: &[InstrRecord],
+    dram: &DramActivity<'_>,
+    window: Range<u64>,
+) -> Vec<Segment> {
     // Kernel calls on the clusters, in issue order (the clusters run one at a time).
     let mut calls: Vec<(usize, u64, u64, usize, u64)> = records
         .iter()
@@ -125,20 +267,47 @@ pub fn attribute(records: &[InstrRecord], window: Range<u64>) -> Vec<Segment> {
         .collect();
     done.sort_unstable();
 
-    let mut out = Vec::new();
-    let mut push = |cycles: Range<u64>, category: Category| {
+    // What waiting `cycles` for instruction `id` were spent on.
+    let waiting_on = |cycles: &Range<u64>, id: usize| {
+        let r = &records[id];
+        let issued = r
+            .issued
+            .unwrap_or(cycles.end)
+            .clamp(cycles.start, cycles.end);
+        let mut on = WaitingOn {
+            scoreboard: issued - cycles.start,
+            ..WaitingOn::default()
+        };
+        let at_work = issued..cycles.end;
+        let n = at_work.end - at_work.start;
+        if matches!(r.instr, StreamInstr::Memory(_)) {
+            let (transfer, rows) = dram.split(&at_work);
+            on.dram_bandwidth = transfer;
+            on.bank_conflicts = rows;
+            on.memory_latency = n - transfer - rows;
+        } else {
+            on.unit_busy = n;
+        }
+        on
+    };
+    let mut out: Vec<Segment> = Vec::new();
+    // `waited_for`: the instruction a wait waited for.
+    let mut push = |cycles: Range<u64>, category: Category, waited_for: Option<usize>| {
         let cycles = cycles.start.max(window.start)..cycles.end.min(window.end);
         if cycles.is_empty() {
             return;
         }
+        let on = waited_for.map_or_else(WaitingOn::default, |id| waiting_on(&cycles, id));
         match out.last_mut() {
-            Some(Segment {
-                cycles: last,
-                category: c,
-            }) if *c == category && last.end == cycles.start => {
-                last.end = cycles.end;
+            Some(last) if last.category == category && last.cycles.end == cycles.start => {
+                last.cycles.end = cycles.end;
+                last.waiting_on.add(&on);
             }
-            _ => out.push(Segment { cycles, category }),
+            _ => out.push(Segment {
+                cycles,
+                category,
+                waiting_on: on,
+            }),
         }
     };
     // The last completion in `(from, to]` of an instruction older than `older_than`.
@@ -149,32 +318,32 @@ pub fn attribute(records: &[InstrRecord], window: Range<u64>) -> Vec<Segment> {
             .rev()
             .take_while(|&&(c, ..)| c > from)
             .find(|&&(_, id, _)| id < older_than)
-            .map(|&(c, _, w)| (c, w))
+            .copied()
     };
     let mut now = window.start;
     for &(id, issued, completed, program, ran) in &calls {
         if issued > now {
             match last_done(now, issued, id) {
-                Some((c, w)) => {
-                    push(now..c, Category::Waiting(w));
-                    push(c..issued, Category::Issue);
+                Some((c, waited, w)) => {
+                    push(now..c, Category::Waiting(w), Some(waited));
+                    push(c..issued, Category::Issue, None);
                 }
-                None => push(now..issued, Category::Host),
+                None => push(now..issued, Category::Host, None),
             }
         }
         let start = issued.max(now);
         let kernel_end = (start + ran).min(completed);
-        push(start..kernel_end, Category::Kernel(program));
-        push(kernel_end..completed, Category::KernelDispatch);
+        push(start..kernel_end, Category::Kernel(program), None);
+        push(kernel_end..completed, Category::KernelDispatch, None);
         now = now.max(completed);
     }
     if now < window.end {
         match last_done(now, window.end, usize::MAX) {
-            Some((c, w)) => {
-                push(now..c, Category::Waiting(w));
-                push(c..window.end, Category::Drain);
+            Some((c, waited, w)) => {
+                push(now..c, Category::Waiting(w), Some(waited));
+                push(c..window.end, Category::Drain, None);
             }
-            None => push(now..window.end, Category::Drain),
+            None => push(now..window.end, Category::Drain, None),
         }
     }
     out
@@ -242,8 +411,73 @@ impl Attribution {
         ]
     }
 
+    /// The cycles waiting on a stream instruction, of every kind.
+    pub fn waiting(&self) -> u64 {
+        self.waiting_load
+            + self.waiting_store
+            + self.waiting_gather
+            + self.waiting_scatter
+            + self.waiting_host_transfer
+            + self.waiting_microcode_load
+    }
+
     /// The cycles of every category together.
     pub fn total(&self) -> u64 {
         self.rows().iter().map(|(_, c)| c).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use imagine_units::dram::activity::{Activity, SAMPLE_CYCLES};
+
+    /// A channel whose data bus is busy for `transfer` and switching rows for `rows` of
+    /// every sample period.
+    fn channel(periods: u64, transfer: u64, rows: u64) -> ActivityLog {
+        let mut log = ActivityLog::default();
+        for p in 1..=periods {
+            let a = Activity {
+                transfer_cycles: p * transfer,
+                row_switch_cycles: p * rows,
+                ..Activity::default()
+            };
+            log.sample(p * SAMPLE_CYCLES, a);
+        }
+        log
+    }
+
+    #[test]
+    fn waits_split_by_the_busiest_channel_in_proportion() {
+        let (busy, idle) = (channel(100, 32, 16), channel(100, 0, 0));
+        let dram = DramActivity {
+            channels: vec![&idle, &busy],
+            dram_per_core: 0.5,
+        };
+        // 1,000 core cycles are 500 DRAM cycles: half transferring, a quarter switching.
+        assert_eq!(dram.split(&(2_000..3_000)), (500, 250));
+        let saturated = channel(100, SAMPLE_CYCLES, 0);
+        let dram = DramActivity {
+            channels: vec![&saturated],
+            dram_per_core: 1.0,
+        };
+        assert_eq!(dram.split(&(64..640)), (576, 0));
+        assert_eq!(DramActivity::default().split(&(0..100)), (0, 0));
+    }
+
+    #[test]
+    fn a_part_of_a_wait_keeps_its_proportions_and_sums_exactly() {
+        let on = WaitingOn {
+            scoreboard: 3,
+            dram_bandwidth: 5,
+            bank_conflicts: 1,
+            memory_latency: 0,
+            unit_busy: 1,
+        };
+        for part in 0..=10 {
+            assert_eq!(on.part(part, 10).total(), part);
+        }
+        assert_eq!(on.part(5, 10).dram_bandwidth, 3);
+        assert_eq!(on.part(10, 10), on);
     }
 }

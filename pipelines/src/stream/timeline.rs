@@ -12,10 +12,14 @@
 //! * one per address generator (each load, store, gather and scatter with its words,
 //!   records, DRAM base and SRF start), one for the host interface (SRF writes and reads) and
 //!   one for the microcode loader;
+//!   A wait's slice carries what it waited on (`waiting_on_*` cycles: scoreboard, DRAM
+//!   bandwidth, bank conflicts, memory latency, the unit at work);
 //! * counter tracks over buckets of the window: DRAM bandwidth (each operation's words spread
-//!   evenly over its time), the clusters' busy share, the scoreboard's occupancy and the
-//!   SRF words bound to the instructions running (a kernel's streams, a memory operation's
-//!   or host transfer's words) during each bucket.
+//!   evenly over its time), DRAM row hits and misses per microsecond (all channels, from
+//!   their activity counters: a column access without an activate is a hit), the clusters'
+//!   busy share, the scoreboard's occupancy and the SRF words bound to the instructions
+//!   running (a kernel's streams, a memory operation's or host transfer's words) during
+//!   each bucket.
 //!
 //! Times are simulated time in microseconds (the format's unit) with nanosecond precision
 //! and `displayTimeUnit` `ns`; every slice also carries its core cycles (`from_cycle`,
@@ -29,7 +33,7 @@ use imagine_units::memory::MemOpKind;
 use imagine_units::stream_controller::{InstrRecord, StreamInstr, Unit};
 use serde_json::{Value, json};
 
-use super::attribution::{Category, Segment};
+use super::attribution::{Category, DramActivity, Segment};
 
 /// What a kernel program is called and its compiled loop's initiation interval.
 #[derive(Clone, Debug)]
@@ -46,6 +50,8 @@ pub struct TimelineInput<'a> {
     pub batch_tags: &'a [Option<usize>],
     /// The attribution of `window`'s cycles.
     pub segments: &'a [Segment],
+    /// What DRAM did, for the row-hit counter.
+    pub dram: &'a DramActivity<'a>,
     pub window: Range<u64>,
     pub core_mhz: f64,
     /// Address generators of the machine.
@@ -150,12 +156,21 @@ pub fn timeline(input: &TimelineInput<'_>, max_events: usize) -> Value {
         if matches!(s.category, Category::Kernel(_) | Category::KernelDispatch) {
             continue;
         }
+        let mut args = serde_json::Map::new();
+        for (on, cycles) in s.waiting_on.rows() {
+            if cycles > 0 {
+                args.insert(
+                    format!("waiting_on_{}", on.replace(' ', "_")),
+                    json!(cycles),
+                );
+            }
+        }
         slices.push(Slice {
             tid: TID_ATTRIBUTION,
             name: s.category.name(&names),
             cat: "attribution",
             cycles: s.cycles.clone(),
-            args: serde_json::Map::new(),
+            args,
             calls: 1,
         });
     }
@@ -240,7 +255,8 @@ fn merge_runs(mut slices: Vec<Slice>) -> Vec<Slice> {
     out
 }
 
-/// Counter tracks: DRAM bandwidth, the clusters' busy share, the scoreboard occupancy and
+/// Counter tracks: DRAM bandwidth, row hits and misses, the clusters' busy share, the
+/// scoreboard occupancy and
 /// the SRF words bound to running instructions, one value per bucket of the window.
 fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
     let w = &input.window;
@@ -307,7 +323,15 @@ fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
         let ts = (w.start + b as u64 * bucket) as f64 / input.core_mhz;
         live += occupancy[b];
         bound += srf_bound[b];
-        let cycles = bucket.min(w.end - (w.start + b as u64 * bucket));
+        let from = w.start + b as u64 * bucket;
+        let cycles = bucket.min(w.end - from);
+        let (columns, activates) = input.dram.accesses(&(from..from + cycles));
+        let per_us = input.core_mhz / cycles as f64;
+        events.push(
+            json!({"ph": "C", "pid": PID, "name": "DRAM row hits and misses per µs",
+            "ts": ts, "args": {"row hits": (columns - activates).max(0.0) * per_us,
+            "row misses": activates.min(columns) * per_us}}),
+        );
         events.push(json!({"ph": "C", "pid": PID, "name": "DRAM GB/s", "ts": ts,
             "args": {"GB/s": 4.0 * words[b] / seconds_per_bucket / 1e9}}));
         events.push(

@@ -23,6 +23,7 @@ use imagine_hdl::{
     SignalId, SignalKind, Trace, Violation, bits_for,
 };
 
+use super::activity::{Activity, ActivityLog};
 use super::scheduler::{Entry, Scheduler};
 use super::sdram::Sdram;
 use super::timing_check::{TimingChecker, TimingViolation};
@@ -102,6 +103,13 @@ pub struct DramChannel {
     stats: ChannelStats,
     record: Option<Vec<TraceRequest>>,
     arriving: Option<TraceRequest>,
+    /// What the cycles were spent on, and its samples over time.
+    activity: Activity,
+    activity_log: ActivityLog,
+    /// The first cycle after the last precharge, activate or refresh is done, and after the
+    /// last write's data has left the bus.
+    row_switch_until: u64,
+    write_data_until: u64,
     ids: Probes,
 }
 
@@ -175,6 +183,10 @@ impl DramChannel {
             stats: ChannelStats::default(),
             record: cfg.record.then(Vec::new),
             arriving: None,
+            activity: Activity::default(),
+            activity_log: ActivityLog::default(),
+            row_switch_until: 0,
+            write_data_until: 0,
             ids,
             p,
         }
@@ -190,6 +202,11 @@ impl DramChannel {
 
     pub fn stats(&self) -> &ChannelStats {
         &self.stats
+    }
+
+    /// What the channel's cycles were spent on, sampled over time.
+    pub fn activity_log(&self) -> &ActivityLog {
+        &self.activity_log
     }
 
     pub fn violations(&self) -> &[TimingViolation] {
@@ -264,6 +281,11 @@ impl DramChannel {
         };
         self.checker.skip_idle(executed, last_executed);
         self.stats.refreshes += executed;
+        if let Some(b) = last_executed {
+            self.row_switch_until = self.row_switch_until.max(b + self.p.t_rfc);
+        }
+        // Nothing waits while idle: the counters stay as they are.
+        self.activity_log.sample_over(c, n, self.activity);
         self.bus_q = pending.then_some(Bus {
             cmd: Command::Refresh,
             entry: None,
@@ -284,7 +306,8 @@ impl DramChannel {
         };
         format!(
             "input {input}\nscheduler {:?}\nsdram {}\nchecker {:?}\nbus {:?} {:?}\n\
-             reads {:?}\nreturns {:?} {}\ncycle {} {:?}\nrecord {:?} {:?}",
+             reads {:?}\nreturns {:?} {}\ncycle {} {:?}\nrecord {:?} {:?}\n\
+             activity {:?} {:?} {} {}",
             self.scheduler,
             self.sdram.debug_state(),
             self.checker,
@@ -296,7 +319,11 @@ impl DramChannel {
             self.cycle,
             self.stats,
             self.record,
-            self.arriving
+            self.arriving,
+            self.activity,
+            self.activity_log,
+            self.row_switch_until,
+            self.write_data_until
         )
     }
 
@@ -461,9 +488,17 @@ impl Module for DramChannel {
         let cycle = self.cycle;
         if let Some(b) = self.bus_q {
             match b.cmd {
-                Command::Activate { .. } => self.stats.activates += 1,
-                Command::Precharge { .. } => self.stats.precharges += 1,
+                Command::Activate { .. } => {
+                    self.stats.activates += 1;
+                    self.activity.activates += 1;
+                    self.row_switch_until = self.row_switch_until.max(cycle + self.p.t_rcd);
+                }
+                Command::Precharge { .. } => {
+                    self.stats.precharges += 1;
+                    self.row_switch_until = self.row_switch_until.max(cycle + self.p.t_rp);
+                }
                 Command::Read { .. } => {
+                    self.activity.columns += 1;
                     self.stats.reads += 1;
                     self.stats.last_busy = self
                         .stats
@@ -471,12 +506,22 @@ impl Module for DramChannel {
                         .max(cycle + self.p.cl + self.p.burst as u64 - 1);
                 }
                 Command::Write { .. } => {
+                    self.activity.columns += 1;
                     self.stats.writes += 1;
                     self.stats.last_busy =
                         self.stats.last_busy.max(cycle + self.p.burst as u64 - 1);
+                    self.write_data_until = cycle + self.p.burst as u64;
                 }
-                Command::Refresh => self.stats.refreshes += 1,
+                Command::Refresh => {
+                    self.stats.refreshes += 1;
+                    self.row_switch_until = self.row_switch_until.max(cycle + self.p.t_rfc);
+                }
             }
+        }
+        if self.sdram.dq_now().is_some() || cycle < self.write_data_until {
+            self.activity.transfer_cycles += 1;
+        } else if cycle < self.row_switch_until && self.scheduler.depth() > 0 {
+            self.activity.row_switch_cycles += 1;
         }
         if self.sdram.dq_now().is_some() {
             self.stats.data_bus_cycles += 1;
@@ -500,6 +545,7 @@ impl Module for DramChannel {
         self.bus_q = self.bus_d.take();
         self.cycle += 1;
         self.stats.cycles = self.cycle;
+        self.activity_log.sample(self.cycle, self.activity);
     }
 
     fn trace(&self, t: &mut Trace) {

@@ -36,6 +36,7 @@
 //! constraint is between command-bus cycles, so the one-cycle register delays all commands
 //! alike.
 
+pub mod activity;
 pub mod bank;
 pub mod channel;
 pub mod replay;

@@ -432,6 +432,7 @@ impl UnitProbes {
                 let mut cl = scope.child(&format!("cluster{c}"));
                 let mut u = cl.child(name);
                 let op = u.signal_shown("op", Op::OPCODE_BITS, SignalKind::Reg, Op::display());
+                u.glance(op);
                 let issue = u.signal("issue", 1, SignalKind::Reg);
                 let operands = ["a", "b", "c"][..ports]
                     .iter()
