@@ -523,6 +523,11 @@ fn every_frame_cycle_is_attributed_once() {
             .map(|a| a["running_cycles"].as_u64().unwrap())
             .sum();
         assert_eq!(running, kernels, "{}", scene.name);
+        // Every kernel loops: its calls show their passes.
+        let passes: u64 = slices(events, "kernel")
+            .map(|a| a["loop_passes"].as_u64().unwrap())
+            .sum();
+        assert!(passes > 0, "{}", scene.name);
         let cycles = |a: &serde_json::Value| {
             a["to_cycle"].as_u64().unwrap() - a["from_cycle"].as_u64().unwrap()
         };

@@ -246,10 +246,12 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             }
             let s = &run.stats;
             println!(
-                "cycles {} (stalled {}), instructions {}, ops/cycle {:.2}, host {:.3} s",
+                "cycles {} (stalled {}), instructions {}, loop passes {}, ops/cycle {:.2}, \
+                 host {:.3} s",
                 s.cycles,
                 s.stall_cycles,
                 s.instructions,
+                s.loop_passes,
                 s.ops_per_cycle(desc.cluster.count),
                 host
             );

@@ -73,6 +73,9 @@ pub struct KernelStats {
     pub fu_ops: Vec<u64>,
     /// Ops squashed (not issued) in software-pipeline prologues and epilogues.
     pub squashed: u64,
+    /// Loop passes ended, every loop's (a loop of `N` iterations and `S` software-pipeline
+    /// stages runs `N + S − 1`).
+    pub loop_passes: u64,
 }
 
 impl KernelStats {
@@ -760,6 +763,7 @@ impl Machine {
         let inst = &kernel.program.code[pc as usize];
         let stats = &mut kernel.stats;
         stats.instructions += 1;
+        stats.loop_passes += inst.control.ends_pass() as u64;
         for (slot, fu) in inst.fu.iter().enumerate() {
             let Some(fu) = fu else { continue };
             if !live.live(fu.stage) {

@@ -62,6 +62,8 @@ mod tests {
             }
             // The loop runs back to back; only the set-up and the drain add cycles.
             assert!(s.cycles < 50 * body + 64, "{name}: {s:?}");
+            // One stage: a pass per iteration.
+            assert_eq!(s.loop_passes, 50, "{name}");
         }
     }
 }

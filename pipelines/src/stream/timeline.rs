@@ -5,7 +5,8 @@
 //!
 //! * one track for the clusters: each kernel call from its issue to its completion, with
 //!   its batch, the cycles it ran (start to the end of its output flush), its stalls,
-//!   instructions issued and the compiled loop's II;
+//!   instructions issued, loop passes (iterations plus the software pipeline's fill) and
+//!   the compiled loop's II;
 //! * one for where the clusters' other cycles went ([`attribution`](super::attribution)):
 //!   the waits between kernel calls, by what they waited for (with the kernel calls, the
 //!   window once over);
@@ -104,6 +105,7 @@ pub fn timeline(input: &TimelineInput<'_>, max_events: usize) -> Value {
                     args.insert("running_cycles".into(), json!(st.cycles));
                     args.insert("stall_cycles".into(), json!(st.stall_cycles));
                     args.insert("instructions_issued".into(), json!(st.instructions));
+                    args.insert("loop_passes".into(), json!(st.loop_passes));
                 }
                 if let Some(ii) = p.ii {
                     args.insert("ii".into(), json!(ii));
