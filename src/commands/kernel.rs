@@ -512,6 +512,7 @@ impl Pipeline {
             &LoadOptions {
                 size: a.size,
                 subdivisions: None,
+                filter: None,
             },
         )?;
         let options = RenderOptions {

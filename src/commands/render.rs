@@ -94,6 +94,7 @@ fn load_scene(a: &RenderArgs) -> Result<Scene> {
     let opts = LoadOptions {
         size: a.size,
         subdivisions: a.subdivisions,
+        filter: None,
     };
     Ok(scene::load(name, &opts)?)
 }
