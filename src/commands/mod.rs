@@ -7,6 +7,7 @@ pub mod dram;
 pub mod kernel;
 pub mod machine;
 pub mod outputs;
+pub mod reference_error;
 pub mod render;
 pub mod scene;
 pub mod verify;
