@@ -10,5 +10,6 @@ pub mod outputs;
 pub mod reference_error;
 pub mod render;
 pub mod scene;
+pub mod sweep;
 pub mod verify;
 pub mod waves;
