@@ -47,6 +47,10 @@ enum Command {
     /// Two renders' statistics (`render --stats`) side by side: cycles, frames/s, where the
     /// cycles went, kernels, bandwidths and error, with ratios, largest differences first
     Compare(commands::compare::CompareArgs),
+    /// Error against run time: render a scene at every combination of knob values
+    /// (machine, batch, filter, flush_to_zero), each point's cycles, frames/s and error
+    /// against the reference as a CSV row, and PSNR against cycles as a plot
+    Sweep(commands::sweep::SweepArgs),
 }
 
 /// Output into a closed pipe (`imagine kernel show vertex --microcode | head -1`) ends the
@@ -73,6 +77,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => commands::demo::run(a),
         Command::Bench(a) => commands::bench::frames(a),
         Command::Compare(a) => commands::compare::run(a),
+        Command::Sweep(a) => commands::sweep::run(a),
     };
     match result {
         Ok(code) => code,

@@ -14,6 +14,7 @@ fn builtin(name: &str, size: u32, subdivisions: Option<u32>) -> Scene {
     let opts = LoadOptions {
         size: Some(size),
         subdivisions,
+        filter: None,
     };
     scene::load(name, &opts).unwrap()
 }

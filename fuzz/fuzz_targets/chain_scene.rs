@@ -18,6 +18,7 @@ fuzz_target!(init: write_seeds_if_asked(scene_seeds), |data: &[u8]| {
     let opts = LoadOptions {
         size: Some(16),
         subdivisions: Some((data.len() % 2) as u32),
+        filter: None,
     };
     let Ok(scene) = parse(text, &path, &opts) else {
         return;

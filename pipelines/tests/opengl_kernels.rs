@@ -508,6 +508,7 @@ fn perbegin_composes_the_matrices_on_the_machine_as_mat_mul_does() {
         &LoadOptions {
             size: Some(64),
             subdivisions: Some(1),
+            filter: None,
         },
     )
     .unwrap();
@@ -919,6 +920,7 @@ fn pipeline_kernels_are_the_ones_the_plan_names() {
             &LoadOptions {
                 size: Some(64),
                 subdivisions: Some(1),
+                filter: None,
             },
         )
         .unwrap();

@@ -160,6 +160,7 @@ fn an_unlit_scene_builds_no_lighting_and_no_merge_it_never_reaches() {
         &LoadOptions {
             size: Some(32),
             subdivisions: None,
+            filter: None,
         },
     )
     .unwrap();
@@ -219,6 +220,7 @@ fn unsupported_scenes_and_shapes_are_refused_by_name() {
         &LoadOptions {
             size: Some(16),
             subdivisions: Some(0),
+            filter: None,
         },
     )
     .unwrap();
@@ -237,6 +239,7 @@ fn the_general_pipeline_lights_a_lit_scene_to_the_same_bits() {
         &LoadOptions {
             size: Some(24),
             subdivisions: Some(1),
+            filter: None,
         },
     )
     .unwrap();
@@ -274,6 +277,7 @@ fn five_lights_are_shaded_in_two_passes_and_add_light() {
         &LoadOptions {
             size: Some(24),
             subdivisions: Some(1),
+            filter: None,
         },
     )
     .unwrap();
@@ -386,6 +390,7 @@ fn rate1_16x16() -> Scene {
         &LoadOptions {
             size: Some(16),
             subdivisions: None,
+            filter: None,
         },
     )
     .unwrap()
@@ -425,6 +430,7 @@ fn advs1_24x24() -> Scene {
         &LoadOptions {
             size: Some(24),
             subdivisions: None,
+            filter: None,
         },
     )
     .unwrap()
@@ -667,6 +673,7 @@ fn the_batch_size_is_asked_for_and_changes_no_pixel() {
         &LoadOptions {
             size: Some(48),
             subdivisions: Some(2),
+            filter: None,
         },
     )
     .unwrap();

@@ -514,6 +514,7 @@ impl Pipeline {
             &LoadOptions {
                 size: a.size,
                 subdivisions: None,
+                filter: None,
             },
         )?;
         let options = RenderOptions {

@@ -13,10 +13,10 @@ use imagine_pipelines::scene::model::Scene;
 use imagine_pipelines::scene::{self, LoadOptions};
 use imagine_units::desc::MachineDesc;
 use imagine_units::limits::{MAX_BATCH, MAX_RUN_CYCLES};
-use imagine_verif::image::{Image, Metrics, compare};
-use imagine_verif::reference_model as reference;
+use imagine_verif::image::Metrics;
 
 use super::outputs::Outputs;
+use super::reference_error::{self, image_of};
 use super::waves::WaveArgs;
 
 #[derive(Args)]
@@ -95,6 +95,7 @@ fn load_scene(a: &RenderArgs) -> Result<Scene> {
     let opts = LoadOptions {
         size: a.size,
         subdivisions: a.subdivisions,
+        filter: None,
     };
     Ok(scene::load(name, &opts)?)
 }
@@ -164,11 +165,6 @@ fn render_options(a: &RenderArgs) -> RenderOptions {
     }
 }
 
-/// The machine's frame as an image.
-fn image_of(f: &Frame) -> Image {
-    Image::from_rgba8_words(f.width, f.height, &f.pixels)
-}
-
 pub fn run(a: RenderArgs) -> Result<ExitCode> {
     let mut outputs = Outputs::default();
     outputs.add_opt("--png", a.png.as_ref())?;
@@ -218,13 +214,11 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     if let Some(p) = &a.png {
         image.write_png(p).map_err(anyhow::Error::msg)?;
     }
-    let reference_start = std::time::Instant::now();
-    let reference_image = reference::render(&scene)?;
-    let metrics = compare(&image, &reference_image).map_err(anyhow::Error::msg)?;
-    let reference_seconds = reference_start.elapsed().as_secs_f64();
+    let error = reference_error::measure(&scene, &frame)?;
+    let (metrics, reference_seconds) = (error.metrics, error.seconds);
     let write_start = std::time::Instant::now();
     if let Some(p) = &a.reference_png {
-        reference_image.write_png(p).map_err(anyhow::Error::msg)?;
+        error.reference.write_png(p).map_err(anyhow::Error::msg)?;
     }
     if let Some(p) = &a.stats {
         let json = serde_json::json!({
@@ -414,6 +408,18 @@ fn print_stats(f: &Frame, m: &Metrics, desc: &MachineDesc, host: &HostTimes) {
         m.max_abs_error,
         100.0 * m.differing_share,
         100.0 * m.coverage_mismatch_share
+    );
+    let visibility = m.visibility_differing_share.map_or(String::new(), |v| {
+        format!(", {:.3} % show another triangle", 100.0 * v)
+    });
+    println!(
+        "  covered in both  {} pixels: PSNR {:.2} dB, max abs error {} of 255{visibility}; \
+         {:.3} % of pixels wrongly covered, {:.3} % missed",
+        m.covered_in_both_pixels,
+        m.covered_psnr_db,
+        m.covered_max_abs_error_levels,
+        100.0 * m.wrongly_covered_share,
+        100.0 * m.missed_share
     );
     let p = &s.phases;
     let simulated = p.load_cycles + p.frame_plus_clear_cycles + p.readback_cycles;

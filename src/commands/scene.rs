@@ -62,7 +62,14 @@ pub fn run(c: SceneCommand) -> Result<ExitCode> {
             batch,
             json,
         } => {
-            let scene = load(&name, &LoadOptions { size, subdivisions })?;
+            let scene = load(
+                &name,
+                &LoadOptions {
+                    size,
+                    subdivisions,
+                    filter: None,
+                },
+            )?;
             let desc = MachineDesc::resolve(&machine)?;
             let mut d = describe(&scene);
             let options = RenderOptions {

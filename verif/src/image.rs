@@ -9,7 +9,14 @@
 //! (peak 255, alpha ignored), the largest channel difference, the share of pixels whose
 //! RGB differ at all, and the share of pixels where exactly one image is background
 //! (black) — a coverage mismatch.
+//!
+//! [`compare_frames`] adds what those mix up: the error over the pixels both frames cover
+//! alone (PSNR and largest difference: shading, not edges), coverage split into pixels
+//! wrongly covered and pixels missed, and — where both frames say which triangle each pixel
+//! shows — the pixels whose visible triangle differs (depth-order and tie-rule errors).
+//! Coverage is then the triangles' and not the colour's: an unlit black triangle covers.
 
+use imagine_pipelines::scene::model::TriangleId;
 use serde::Serialize;
 use std::fs::File;
 use std::io::{BufReader, BufWriter};
@@ -179,6 +186,33 @@ pub struct Metrics {
     pub differing_share: f64,
     /// Share of pixels where one image is background (RGB 0, 0, 0) and the other is not.
     pub coverage_mismatch_share: f64,
+    /// What the fields below take as a covered pixel.
+    pub coverage_from: CoverageFrom,
+    /// Pixels both images cover.
+    pub covered_in_both_pixels: usize,
+    /// PSNR over the RGB channels of the pixels both images cover, peak 255, in dB
+    /// (`f64::INFINITY`, JSON `null`, when they are identical there or there are none).
+    pub covered_psnr_db: f64,
+    /// Largest absolute difference of any RGB channel over the pixels both cover, in
+    /// levels of an 8-bit channel.
+    pub covered_max_abs_error_levels: u8,
+    /// Share of the window's pixels the first image covers and the second does not.
+    pub wrongly_covered_share: f64,
+    /// Share of the window's pixels the second image covers and the first does not.
+    pub missed_share: f64,
+    /// Share of the window's pixels both cover that show different triangles; `None` when
+    /// the images do not say which triangle each pixel shows.
+    pub visibility_differing_share: Option<f64>,
+}
+
+/// Where [`Metrics`] takes coverage from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CoverageFrom {
+    /// A pixel is covered when its RGB is not black (all a bare image tells).
+    BackgroundColour,
+    /// A pixel is covered when a triangle was drawn in it (depth test passed).
+    Triangles,
 }
 
 fn same_size(a: &Image, b: &Image) -> Result<(), String> {
@@ -209,38 +243,114 @@ fn is_background(p: [u8; 4]) -> bool {
     rgb(p) == [0, 0, 0]
 }
 
-/// The metrics of `b` against `a`; an error when the sizes differ.
+/// The metrics of `b` against `a`, coverage judged from the background colour; an error
+/// when the sizes differ.
 pub fn compare(a: &Image, b: &Image) -> Result<Metrics, String> {
     same_size(a, b)?;
+    let covered = |i: usize| (!is_background(a.pixels[i]), !is_background(b.pixels[i]));
+    Ok(measure(a, b, covered, None, CoverageFrom::BackgroundColour))
+}
+
+/// The metrics of frame `b` against frame `a` where each also says which triangle every
+/// pixel shows (`None`: none was drawn there): coverage and visibility come from the
+/// triangles. An error when the sizes differ.
+pub fn compare_frames(
+    a: &Image,
+    a_triangles: &[Option<TriangleId>],
+    b: &Image,
+    b_triangles: &[Option<TriangleId>],
+) -> Result<Metrics, String> {
+    same_size(a, b)?;
+    let n = a.pixels.len();
+    if a_triangles.len() != n || b_triangles.len() != n {
+        return Err(format!(
+            "{n} pixels, but the frames name the triangles of {} and {}",
+            a_triangles.len(),
+            b_triangles.len()
+        ));
+    }
+    let covered = |i: usize| (a_triangles[i].is_some(), b_triangles[i].is_some());
+    let visible_differs = |i: usize| a_triangles[i] != b_triangles[i];
+    Ok(measure(
+        a,
+        b,
+        covered,
+        Some(&visible_differs),
+        CoverageFrom::Triangles,
+    ))
+}
+
+/// Peak signal-to-noise ratio of `squared` summed squared channel errors over `channels`
+/// channels, peak 255, in dB; infinite without error.
+fn psnr_db(squared: u64, channels: usize) -> f64 {
+    if squared == 0 {
+        f64::INFINITY
+    } else {
+        let mse = squared as f64 / channels as f64;
+        10.0 * (255.0f64 * 255.0 / mse).log10()
+    }
+}
+
+/// The metrics, given whether each pixel is covered in `a` and in `b` and, where known,
+/// whether a pixel both cover shows different triangles.
+fn measure(
+    a: &Image,
+    b: &Image,
+    covered: impl Fn(usize) -> (bool, bool),
+    visible_differs: Option<&dyn Fn(usize) -> bool>,
+    coverage_from: CoverageFrom,
+) -> Metrics {
     let n = a.pixels.len();
     let mut squared = 0u64;
     let mut max_abs_error = 0u8;
     let mut differing = 0usize;
-    let mut coverage = 0usize;
-    for (&p, &q) in a.pixels.iter().zip(&b.pixels) {
-        let mut differs = false;
+    let mut background_mismatch = 0usize;
+    let mut covered_in_both = 0usize;
+    let mut covered_squared = 0u64;
+    let mut covered_max_abs_error = 0u8;
+    let mut wrongly_covered = 0usize;
+    let mut missed = 0usize;
+    let mut visibility_differing = 0usize;
+    for (i, (&p, &q)) in a.pixels.iter().zip(&b.pixels).enumerate() {
+        let mut pixel_squared = 0u64;
+        let mut pixel_max = 0u8;
         for k in 0..3 {
             let d = p[k].abs_diff(q[k]);
-            squared += u64::from(d) * u64::from(d);
-            max_abs_error = max_abs_error.max(d);
-            differs |= d != 0;
+            pixel_squared += u64::from(d) * u64::from(d);
+            pixel_max = pixel_max.max(d);
         }
-        differing += usize::from(differs);
-        coverage += usize::from(is_background(p) != is_background(q));
+        squared += pixel_squared;
+        max_abs_error = max_abs_error.max(pixel_max);
+        differing += usize::from(pixel_max != 0);
+        background_mismatch += usize::from(is_background(p) != is_background(q));
+        match covered(i) {
+            (true, true) => {
+                covered_in_both += 1;
+                covered_squared += pixel_squared;
+                covered_max_abs_error = covered_max_abs_error.max(pixel_max);
+                if visible_differs.is_some_and(|differs| differs(i)) {
+                    visibility_differing += 1;
+                }
+            }
+            (true, false) => wrongly_covered += 1,
+            (false, true) => missed += 1,
+            (false, false) => {}
+        }
     }
     let share = |count: usize| if n == 0 { 0.0 } else { count as f64 / n as f64 };
-    let psnr_db = if squared == 0 {
-        f64::INFINITY
-    } else {
-        let mse = squared as f64 / (3 * n) as f64;
-        10.0 * (255.0f64 * 255.0 / mse).log10()
-    };
-    Ok(Metrics {
-        psnr_db,
+    Metrics {
+        psnr_db: psnr_db(squared, 3 * n),
         max_abs_error,
         differing_share: share(differing),
-        coverage_mismatch_share: share(coverage),
-    })
+        coverage_mismatch_share: share(background_mismatch),
+        coverage_from,
+        covered_in_both_pixels: covered_in_both,
+        covered_psnr_db: psnr_db(covered_squared, 3 * covered_in_both),
+        covered_max_abs_error_levels: covered_max_abs_error,
+        wrongly_covered_share: share(wrongly_covered),
+        missed_share: share(missed),
+        visibility_differing_share: visible_differs.map(|_| share(visibility_differing)),
+    }
 }
 
 /// A histogram of per-pixel colour error over the pixels that both images cover (neither
@@ -319,6 +429,48 @@ mod tests {
     }
 
     #[test]
+    fn frames_split_coverage_and_visibility_by_their_triangles() {
+        let triangle = |object, triangle| Some(TriangleId { object, triangle });
+        // 2 × 2: pixel 0 both cover with the same triangle (error 2), pixel 1 both cover
+        // with different triangles (error 6), pixel 2 only `a` covers (with black: still
+        // covered), pixel 3 only `b`.
+        let mut a = Image::new(2, 2);
+        let mut b = Image::new(2, 2);
+        a.pixels[0] = [10, 10, 10, 255];
+        b.pixels[0] = [12, 10, 10, 255];
+        a.pixels[1] = [50, 50, 50, 255];
+        b.pixels[1] = [50, 56, 50, 255];
+        b.pixels[3] = [90, 0, 0, 255];
+        let a_triangles = [triangle(0, 1), triangle(0, 2), triangle(1, 0), None];
+        let b_triangles = [triangle(0, 1), triangle(0, 3), None, triangle(1, 5)];
+        let m = compare_frames(&a, &a_triangles, &b, &b_triangles).unwrap();
+        assert_eq!(m.coverage_from, CoverageFrom::Triangles);
+        assert_eq!(m.covered_in_both_pixels, 2);
+        assert_eq!(m.covered_max_abs_error_levels, 6);
+        // Over the covered pixels' 6 channels: (4 + 36) / 6.
+        let want = 10.0 * (255.0f64 * 255.0 * 6.0 / 40.0).log10();
+        assert!((m.covered_psnr_db - want).abs() < 1e-12);
+        assert_eq!((m.wrongly_covered_share, m.missed_share), (0.25, 0.25));
+        assert_eq!(m.visibility_differing_share, Some(0.25));
+        // The window-wide figures are compare's.
+        let plain = compare(&a, &b).unwrap();
+        assert_eq!(
+            (m.psnr_db, m.max_abs_error, m.differing_share),
+            (plain.psnr_db, plain.max_abs_error, plain.differing_share)
+        );
+        assert_eq!(plain.coverage_from, CoverageFrom::BackgroundColour);
+        assert_eq!(plain.visibility_differing_share, None);
+        // Pixel 2 is black in `a`: by colour only pixel 3 differs in coverage, and the
+        // covered pixels' error is over pixels 0 and 1 all the same.
+        assert_eq!(
+            (plain.wrongly_covered_share, plain.missed_share),
+            (0.0, 0.25)
+        );
+        assert_eq!(plain.covered_psnr_db, m.covered_psnr_db);
+        assert!(compare_frames(&a, &a_triangles[..3], &b, &b_triangles).is_err());
+    }
+
+    #[test]
     fn metrics_serialise_with_their_field_names() {
         let m = compare(&Image::new(1, 1), &Image::new(1, 1)).unwrap();
         let json = serde_json::to_value(m).unwrap();
@@ -327,6 +479,13 @@ mod tests {
             "max_abs_error",
             "differing_share",
             "coverage_mismatch_share",
+            "coverage_from",
+            "covered_in_both_pixels",
+            "covered_psnr_db",
+            "covered_max_abs_error_levels",
+            "wrongly_covered_share",
+            "missed_share",
+            "visibility_differing_share",
         ] {
             assert!(json.get(key).is_some(), "{key} missing from {json}");
         }

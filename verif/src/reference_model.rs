@@ -93,7 +93,7 @@ use crate::reference::{self, Fragment, Sample, TieRule, V3, cross, dot, normaliz
 use imagine_pipelines::scene::SceneError;
 use imagine_pipelines::scene::mipmap::{self, Level};
 use imagine_pipelines::scene::model::{
-    self, Blend, Filter, Material, Object, Shader, Texture, TextureMode, Wrap,
+    self, Blend, Filter, Material, Object, Shader, Texture, TextureMode, TriangleId, Wrap,
 };
 
 /// A row-major 4 × 4 matrix in f64.
@@ -742,11 +742,27 @@ pub fn render(scene: &model::Scene) -> Result<Image, SceneError> {
 
 /// [`render`] with a choice of tie rule.
 pub fn render_with(scene: &model::Scene, rule: TieRule) -> Result<Image, SceneError> {
+    render_triangles(scene, rule).map(|(image, _)| image)
+}
+
+/// [`render`], and for every pixel (row 0 at the bottom) the triangle it shows: the last
+/// whose fragment passed the depth test there, `None` where none did.
+pub fn render_visible(
+    scene: &model::Scene,
+) -> Result<(Image, Vec<Option<TriangleId>>), SceneError> {
+    render_triangles(scene, TieRule::TopLeft)
+}
+
+fn render_triangles(
+    scene: &model::Scene,
+    rule: TieRule,
+) -> Result<(Image, Vec<Option<TriangleId>>), SceneError> {
     check(scene)?;
     let [r, g, b] = scene.background.map(|c| quantise(f64::from(c)));
     let mut image = Image::new(scene.width, scene.height);
     image.pixels.fill([r, g, b, 255]);
     let mut depth = vec![1.0f64; image.pixels.len()];
+    let mut visible = vec![None; image.pixels.len()];
     let width = scene.width as usize;
     let test = scene.pipeline.depth_test;
     let mode = scene.pipeline.blend;
@@ -756,9 +772,13 @@ pub fn render_with(scene: &model::Scene, rule: TieRule) -> Result<Image, SceneEr
         if reference::depth_passes(test, f.depth, depth[i]) {
             depth[i] = f.depth;
             image.pixels[i] = blend(mode, f.colour, of.alpha, image.pixels[i]);
+            visible[i] = Some(TriangleId {
+                object: of.object,
+                triangle: f.triangle,
+            });
         }
     })?;
-    Ok(image)
+    Ok((image, visible))
 }
 
 #[cfg(test)]

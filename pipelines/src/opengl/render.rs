@@ -73,7 +73,7 @@ use crate::kernel::MachineRequirementError;
 use crate::kernels::bump_env;
 use crate::kernels::texture::{self, FragmentProgram};
 use crate::kernels::turbulence;
-use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene, Shader};
+use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene, Shader, TriangleId};
 use crate::scene::{MAX_WINDOW, bump_map};
 use crate::stream::attribution::{self, Attribution, DramActivity, WaitingOn};
 use crate::stream::timeline::{self, ProgramInfo, TimelineInput};
@@ -123,6 +123,9 @@ pub struct Frame {
     /// Packed RGBA8 (red in the low byte), row 0 at the bottom.
     pub pixels: Vec<u32>,
     pub stats: FrameStats,
+    /// For every pixel (row 0 at the bottom), the triangle it shows, `None` where no
+    /// fragment was drawn: the framebuffer's primitive words, read after the frame.
+    pub triangles: Vec<Option<TriangleId>>,
     /// The frame as a timeline in the Trace Event format (see [`timeline`]), when
     /// [`RenderOptions::timeline`] asks for it.
     pub timeline: Option<serde_json::Value>,
@@ -1487,6 +1490,7 @@ pub fn render_with(
     let read = host.cycles();
     host.finish()?;
     let simulate_seconds = sim_start.elapsed().as_secs_f64();
+    let triangles = visible_triangles(&host, desc, m.framebuffer, pixels - 1, &input, batch);
 
     stats.phases = Phases {
         load_cycles: loaded,
@@ -1538,8 +1542,57 @@ pub fn render_with(
         height: scene.height,
         pixels: pixels_out,
         stats,
+        triangles,
         timeline,
     })
+}
+
+/// Which triangle each of the window's `pixels` shows: the primitive word of its
+/// framebuffer record (`baryprep` numbers primitives `first_prim + index + 1`, 0 for a
+/// pixel never drawn, and every batch spans `batch` numbers, padding included) read
+/// through the DRAM's backdoor after the frame, so that it costs no simulated cycle and
+/// leaves the read-back phase as it is.
+fn visible_triangles(
+    host: &StreamHost,
+    desc: &MachineDesc,
+    framebuffer: Buffer,
+    pixels: usize,
+    input: &Inputs,
+    batch: usize,
+) -> Vec<Option<TriangleId>> {
+    // Each batch's first triangle within its object.
+    let mut first_triangle = Vec::with_capacity(input.batches.len());
+    let mut object_triangles = vec![
+        0usize;
+        input
+            .batches
+            .iter()
+            .map(|b| b.object + 1)
+            .max()
+            .unwrap_or(0)
+    ];
+    for b in &input.batches {
+        first_triangle.push(object_triangles[b.object]);
+        object_triangles[b.object] += b.triangles;
+    }
+    let words = processor::read_dram(
+        host.sim(),
+        desc,
+        host.dram.base(framebuffer),
+        pixels * PIXEL_WORDS,
+    );
+    words
+        .chunks(PIXEL_WORDS)
+        .map(|record| {
+            let primitive = (record[2] as usize).checked_sub(1)?;
+            let (index, local) = (primitive / batch, primitive % batch);
+            let b = input.batches.get(index)?;
+            (local < b.triangles).then(|| TriangleId {
+                object: b.object,
+                triangle: first_triangle[index] + local,
+            })
+        })
+        .collect()
 }
 
 /// `[r, g, b]` in [0, 1] as an opaque RGBA8 word (red in the low byte), rounded.

@@ -66,6 +66,10 @@ pub struct LoadOptions {
     /// Subdivide every icosphere this many times instead (at most
     /// [`primitives::MAX_SUBDIVISIONS`]).
     pub subdivisions: Option<u32>,
+    /// Filter every texture this way instead of as its `filter` says (to measure what a
+    /// filter costs and what it changes; a `bump_env` environment map still must be
+    /// `nearest`).
+    pub filter: Option<model::Filter>,
 }
 
 /// The built-in scenes: (name, file text), the files of the source tree's `scenes/`.
@@ -639,7 +643,11 @@ impl Cx {
                     format!("a texture named `{}` comes before", t.name),
                 ));
             }
-            textures.push(self.texture(i, t)?);
+            let mut texture = self.texture(i, t)?;
+            if let Some(filter) = opts.filter {
+                texture.filter = filter;
+            }
+            textures.push(texture);
         }
         let mut materials = Vec::new();
         for (i, m) in f.material.iter().enumerate() {
@@ -2082,6 +2090,7 @@ mod tests {
             &LoadOptions {
                 size: Some(64),
                 subdivisions: Some(2),
+                filter: None,
             },
         )
         .unwrap();
@@ -2091,7 +2100,8 @@ mod tests {
                 "SPHERE",
                 &LoadOptions {
                     size: None,
-                    subdivisions: Some(8)
+                    subdivisions: Some(8),
+                    filter: None,
                 }
             )
             .is_err()
@@ -2106,6 +2116,7 @@ mod tests {
                 &LoadOptions {
                     size: Some(64),
                     subdivisions: None,
+                    filter: None,
                 },
             )
             .unwrap();

@@ -235,6 +235,16 @@ pub struct Object {
     pub mesh: Mesh,
 }
 
+/// A triangle of the scene, as a frame's pixel names the one it shows: the object's index
+/// in [`Scene::objects`] and the triangle's in its [`Mesh::triangles`]. The machine's
+/// framebuffer and the reference renderer both say which triangle each pixel shows, so the
+/// two frames' visibility can be compared pixel by pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct TriangleId {
+    pub object: usize,
+    pub triangle: usize,
+}
+
 /// Indexed triangles. Vertices are shared between the triangles that name them, unless
 /// `separate` says each triangle has its own three (then `triangles[i] = [3i, 3i+1, 3i+2]`).
 #[derive(Clone, Debug, Default, PartialEq)]

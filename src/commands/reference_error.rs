@@ -1,0 +1,44 @@
+//! A machine frame's error against `verif`'s independent f64 reference renderer: the
+//! comparison `render` reports and `sweep` measures at every point, in one place so that
+//! the two cannot drift apart.
+
+use std::time::Instant;
+
+use anyhow::Result;
+use imagine_pipelines::opengl::render::Frame;
+use imagine_pipelines::scene::model::Scene;
+use imagine_verif::image::{Image, Metrics, compare_frames};
+use imagine_verif::reference_model as reference;
+
+/// The reference frame and how far the machine's is from it.
+pub struct ReferenceError {
+    /// The reference renderer's frame.
+    pub reference: Image,
+    pub metrics: Metrics,
+    /// Host seconds the reference renderer and the comparison took.
+    pub seconds: f64,
+}
+
+/// The machine's frame as an image.
+pub fn image_of(frame: &Frame) -> Image {
+    Image::from_rgba8_words(frame.width, frame.height, &frame.pixels)
+}
+
+/// Renders `scene` with the reference renderer and compares the machine's `frame` with it:
+/// coverage and visibility by the triangles each frame shows in each pixel.
+pub fn measure(scene: &Scene, frame: &Frame) -> Result<ReferenceError> {
+    let start = Instant::now();
+    let (reference, reference_triangles) = reference::render_visible(scene)?;
+    let metrics = compare_frames(
+        &image_of(frame),
+        &frame.triangles,
+        &reference,
+        &reference_triangles,
+    )
+    .map_err(anyhow::Error::msg)?;
+    Ok(ReferenceError {
+        reference,
+        metrics,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}

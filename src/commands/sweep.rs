@@ -1,0 +1,524 @@
+//! `imagine sweep`: error against run time. Renders a scene at every combination of the
+//! knobs' values (the grid) through the path `imagine render` takes, compares each frame
+//! with the reference renderer (`reference_error`), and writes one CSV row per point —
+//! its knob values, cycles, modelled frames/s, host seconds and the error metrics — and,
+//! with `--plot`, PSNR against cycles with the Pareto frontier.
+//!
+//! Points run in parallel (`--jobs`). Each finished point is appended at once to a
+//! JSON-lines file beside the CSV (`F.csv` → `F.points.jsonl`), keyed by everything that
+//! decides its frame: the scene file's content, the window, the whole machine description
+//! and the render options. A sweep run again, interrupted or with more values, renders
+//! only the points it has no record of; a changed scene file or machine file changes the
+//! key, so old records are not reused for it. The CSV is written at the end from the
+//! records, in grid order (the first knob varies slowest), whatever order the points
+//! finished in.
+
+mod knobs;
+mod plot;
+
+use std::collections::HashMap;
+use std::fs::OpenOptions;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use imagine_pipelines::compile::CompileCache;
+use imagine_pipelines::opengl::render::{RenderOptions, render_with};
+use imagine_pipelines::scene::model::Filter;
+use imagine_pipelines::scene::{self, LoadOptions, file::BUILTIN};
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use self::knobs::{Axis, Knob, KnobValue, Setup};
+use super::outputs::Outputs;
+use super::reference_error;
+
+#[derive(Args)]
+pub struct SweepArgs {
+    /// Scene: a built-in name (`imagine scene list`) or a `.toml` scene file or `.tri`
+    /// triangle file
+    scene: String,
+    /// A knob and its values, NAME=V1,V2,…: machine (a built-in name or a TOML file),
+    /// batch (triangles per batch), filter (nearest, bilinear, trilinear: every texture's),
+    /// flush_to_zero (true, false); repeat for a grid of every combination
+    #[arg(long = "knob", value_name = "NAME=V1,V2,…", required = true)]
+    knobs: Vec<String>,
+    /// The CSV to write, one row per point in grid order; finished points are kept in
+    /// F.points.jsonl beside it, from which a rerun resumes
+    #[arg(long, value_name = "F.csv")]
+    csv: PathBuf,
+    /// Also plot PSNR against cycles, the Pareto frontier marked, as PNG
+    #[arg(long, value_name = "F.png")]
+    plot: Option<PathBuf>,
+    /// Points rendered at once [default: the host's logical CPUs]
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=256))]
+    jobs: Option<u32>,
+    /// The machine of every point, unless the `machine` knob varies it [default: gold8]
+    #[arg(long, value_name = "M")]
+    machine: Option<String>,
+    /// Window side in pixels: overrides the scene's window with a square one
+    #[arg(long, value_name = "N")]
+    size: Option<u32>,
+}
+
+/// One point's measurements, as kept in the JSON-lines file and written to the CSV.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct PointResult {
+    /// Core cycles of the frame.
+    cycles: u64,
+    /// Modelled frames per second at the machine's core clock.
+    frames_per_second: f64,
+    /// Host seconds for the point: scene, render and reference.
+    host_seconds: f64,
+    /// PSNR against the reference over the window, dB; `None` when identical.
+    psnr_db: Option<f64>,
+    /// Largest RGB channel difference, levels of 255.
+    max_abs_error: u8,
+    differing_pixels_share: f64,
+    /// Pixels that are background (black) in one frame only, share of the window.
+    coverage_differences_share: f64,
+    covered_in_both_pixels: usize,
+    /// PSNR over the pixels both frames cover, dB; `None` when identical there.
+    covered_psnr_db: Option<f64>,
+    covered_max_abs_error_levels: u8,
+    wrongly_covered_share: f64,
+    missed_share: f64,
+    visibility_differing_share: Option<f64>,
+}
+
+/// A line of the JSON-lines file.
+#[derive(Serialize, Deserialize)]
+struct PointRecord {
+    key: String,
+    /// The point's knob values (for a person reading the file; the key decides).
+    knobs: Vec<(String, String)>,
+    result: PointResult,
+}
+
+/// A point of the grid.
+struct Point {
+    /// The index of its value on each axis.
+    values: Vec<usize>,
+    setup: Setup,
+    key: String,
+}
+
+const CSV_METRICS: [&str; 13] = [
+    "cycles",
+    "frames_per_second",
+    "host_seconds",
+    "psnr_db",
+    "max_abs_error",
+    "differing_pixels_share",
+    "coverage_differences_share",
+    "covered_in_both_pixels",
+    "covered_psnr_db",
+    "covered_max_abs_error_levels",
+    "wrongly_covered_share",
+    "missed_share",
+    "visibility_differing_share",
+];
+
+impl PointResult {
+    /// The CSV fields, in the order of [`CSV_METRICS`]; an infinite PSNR is `inf`, an
+    /// unknown share is empty.
+    fn csv_fields(&self) -> [String; 13] {
+        let psnr = |p: Option<f64>| p.map_or("inf".to_string(), |v| format!("{v:.4}"));
+        [
+            self.cycles.to_string(),
+            format!("{:.4}", self.frames_per_second),
+            format!("{:.3}", self.host_seconds),
+            psnr(self.psnr_db),
+            self.max_abs_error.to_string(),
+            format!("{:.6}", self.differing_pixels_share),
+            format!("{:.6}", self.coverage_differences_share),
+            self.covered_in_both_pixels.to_string(),
+            psnr(self.covered_psnr_db),
+            self.covered_max_abs_error_levels.to_string(),
+            format!("{:.6}", self.wrongly_covered_share),
+            format!("{:.6}", self.missed_share),
+            self.visibility_differing_share
+                .map_or(String::new(), |v| format!("{v:.6}")),
+        ]
+    }
+}
+
+/// The JSON-lines file beside the CSV: `F.csv` → `F.points.jsonl`.
+fn records_path(csv: &Path) -> PathBuf {
+    csv.with_extension("points.jsonl")
+}
+
+/// The scene's text (a built-in's embedded file, or the file on disk), hashed: part of
+/// every point's key. Assets the file names (meshes, images) are not hashed.
+fn scene_content_hash(name_or_path: &str) -> Result<blake3::Hash> {
+    let lower = name_or_path.to_ascii_lowercase();
+    if lower.ends_with(".toml") || lower.ends_with(".tri") {
+        let bytes = std::fs::read(name_or_path)
+            .with_context(|| format!("cannot read the scene `{name_or_path}`"))?;
+        return Ok(blake3::hash(&bytes));
+    }
+    match BUILTIN
+        .iter()
+        .find(|(name, _)| name.eq_ignore_ascii_case(name_or_path))
+    {
+        Some((_, text)) => Ok(blake3::hash(text.as_bytes())),
+        // Loading it gives the error that lists the scenes.
+        None => {
+            scene::load(name_or_path, &LoadOptions::default())?;
+            bail!("unknown scene `{name_or_path}`")
+        }
+    }
+}
+
+/// A point's key: every input that decides its frame and cycles.
+fn point_key(scene_hash: &blake3::Hash, size: Option<u32>, setup: &Setup) -> String {
+    let mut h = blake3::Hasher::new();
+    h.update(b"imagine sweep point 1\n");
+    h.update(scene_hash.as_bytes());
+    h.update(
+        format!(
+            "{size:?}\n{:?}\n{:?}\n{:?}",
+            setup.machine, setup.batch, setup.filter
+        )
+        .as_bytes(),
+    );
+    h.finalize().to_hex().to_string()
+}
+
+/// Every combination of the axes' value indices, the first axis varying slowest.
+fn grid(axes: &[Axis]) -> Vec<Vec<usize>> {
+    let mut points = vec![Vec::new()];
+    for axis in axes {
+        points = points
+            .into_iter()
+            .flat_map(|p| {
+                (0..axis.values.len()).map(move |v| {
+                    let mut p = p.clone();
+                    p.push(v);
+                    p
+                })
+            })
+            .collect();
+    }
+    points
+}
+
+/// The records already in the JSON-lines file, by key. A line that does not parse (a
+/// write cut short when a sweep was stopped) is skipped.
+fn read_records(path: &Path) -> Result<HashMap<String, PointResult>> {
+    let file = match std::fs::File::open(path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(HashMap::new()),
+        Err(e) => bail!("cannot read `{}`: {e}", path.display()),
+    };
+    let mut records = HashMap::new();
+    for line in BufReader::new(file).lines() {
+        let line = line.with_context(|| format!("cannot read `{}`", path.display()))?;
+        if let Ok(r) = serde_json::from_str::<PointRecord>(&line) {
+            records.insert(r.key, r.result);
+        }
+    }
+    Ok(records)
+}
+
+/// The point's knob values as (name, value text) pairs.
+fn knob_values<'a>(axes: &'a [Axis], point: &Point) -> Vec<(&'static str, &'a str)> {
+    axes.iter()
+        .zip(&point.values)
+        .map(|(axis, &v)| (axis.knob.name(), axis.values[v].0.as_str()))
+        .collect()
+}
+
+pub fn run(a: SweepArgs) -> Result<ExitCode> {
+    let axes: Vec<Axis> = a
+        .knobs
+        .iter()
+        .map(|k| knobs::parse_axis(k))
+        .collect::<Result<_>>()?;
+    for (i, axis) in axes.iter().enumerate() {
+        if axes[..i].iter().any(|b| b.knob == axis.knob) {
+            bail!(
+                "--knob {} is given twice: give its values in one --knob",
+                axis.knob.name()
+            );
+        }
+    }
+    if a.machine.is_some() && axes.iter().any(|x| x.knob == Knob::Machine) {
+        bail!("--machine and --knob machine=…: give the machines as the knob's values");
+    }
+    if let Some(size) = a.size
+        && (size == 0 || size > scene::MAX_WINDOW)
+    {
+        bail!("--size {size} is outside 1..={}", scene::MAX_WINDOW);
+    }
+    let records_file = records_path(&a.csv);
+    let mut outputs = Outputs::default();
+    outputs.add("--csv", &a.csv)?;
+    outputs.add("the points file", &records_file)?;
+    outputs.add_opt("--plot", a.plot.as_ref())?;
+    let base_machine = a.machine.as_deref().unwrap_or("gold8");
+
+    // Every scene the grid loads, loaded once now: a filter the scene refuses (a
+    // `bump_env` environment map must be `nearest`) fails before any point renders.
+    let scene_hash = scene_content_hash(&a.scene)?;
+    let load_options = |filter: Option<Filter>| LoadOptions {
+        size: a.size,
+        subdivisions: None,
+        filter,
+    };
+    let filters: Vec<Option<Filter>> = match axes.iter().find(|x| x.knob == Knob::Filter) {
+        Some(axis) => axis
+            .values
+            .iter()
+            .map(|(_, v)| match v {
+                KnobValue::Filter(f) => Some(*f),
+                _ => unreachable!("a filter axis holds filters"),
+            })
+            .collect(),
+        None => vec![None],
+    };
+    let mut scene_name = String::new();
+    for filter in &filters {
+        let scene = scene::load(&a.scene, &load_options(*filter))
+            .with_context(|| format!("the scene with --knob filter={}", filter_name(*filter)))?;
+        scene_name = scene.name;
+    }
+
+    let points: Vec<Point> = grid(&axes)
+        .into_iter()
+        .map(|values| {
+            let chosen: Vec<&KnobValue> = axes
+                .iter()
+                .zip(&values)
+                .map(|(axis, &v)| &axis.values[v].1)
+                .collect();
+            let setup = Setup::of(base_machine, &chosen)?;
+            let key = point_key(&scene_hash, a.size, &setup);
+            Ok(Point { values, setup, key })
+        })
+        .collect::<Result<_>>()?;
+    let done = read_records(&records_file)?;
+    let pending: Vec<&Point> = points
+        .iter()
+        .filter(|p| !done.contains_key(&p.key))
+        .collect();
+    eprintln!(
+        "{scene_name}: {} points, {} already in `{}`, {} to render",
+        points.len(),
+        points.len() - pending.len(),
+        records_file.display(),
+        pending.len()
+    );
+
+    let jobs = a.jobs.map_or_else(
+        || std::thread::available_parallelism().map_or(1, |n| n.get()),
+        |j| j as usize,
+    );
+    let new_records = render_points(&a, &axes, &pending, jobs, &records_file, &load_options)?;
+    let mut results = done;
+    results.extend(new_records);
+
+    write_csv(&a.csv, &axes, &points, &results)?;
+    let (plot_points, frontier) = summary(&axes, &points, &results);
+    if let Some(path) = &a.plot {
+        let title = format!(
+            "{scene_name}: error against cycles ({})",
+            axes.iter()
+                .map(|x| x.knob.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        plot::write(path, &title, &plot_points)?;
+    }
+    println!(
+        "{:<40} {:>12} {:>12} {:>10}",
+        "point", "cycles", "frames/s", "PSNR dB"
+    );
+    for (i, (p, point)) in plot_points.iter().zip(&points).enumerate() {
+        let r = &results[&point.key];
+        println!(
+            "{:<40} {:>12} {:>12.2} {:>10} {}",
+            p.label,
+            p.cycles,
+            r.frames_per_second,
+            p.psnr_db.map_or("inf".into(), |v| format!("{v:.2}")),
+            if frontier.contains(&i) {
+                "frontier"
+            } else {
+                ""
+            }
+        );
+    }
+    println!("wrote `{}` ({} rows)", a.csv.display(), points.len());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn filter_name(filter: Option<Filter>) -> &'static str {
+    match filter {
+        None => "(the scene's)",
+        Some(Filter::Nearest) => "nearest",
+        Some(Filter::Linear) => "bilinear",
+        Some(Filter::Trilinear) => "trilinear",
+    }
+}
+
+/// Renders the points `jobs` at a time, appending each one's record to `records_file` as
+/// it finishes; the new records by key.
+fn render_points(
+    a: &SweepArgs,
+    axes: &[Axis],
+    pending: &[&Point],
+    jobs: usize,
+    records_file: &Path,
+    load_options: &(dyn Fn(Option<Filter>) -> LoadOptions + Sync),
+) -> Result<HashMap<String, PointResult>> {
+    if pending.is_empty() {
+        return Ok(HashMap::new());
+    }
+    let file = OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(records_file)
+        .with_context(|| format!("cannot write `{}`", records_file.display()))?;
+    let file = Mutex::new(file);
+    let finished = Mutex::new(HashMap::new());
+    // indicatif draws nothing when stderr is not a terminal.
+    let bar = ProgressBar::new(pending.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} points, {elapsed} {msg}")
+            .expect("a valid template"),
+    );
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs)
+        .build()
+        .context("cannot start the sweep's threads")?;
+    let result = pool.install(|| {
+        pending.par_iter().try_for_each(|point| -> Result<()> {
+            let knobs = knob_values(axes, point);
+            let label = knobs
+                .iter()
+                .map(|(k, v)| format!("{k}={v}"))
+                .collect::<Vec<_>>()
+                .join(" ");
+            let result =
+                render_point(a, point, load_options).with_context(|| format!("point {label}"))?;
+            let record = PointRecord {
+                key: point.key.clone(),
+                knobs: knobs
+                    .iter()
+                    .map(|(k, v)| (k.to_string(), v.to_string()))
+                    .collect(),
+                result,
+            };
+            let line = serde_json::to_string(&record)? + "\n";
+            {
+                let mut file = file.lock().expect("no writer panicked");
+                file.write_all(line.as_bytes())
+                    .and_then(|()| file.flush())
+                    .with_context(|| format!("cannot write `{}`", records_file.display()))?;
+            }
+            finished
+                .lock()
+                .expect("no writer panicked")
+                .insert(record.key, record.result);
+            bar.set_message(label);
+            bar.inc(1);
+            Ok(())
+        })
+    });
+    bar.finish_and_clear();
+    result?;
+    Ok(finished.into_inner().expect("no writer panicked"))
+}
+
+/// Renders one point and measures its error.
+fn render_point(
+    a: &SweepArgs,
+    point: &Point,
+    load_options: &(dyn Fn(Option<Filter>) -> LoadOptions + Sync),
+) -> Result<PointResult> {
+    let start = Instant::now();
+    let scene = scene::load(&a.scene, &load_options(point.setup.filter))?;
+    let options = RenderOptions {
+        cache: CompileCache::from_env(),
+        batch: point.setup.batch,
+        ..RenderOptions::default()
+    };
+    let frame = render_with(&scene, &point.setup.machine, options, None, |_, _| {})?;
+    let error = reference_error::measure(&scene, &frame)?;
+    let m = &error.metrics;
+    let finite = |v: f64| v.is_finite().then_some(v);
+    Ok(PointResult {
+        cycles: frame.stats.cycles,
+        frames_per_second: frame.stats.frames_per_second,
+        host_seconds: start.elapsed().as_secs_f64(),
+        psnr_db: finite(m.psnr_db),
+        max_abs_error: m.max_abs_error,
+        differing_pixels_share: m.differing_share,
+        coverage_differences_share: m.coverage_mismatch_share,
+        covered_in_both_pixels: m.covered_in_both_pixels,
+        covered_psnr_db: finite(m.covered_psnr_db),
+        covered_max_abs_error_levels: m.covered_max_abs_error_levels,
+        wrongly_covered_share: m.wrongly_covered_share,
+        missed_share: m.missed_share,
+        visibility_differing_share: m.visibility_differing_share,
+    })
+}
+
+/// Writes the CSV: a column per knob, then [`CSV_METRICS`], a row per point in grid order.
+fn write_csv(
+    path: &Path,
+    axes: &[Axis],
+    points: &[Point],
+    results: &HashMap<String, PointResult>,
+) -> Result<()> {
+    let mut w = csv::Writer::from_path(path)
+        .with_context(|| format!("cannot write `{}`", path.display()))?;
+    let header: Vec<&str> = axes
+        .iter()
+        .map(|x| x.knob.name())
+        .chain(CSV_METRICS)
+        .collect();
+    w.write_record(&header)?;
+    for point in points {
+        let result = &results[&point.key];
+        let row: Vec<String> = knob_values(axes, point)
+            .into_iter()
+            .map(|(_, v)| v.to_string())
+            .chain(result.csv_fields())
+            .collect();
+        w.write_record(&row)?;
+    }
+    w.flush()
+        .with_context(|| format!("cannot write `{}`", path.display()))?;
+    Ok(())
+}
+
+/// The points as the plot draws them (in grid order) and the Pareto frontier's indices.
+fn summary(
+    axes: &[Axis],
+    points: &[Point],
+    results: &HashMap<String, PointResult>,
+) -> (Vec<plot::PlotPoint>, Vec<usize>) {
+    let plot_points: Vec<plot::PlotPoint> = points
+        .iter()
+        .map(|point| {
+            let r = &results[&point.key];
+            plot::PlotPoint {
+                label: knob_values(axes, point)
+                    .iter()
+                    .map(|(k, v)| format!("{k}={v}"))
+                    .collect::<Vec<_>>()
+                    .join(" "),
+                cycles: r.cycles,
+                psnr_db: r.psnr_db,
+            }
+        })
+        .collect();
+    let frontier = plot::pareto_frontier(&plot_points);
+    (plot_points, frontier)
+}
