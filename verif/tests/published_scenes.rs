@@ -67,3 +67,29 @@ fn published_scenes_have_the_published_counts() {
     }
     assert!(wrong.is_empty(), "{wrong:#?}");
 }
+
+/// Table 8.1's TEAPOT-N (Owens et al. 2002; the thesis's ch. 8): 28 patches diced N × N and
+/// sent as stitched strips, `56·N·(N + 1)` triangles, and about 137k visible fragments
+/// (pixels showing the teapot after the depth test) whatever N, within 10 %.
+#[test]
+fn teapot_n_has_the_published_triangles_and_visible_fragments() {
+    let mut wrong = Vec::new();
+    for n in [20usize, 30, 40, 64] {
+        let scene = load(&format!("TEAPOT-{n}"), &LoadOptions::default()).unwrap();
+        assert_eq!((scene.width, scene.height), (720, 720));
+        assert_eq!(scene.triangles(), 56 * n * (n + 1), "TEAPOT-{n}");
+        let (_, shown) = reference_model::render_visible(&scene).unwrap();
+        let visible = shown.iter().filter(|t| t.is_some()).count();
+        let off = visible as f64 / 137_000.0 - 1.0;
+        println!(
+            "TEAPOT-{n}: {visible} visible fragments ({:+.1} %)",
+            100.0 * off
+        );
+        if off.abs() > 0.10 {
+            wrong.push(format!(
+                "TEAPOT-{n}: {visible} visible fragments, 137k published"
+            ));
+        }
+    }
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}

@@ -2,6 +2,12 @@
 //! points `x y z`, row by row with u varying fastest. Drawn by the OpenGL pipeline, each
 //! patch is diced into `n × n` quads of two triangles, its `(n + 1)²` vertices shared
 //! within the patch, normals `∂P/∂u × ∂P/∂v`, texture coordinates `(u, v)`.
+//!
+//! Stitched (`stitch = true`), each row of quads is sent as the papers sent it, a strip
+//! whose end is joined to the next by two degenerate triangles: `2n + 2` triangles a row,
+//! `2n(n + 1)` a patch — the count behind TEAPOT-N's `56·N·(N + 1)` triangles in Owens et
+//! al. 2002 and the thesis's Table 8.1. The stitch triangles have zero area: the pipeline
+//! assembles and culls them, as it would a strip's, and they draw nothing.
 
 use super::model::Mesh;
 use super::obj::AssetError;
@@ -163,8 +169,10 @@ fn normal(p: &Patch, b: Basis, u: f64, v: f64, scale: f64) -> [f64; 3] {
 }
 
 /// Dices each patch into `n × n` quads: `(n + 1)²` vertices per patch (u fastest), quads
-/// `(i, j) (i+1, j) (i+1, j+1) (i, j+1)` cut into two counter-clockwise triangles.
-pub fn tessellate(patches: &[Patch], b: Basis, n: u32) -> Mesh {
+/// `(i, j) (i+1, j) (i+1, j+1) (i, j+1)` cut into two counter-clockwise triangles; with
+/// `stitch`, each row followed by two degenerate triangles joining its last vertex to the
+/// next row's first (the last row's to its own first).
+pub fn tessellate(patches: &[Patch], b: Basis, n: u32, stitch: bool) -> Mesh {
     let mut m = Mesh::default();
     let side = n + 1;
     for p in patches {
@@ -191,6 +199,11 @@ pub fn tessellate(patches: &[Patch], b: Basis, n: u32) -> Mesh {
                 m.triangles.push([a, bb, c]);
                 m.triangles.push([a, c, d]);
             }
+            if stitch {
+                let (end, next) = (at(n, j + 1), at(0, (j + 2).min(n)));
+                m.triangles.push([end, end, next]);
+                m.triangles.push([end, next, next]);
+            }
         }
     }
     m
@@ -214,13 +227,13 @@ mod tests {
     fn scene_bpt_flat_patch_tessellated_2x2() {
         let patches = parse(&flat()).unwrap();
         for b in [Basis::Bezier, Basis::BSpline] {
-            let m = tessellate(&patches, b, 2);
+            let m = tessellate(&patches, b, 2, false);
             assert_eq!((m.positions.len(), m.triangles.len()), (9, 8));
             for n in &m.normals {
                 assert!((n[2] - 1.0).abs() < 1e-6 && n[0].abs() < 1e-6, "{n:?}");
             }
         }
-        let m = tessellate(&patches, Basis::Bezier, 2);
+        let m = tessellate(&patches, Basis::Bezier, 2, false);
         assert_eq!(m.positions[4], [1.5, 1.5, 0.0]);
         assert_eq!(m.positions[8], [3.0, 3.0, 0.0]);
         // Counter-clockwise seen from +z.
@@ -228,6 +241,21 @@ mod tests {
             let [a, b, c] = t.map(|i| m.positions[i as usize]);
             let z = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
             assert!(z > 0.0);
+        }
+    }
+
+    #[test]
+    fn scene_bpt_stitched_rows_add_two_degenerate_triangles_each() {
+        let patches = parse(&flat()).unwrap();
+        for n in [1, 2, 5] {
+            let plain = tessellate(&patches, Basis::Bezier, n, false);
+            let m = tessellate(&patches, Basis::Bezier, n, true);
+            assert_eq!(m.triangles.len() as u32, 2 * n * (n + 1));
+            assert_eq!(m.positions, plain.positions);
+            // The plain triangles, in order, plus stitches of zero area.
+            let degenerate = |t: &[u32; 3]| t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
+            let drawn: Vec<_> = m.triangles.iter().filter(|t| !degenerate(t)).collect();
+            assert_eq!(drawn, plain.triangles.iter().collect::<Vec<_>>());
         }
     }
 
@@ -241,7 +269,7 @@ mod tests {
                 s += &format!("{} {} {}\n", f64::from(col) * r, r, 0.0);
             }
         }
-        let m = tessellate(&parse(&s).unwrap(), Basis::Bezier, 4);
+        let m = tessellate(&parse(&s).unwrap(), Basis::Bezier, 4, false);
         for n in &m.normals {
             assert!((n[2] - 1.0).abs() < 1e-3, "{n:?}");
         }

@@ -16,6 +16,9 @@
 //!   kind) and `triangles = "shared" | "separate"` (default shared; separate gives every
 //!   triangle three vertices of its own, as SPHERE's published vertex count has it).
 //! * `tessellate` defaults to 20 (TEAPOT's OpenGL dicing), `basis` to `"bezier"`.
+//! * `stitch = true` (patches only, an addition to the format; default false) sends each
+//!   row of a diced patch as a strip joined to the next by two degenerate triangles, as the
+//!   papers did: TEAPOT-N's `56·N·(N + 1)` triangles (see `bpt`).
 //! * `cage` is refused: Catmull-Clark limit surfaces are not supported yet.
 //! * `shader = "marble"` (MARBLE's procedural shader, per fragment; no textures, and the
 //!   mesh needs normals, as for `lit`) takes three optional keys: `frequency` (default 4)
@@ -93,6 +96,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("PIN-8", include_str!("../../../scenes/PIN-8.toml")),
     ("MARBLE", include_str!("../../../scenes/MARBLE.toml")),
     ("VERONA", include_str!("../../../scenes/VERONA.toml")),
+    ("TEAPOT-20", include_str!("../../../scenes/TEAPOT-20.toml")),
+    ("TEAPOT-30", include_str!("../../../scenes/TEAPOT-30.toml")),
+    ("TEAPOT-40", include_str!("../../../scenes/TEAPOT-40.toml")),
+    ("TEAPOT-64", include_str!("../../../scenes/TEAPOT-64.toml")),
 ];
 
 /// The source tree's `scenes/` directory, where built-in scenes find their assets.
@@ -434,6 +441,7 @@ struct ObjectFile {
     rotate: Option<[f64; 4]>,
     scale: Option<[f64; 3]>,
     tessellate: Option<u32>,
+    stitch: Option<bool>,
     triangles: Option<TrianglesFile>,
 }
 
@@ -1242,6 +1250,9 @@ impl Cx {
             if o.tessellate.is_some() {
                 return Err(self.err(&key("tessellate"), "only for `patches`"));
             }
+            if o.stitch.is_some() {
+                return Err(self.err(&key("stitch"), "only for `patches`"));
+            }
         }
         let mut space = Space::World;
         let (name, mesh) = if let Some(file) = &o.mesh {
@@ -1270,15 +1281,14 @@ impl Cx {
                     format!("{n} is outside 1..={MAX_TESSELLATE}"),
                 ));
             }
-            room(
-                "tessellate",
-                patches.len() as u64 * 2 * u64::from(n) * u64::from(n),
-            )?;
+            let stitch = o.stitch.unwrap_or(false);
+            let per_row = 2 * u64::from(n) + 2 * u64::from(stitch);
+            room("tessellate", patches.len() as u64 * per_row * u64::from(n))?;
             let basis = match o.basis.unwrap_or(BasisFile::Bezier) {
                 BasisFile::Bezier => Basis::Bezier,
                 BasisFile::Bspline => Basis::BSpline,
             };
-            (file.clone(), bpt::tessellate(&patches, basis, n))
+            (file.clone(), bpt::tessellate(&patches, basis, n, stitch))
         } else if o.cage.is_some() {
             return Err(self.err(
                 &key("cage"),
@@ -1985,6 +1995,12 @@ mod tests {
             (3 * 64, 64, true)
         );
         assert_eq!(u.triangles[5], [15, 16, 17]);
+        // Stitching is for patches alone.
+        let e = parse_in(
+            &d,
+            &format!("{WINDOW}[[object]]\nprimitive = {{ kind = \"icosphere\" }}\nstitch = true\n"),
+        );
+        assert_error(e, &["`object[0].stitch`", "only for `patches`"]);
         let _ = std::fs::remove_dir_all(&d);
     }
 
@@ -2137,6 +2153,13 @@ mod tests {
         assert_eq!((s.width, s.triangles()), (720, 720 * 720 / 8));
         for (name, text) in BUILTIN {
             assert!(!builtin_description(text).is_empty(), "{name}");
+        }
+        // TEAPOT-N: the papers' 56·N·(N + 1) triangles, 28 patches of (N + 1)² vertices.
+        for n in [20u64, 30, 40, 64] {
+            let s = load(&format!("teapot-{n}"), &LoadOptions::default()).unwrap();
+            let mesh = &s.objects[0].mesh;
+            assert_eq!(s.triangles() as u64, 56 * n * (n + 1), "TEAPOT-{n}");
+            assert_eq!(mesh.positions.len() as u64, 28 * (n + 1) * (n + 1));
         }
         assert_error(
             load("TEAPOT-9", &LoadOptions::default()),
