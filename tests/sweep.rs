@@ -81,6 +81,10 @@ fn a_batch_sweep_measures_each_point_once_and_keeps_grid_order() {
         "cycles",
         "frames_per_second",
         "host_seconds",
+        "cluster_occupancy",
+        "batch_triangles",
+        "batches",
+        "dram_gbs",
         "psnr_db",
         "max_abs_error",
         "differing_pixels_share",
@@ -106,6 +110,11 @@ fn a_batch_sweep_measures_each_point_once_and_keeps_grid_order() {
         .collect();
     assert!(cycles.iter().all(|&c| c > 0));
     assert_ne!(cycles[0], cycles[1], "the batch size changes the cycles");
+    // The pipeline takes at most the batch asked for, and a smaller one needs more batches.
+    let number = |r: &[String], name: &str| cell(r, name).parse::<f64>().unwrap();
+    assert!(number(&rows[0], "batch_triangles") <= 8.0);
+    assert!(number(&rows[0], "batches") > number(&rows[1], "batches"));
+    assert!((0.0..=1.0).contains(&number(&rows[0], "cluster_occupancy")));
     // Frames/s are modelled at the one machine's clock: frames/s × cycles is that clock.
     let clock: Vec<f64> = rows
         .iter()

@@ -75,6 +75,13 @@ struct PointResult {
     frames_per_second: f64,
     /// Host seconds for the point: scene, render and reference.
     host_seconds: f64,
+    /// Share of the frame's cycles a kernel ran (0 to 1).
+    cluster_occupancy: f64,
+    /// The most triangles per batch the pipeline took, and the frame's batches.
+    batch_triangles: usize,
+    batches: u64,
+    /// DRAM bandwidth over the frame, 10⁹ bytes per second.
+    dram_gbs: f64,
     /// PSNR against the reference over the window, dB; `None` when identical.
     psnr_db: Option<f64>,
     /// Largest RGB channel difference, levels of 255.
@@ -108,10 +115,14 @@ struct Point {
     key: String,
 }
 
-const CSV_METRICS: [&str; 13] = [
+const CSV_METRICS: [&str; 17] = [
     "cycles",
     "frames_per_second",
     "host_seconds",
+    "cluster_occupancy",
+    "batch_triangles",
+    "batches",
+    "dram_gbs",
     "psnr_db",
     "max_abs_error",
     "differing_pixels_share",
@@ -127,12 +138,16 @@ const CSV_METRICS: [&str; 13] = [
 impl PointResult {
     /// The CSV fields, in the order of [`CSV_METRICS`]; an infinite PSNR is `inf`, an
     /// unknown share is empty.
-    fn csv_fields(&self) -> [String; 13] {
+    fn csv_fields(&self) -> [String; 17] {
         let psnr = |p: Option<f64>| p.map_or("inf".to_string(), |v| format!("{v:.4}"));
         [
             self.cycles.to_string(),
             format!("{:.4}", self.frames_per_second),
             format!("{:.3}", self.host_seconds),
+            format!("{:.4}", self.cluster_occupancy),
+            self.batch_triangles.to_string(),
+            self.batches.to_string(),
+            format!("{:.3}", self.dram_gbs),
             psnr(self.psnr_db),
             self.max_abs_error.to_string(),
             format!("{:.6}", self.differing_pixels_share),
@@ -178,7 +193,7 @@ fn scene_content_hash(name_or_path: &str) -> Result<blake3::Hash> {
 /// A point's key: every input that decides its frame and cycles.
 fn point_key(scene_hash: &blake3::Hash, size: Option<u32>, setup: &Setup) -> String {
     let mut h = blake3::Hasher::new();
-    h.update(b"imagine sweep point 1\n");
+    h.update(b"imagine sweep point 2\n");
     h.update(scene_hash.as_bytes());
     h.update(
         format!(
@@ -456,6 +471,10 @@ fn render_point(
         cycles: frame.stats.cycles,
         frames_per_second: frame.stats.frames_per_second,
         host_seconds: start.elapsed().as_secs_f64(),
+        cluster_occupancy: frame.stats.cluster_occupancy,
+        batch_triangles: frame.stats.batch_triangles,
+        batches: frame.stats.batches,
+        dram_gbs: frame.stats.dram_gbs,
         psnr_db: finite(m.psnr_db),
         max_abs_error: m.max_abs_error,
         differing_pixels_share: m.differing_share,
