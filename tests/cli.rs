@@ -168,6 +168,8 @@ fn machine_list_and_show_describe_every_builtin() {
     for name in [
         "gold8",
         "gold1",
+        "gold2",
+        "gold4",
         "gold16",
         "gold32",
         "gold8+F",

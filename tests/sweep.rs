@@ -75,6 +75,25 @@ fn a_batch_sweep_measures_each_point_once_and_keeps_grid_order() {
         "{}",
         stderr(&first)
     );
+    // With batch a knob, the batch model's fit: a smaller batch costs more, so c_b > 0.
+    let out = String::from_utf8_lossy(&first.stdout).to_string();
+    let fit = out
+        .lines()
+        .find(|l| l.contains("R²"))
+        .unwrap_or_else(|| panic!("no batch model in:\n{out}"));
+    let c_b: f64 = fit
+        .split("c_b ")
+        .nth(1)
+        .unwrap()
+        .split(' ')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        c_b > 0.0 && fit.contains("b½") && fit.contains("c∞"),
+        "{fit}"
+    );
     let (header, rows) = read_csv(&csv);
     for name in [
         "batch",

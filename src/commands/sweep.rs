@@ -13,6 +13,7 @@
 //! records, in grid order (the first knob varies slowest), whatever order the points
 //! finished in.
 
+mod batch_model;
 mod knobs;
 mod plot;
 
@@ -34,6 +35,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use self::batch_model::BatchModel;
 use self::knobs::{Axis, Knob, KnobValue, Setup};
 use super::outputs::Outputs;
 use super::reference_error;
@@ -369,8 +371,55 @@ pub fn run(a: SweepArgs) -> Result<ExitCode> {
             }
         );
     }
+    print_batch_models(&axes, &points, &results);
     println!("wrote `{}` ({} rows)", a.csv.display(), points.len());
     Ok(ExitCode::SUCCESS)
+}
+
+/// With `batch` among the knobs: the fit of `r = c∞ + c_b / b` for each combination of the
+/// other knobs, `b` the triangles per batch the pipeline took (which may be fewer than
+/// asked for: the SRF and `xyrast`'s scratchpad bound it).
+fn print_batch_models(axes: &[Axis], points: &[Point], results: &HashMap<String, PointResult>) {
+    let Some(batch_axis) = axes.iter().position(|x| x.knob == Knob::Batch) else {
+        return;
+    };
+    let mut groups: Vec<(Vec<usize>, Vec<(f64, f64)>)> = Vec::new();
+    for p in points {
+        let mut others = p.values.clone();
+        others.remove(batch_axis);
+        let r = &results[&p.key];
+        let point = (r.batch_triangles as f64, r.cycles as f64);
+        match groups.iter_mut().find(|(o, _)| *o == others) {
+            Some((_, g)) => g.push(point),
+            None => groups.push((others, vec![point])),
+        }
+    }
+    println!("batch model r = c∞ + c_b/b (b: triangles per batch taken; cycles per frame)");
+    for (others, group) in &groups {
+        let label = axes
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| i != batch_axis)
+            .zip(others)
+            .map(|((_, axis), &v)| format!("{}={}", axis.knob.name(), axis.values[v].0))
+            .collect::<Vec<_>>()
+            .join(" ");
+        match BatchModel::fit(group) {
+            Some(m) => println!(
+                "  {:<30} c∞ {:.3} M, c_b {:.1} M, b½ {:.1}, R² {:.3}",
+                if label.is_empty() {
+                    "(all points)"
+                } else {
+                    &label
+                },
+                m.c_inf / 1e6,
+                m.c_b / 1e6,
+                m.b_half(),
+                m.r_squared
+            ),
+            None => println!("  {label:<30} (needs two batch sizes the pipeline took)"),
+        }
+    }
 }
 
 fn filter_name(filter: Option<Filter>) -> &'static str {

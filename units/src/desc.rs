@@ -258,6 +258,8 @@ pub use crate::limits::{MAX_CLUSTERS, MAX_KERNEL_STREAMS};
 pub const BUILTIN: &[(&str, &str)] = &[
     ("gold8", include_str!("../../machines/gold8.toml")),
     ("gold1", include_str!("../../machines/gold1.toml")),
+    ("gold2", include_str!("../../machines/gold2.toml")),
+    ("gold4", include_str!("../../machines/gold4.toml")),
     ("gold16", include_str!("../../machines/gold16.toml")),
     ("gold32", include_str!("../../machines/gold32.toml")),
     ("gold8+F", include_str!("../../machines/gold8+F.toml")),
