@@ -383,7 +383,9 @@ fn print_batch_models(axes: &[Axis], points: &[Point], results: &HashMap<String,
     let Some(batch_axis) = axes.iter().position(|x| x.knob == Knob::Batch) else {
         return;
     };
-    let mut groups: Vec<(Vec<usize>, Vec<(f64, f64)>)> = Vec::new();
+    // (the other knobs' value indices, that group's (batch, cycles) points)
+    type Group = (Vec<usize>, Vec<(f64, f64)>);
+    let mut groups: Vec<Group> = Vec::new();
     for p in points {
         let mut others = p.values.clone();
         others.remove(batch_axis);

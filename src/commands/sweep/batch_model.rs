@@ -26,7 +26,7 @@ impl BatchModel {
         let mean_x = xs.iter().sum::<f64>() / n;
         let mean_r = points.iter().map(|&(_, r)| r).sum::<f64>() / n;
         let sxx: f64 = xs.iter().map(|x| (x - mean_x).powi(2)).sum();
-        if !(sxx > 0.0) {
+        if sxx.is_nan() || sxx <= 0.0 {
             return None;
         }
         let sxr: f64 = xs
