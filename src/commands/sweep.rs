@@ -380,7 +380,10 @@ pub fn run(a: SweepArgs) -> Result<ExitCode> {
 /// other knobs, `b` the triangles per batch the pipeline took (which may be fewer than
 /// asked for: the SRF and `xyrast`'s scratchpad bound it).
 fn print_batch_models(axes: &[Axis], points: &[Point], results: &HashMap<String, PointResult>) {
-    let Some(batch_axis) = axes.iter().position(|x| x.knob == Knob::Batch) else {
+    let Some(batch_axis) = axes
+        .iter()
+        .position(|x| x.knob == Knob::Batch && x.values.len() > 1)
+    else {
         return;
     };
     // (the other knobs' value indices, that group's (batch, cycles) points)
@@ -406,14 +409,15 @@ fn print_batch_models(axes: &[Axis], points: &[Point], results: &HashMap<String,
             .map(|((_, axis), &v)| format!("{}={}", axis.knob.name(), axis.values[v].0))
             .collect::<Vec<_>>()
             .join(" ");
+        let label = if label.is_empty() {
+            "(all points)".to_string()
+        } else {
+            label
+        };
         match BatchModel::fit(group) {
             Some(m) => println!(
                 "  {:<30} c∞ {:.3} M, c_b {:.1} M, b½ {:.1}, R² {:.3}",
-                if label.is_empty() {
-                    "(all points)"
-                } else {
-                    &label
-                },
+                label,
                 m.c_inf / 1e6,
                 m.c_b / 1e6,
                 m.b_half(),
