@@ -244,3 +244,49 @@ fn bad_knobs_are_clear_errors() {
     assert!(stderr(&o).contains("given twice"), "{}", stderr(&o));
     assert!(!csv.exists(), "no CSV is written for a refused sweep");
 }
+
+/// A point that cannot render (a machine whose SRF cannot hold the pipeline's streams) does
+/// not stop the others: its row holds the error, the sweep exits non-zero, and a rerun
+/// tries it again while keeping the points that rendered.
+#[test]
+fn a_failing_point_is_reported_and_the_others_are_kept() {
+    let dir = scratch("failing");
+    let csv = dir.join("f.csv");
+    let small = dir.join("small-srf.toml");
+    std::fs::write(
+        &small,
+        "name = \"small-srf\"\nbase = \"gold8\"\ndescription = \"too small an SRF\"\n\
+         [srf]\nwords = 1024\n",
+    )
+    .unwrap();
+    let knob = format!("machine=gold8,{}", small.display());
+    let args = [
+        "sweep",
+        "RATE-8",
+        "--size",
+        "32",
+        "--knob",
+        &knob,
+        "--csv",
+        csv.to_str().unwrap(),
+    ];
+    let o = imagine(&args);
+    assert!(!o.status.success(), "a failed point fails the sweep");
+    let err = stderr(&o);
+    assert!(
+        err.contains("1 points failed") && !err.contains("panicked"),
+        "{err}"
+    );
+    let (header, rows) = read_csv(&csv);
+    assert_eq!(rows.len(), 2);
+    assert!(column(&header, &rows[0], "error").is_empty());
+    assert!(column(&header, &rows[0], "cycles").parse::<u64>().unwrap() > 0);
+    assert!(column(&header, &rows[1], "cycles").is_empty());
+    assert!(
+        column(&header, &rows[1], "error").contains("small-srf"),
+        "{rows:?}"
+    );
+    // The rerun renders only the failed point again.
+    let again = imagine(&args);
+    assert!(stderr(&again).contains("1 already"), "{}", stderr(&again));
+}

@@ -336,11 +336,17 @@ pub fn run(a: SweepArgs) -> Result<ExitCode> {
         || std::thread::available_parallelism().map_or(1, |n| n.get()),
         |j| j as usize,
     );
-    let new_records = render_points(&a, &axes, &pending, jobs, &records_file, &load_options)?;
+    let (new_records, failed) =
+        render_points(&a, &axes, &pending, jobs, &records_file, &load_options)?;
     let mut results = done;
     results.extend(new_records);
 
-    write_csv(&a.csv, &axes, &points, &results)?;
+    write_csv(&a.csv, &axes, &points, &results, &failed)?;
+    // The plot, the table and the batch model are of the points that rendered.
+    let points: Vec<Point> = points
+        .into_iter()
+        .filter(|p| results.contains_key(&p.key))
+        .collect();
     let (plot_points, frontier) = summary(&axes, &points, &results);
     if let Some(path) = &a.plot {
         let title = format!(
@@ -372,8 +378,24 @@ pub fn run(a: SweepArgs) -> Result<ExitCode> {
         );
     }
     print_batch_models(&axes, &points, &results);
-    println!("wrote `{}` ({} rows)", a.csv.display(), points.len());
-    Ok(ExitCode::SUCCESS)
+    println!(
+        "wrote `{}` ({} rows)",
+        a.csv.display(),
+        points.len() + failed.len()
+    );
+    if failed.is_empty() {
+        return Ok(ExitCode::SUCCESS);
+    }
+    eprintln!(
+        "{} points failed (their rows hold the error; a rerun tries them again):",
+        failed.len()
+    );
+    let mut failed: Vec<_> = failed.into_iter().collect();
+    failed.sort();
+    for (_, message) in &failed {
+        eprintln!("  {message}");
+    }
+    Ok(ExitCode::FAILURE)
 }
 
 /// With `batch` among the knobs: the fit of `r = c∞ + c_b / b` for each combination of the
@@ -438,7 +460,8 @@ fn filter_name(filter: Option<Filter>) -> &'static str {
 }
 
 /// Renders the points `jobs` at a time, appending each one's record to `records_file` as
-/// it finishes; the new records by key.
+/// it finishes: the new records by key, and the points that failed (a render error:
+/// the others go on) with their error, by key.
 fn render_points(
     a: &SweepArgs,
     axes: &[Axis],
@@ -446,9 +469,9 @@ fn render_points(
     jobs: usize,
     records_file: &Path,
     load_options: &(dyn Fn(Option<Filter>) -> LoadOptions + Sync),
-) -> Result<HashMap<String, PointResult>> {
+) -> Result<(HashMap<String, PointResult>, HashMap<String, String>)> {
     if pending.is_empty() {
-        return Ok(HashMap::new());
+        return Ok((HashMap::new(), HashMap::new()));
     }
     let file = OpenOptions::new()
         .create(true)
@@ -457,6 +480,7 @@ fn render_points(
         .with_context(|| format!("cannot write `{}`", records_file.display()))?;
     let file = Mutex::new(file);
     let finished = Mutex::new(HashMap::new());
+    let failed = Mutex::new(HashMap::new());
     // indicatif draws nothing when stderr is not a terminal.
     let bar = ProgressBar::new(pending.len() as u64).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} points, {elapsed} {msg}")
@@ -474,8 +498,18 @@ fn render_points(
                 .map(|(k, v)| format!("{k}={v}"))
                 .collect::<Vec<_>>()
                 .join(" ");
-            let result =
-                render_point(a, point, load_options).with_context(|| format!("point {label}"))?;
+            bar.set_message(label.clone());
+            let result = match render_point(a, point, load_options) {
+                Ok(result) => result,
+                Err(e) => {
+                    failed
+                        .lock()
+                        .expect("no writer panicked")
+                        .insert(point.key.clone(), format!("point {label}: {e:#}"));
+                    bar.inc(1);
+                    return Ok(());
+                }
+            };
             let record = PointRecord {
                 key: point.key.clone(),
                 knobs: knobs
@@ -495,14 +529,16 @@ fn render_points(
                 .lock()
                 .expect("no writer panicked")
                 .insert(record.key, record.result);
-            bar.set_message(label);
             bar.inc(1);
             Ok(())
         })
     });
     bar.finish_and_clear();
     result?;
-    Ok(finished.into_inner().expect("no writer panicked"))
+    Ok((
+        finished.into_inner().expect("no writer panicked"),
+        failed.into_inner().expect("no writer panicked"),
+    ))
 }
 
 /// Renders one point and measures its error.
@@ -549,6 +585,7 @@ fn write_csv(
     axes: &[Axis],
     points: &[Point],
     results: &HashMap<String, PointResult>,
+    failed: &HashMap<String, String>,
 ) -> Result<()> {
     let mut w = csv::Writer::from_path(path)
         .with_context(|| format!("cannot write `{}`", path.display()))?;
@@ -556,14 +593,23 @@ fn write_csv(
         .iter()
         .map(|x| x.knob.name())
         .chain(CSV_METRICS)
+        .chain(["error"])
         .collect();
     w.write_record(&header)?;
     for point in points {
-        let result = &results[&point.key];
+        // A point that failed: its knobs, empty measurements and the error.
+        let (fields, error) = match (results.get(&point.key), failed.get(&point.key)) {
+            (Some(result), _) => (result.csv_fields().to_vec(), String::new()),
+            (None, error) => (
+                vec![String::new(); CSV_METRICS.len()],
+                error.cloned().unwrap_or_default(),
+            ),
+        };
         let row: Vec<String> = knob_values(axes, point)
             .into_iter()
             .map(|(_, v)| v.to_string())
-            .chain(result.csv_fields())
+            .chain(fields)
+            .chain([error])
             .collect();
         w.write_record(&row)?;
     }

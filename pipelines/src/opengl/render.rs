@@ -2283,11 +2283,14 @@ impl FrameRun<'_> {
     }
 }
 
-/// What the DRAM channels did over the run.
+/// What the DRAM channels did over the run, channel 0 first (whatever order the design
+/// holds its modules in: the attribution's ties are broken by channel order).
 fn dram_activity<'a>(sim: &'a Sim, desc: &MachineDesc) -> DramActivity<'a> {
+    let mut channels: Vec<&DramChannel> = sim.modules_of::<DramChannel>().collect();
+    channels.sort_by_key(|c| c.index());
     DramActivity {
-        channels: sim
-            .modules_of::<DramChannel>()
+        channels: channels
+            .into_iter()
             .map(DramChannel::activity_log)
             .collect(),
         dram_per_core: desc.clocks.dram_mhz as f64 / desc.clocks.core_mhz as f64,

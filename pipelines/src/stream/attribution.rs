@@ -36,7 +36,7 @@
 
 use std::ops::Range;
 
-use imagine_units::dram::activity::ActivityLog;
+use imagine_units::dram::activity::{ActivityLog, ActivitySpan};
 use imagine_units::memory::{MemOpKind, Pattern};
 use imagine_units::stream_controller::{InstrRecord, StreamInstr};
 use serde::Serialize;
@@ -185,6 +185,7 @@ impl WaitingOn {
 /// DRAM cycles.
 #[derive(Clone, Debug, Default)]
 pub struct DramActivity<'a> {
+    /// In channel order (the first of equally busy channels is taken).
     pub channels: Vec<&'a ActivityLog>,
     /// DRAM cycles per core cycle.
     pub dram_per_core: f64,
@@ -211,13 +212,14 @@ impl DramActivity<'_> {
             cycles.end as f64 * self.dram_per_core,
         );
         let span = to - from;
+        // The first of the busiest (`max_by` would take the last).
         let busiest = self
             .channels
             .iter()
             .map(|log| log.between(from, to))
-            .max_by(|a, b| {
-                (a.transfer_cycles + a.row_switch_cycles)
-                    .total_cmp(&(b.transfer_cycles + b.row_switch_cycles))
+            .reduce(|best, c| {
+                let busy = |s: &ActivitySpan| s.transfer_cycles + s.row_switch_cycles;
+                if busy(&c) > busy(&best) { c } else { best }
             });
         let (Some(b), true) = (busiest, span > 0.0) else {
             return (0, 0);
@@ -463,6 +465,21 @@ mod tests {
         };
         assert_eq!(dram.split(&(64..640)), (576, 0));
         assert_eq!(DramActivity::default().split(&(0..100)), (0, 0));
+        // Equally busy channels: the first one's split, whatever the others say (the
+        // attribution must not depend on the order the design holds its modules in).
+        let (transferring, switching) = (channel(100, 32, 0), channel(100, 0, 32));
+        let first = |channels| DramActivity {
+            channels,
+            dram_per_core: 1.0,
+        };
+        assert_eq!(
+            first(vec![&transferring, &switching]).split(&(0..640)),
+            (320, 0)
+        );
+        assert_eq!(
+            first(vec![&switching, &transferring]).split(&(0..640)),
+            (0, 320)
+        );
     }
 
     #[test]
