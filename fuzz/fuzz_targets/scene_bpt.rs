@@ -1,5 +1,5 @@
 //! Bicubic patch files (`.bpt`): `scene::bpt::parse`, then each patch diced into a few
-//! quads per side in both bases.
+//! quads per side in both bases, plain and stitched.
 #![no_main]
 
 use imagine_fuzz::{assert_mesh_invariants, bpt_seeds, text, write_seeds_if_asked};
@@ -11,9 +11,12 @@ fuzz_target!(init: write_seeds_if_asked(seeds), |data: &[u8]| {
     let Ok(patches) = parse(text) else { return };
     let n = 1 + (data.len() % 4) as u32;
     for basis in [Basis::Bezier, Basis::BSpline] {
-        let mesh = tessellate(&patches, basis, n);
-        assert_eq!(mesh.triangles.len(), patches.len() * 2 * (n * n) as usize);
-        assert_mesh_invariants(&mesh);
+        for stitch in [false, true] {
+            let mesh = tessellate(&patches, basis, n, stitch);
+            let per_row = 2 * n + 2 * u32::from(stitch);
+            assert_eq!(mesh.triangles.len(), patches.len() * (per_row * n) as usize);
+            assert_mesh_invariants(&mesh);
+        }
     }
 });
 

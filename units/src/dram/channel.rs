@@ -103,8 +103,10 @@ pub struct DramChannel {
     stats: ChannelStats,
     record: Option<Vec<TraceRequest>>,
     arriving: Option<TraceRequest>,
-    /// What the cycles were spent on, and its samples over time.
-    activity: Activity,
+    /// Cycles the data bus carried a word, and cycles references waited on row switches
+    /// (see [`Activity`]); with `stats`, sampled over time.
+    transfer_cycles: u64,
+    row_switch_cycles: u64,
     activity_log: ActivityLog,
     /// The first cycle after the last precharge, activate or refresh is done, and after the
     /// last write's data has left the bus.
@@ -183,7 +185,8 @@ impl DramChannel {
             stats: ChannelStats::default(),
             record: cfg.record.then(Vec::new),
             arriving: None,
-            activity: Activity::default(),
+            transfer_cycles: 0,
+            row_switch_cycles: 0,
             activity_log: ActivityLog::default(),
             row_switch_until: 0,
             write_data_until: 0,
@@ -207,6 +210,16 @@ impl DramChannel {
     /// What the channel's cycles were spent on, sampled over time.
     pub fn activity_log(&self) -> &ActivityLog {
         &self.activity_log
+    }
+
+    /// The activity counters now.
+    fn activity(&self) -> Activity {
+        Activity {
+            transfer_cycles: self.transfer_cycles,
+            row_switch_cycles: self.row_switch_cycles,
+            columns: self.stats.reads + self.stats.writes,
+            activates: self.stats.activates,
+        }
     }
 
     pub fn violations(&self) -> &[TimingViolation] {
@@ -285,7 +298,7 @@ impl DramChannel {
             self.row_switch_until = self.row_switch_until.max(b + self.p.t_rfc);
         }
         // Nothing waits while idle: the counters stay as they are.
-        self.activity_log.sample_over(c, n, self.activity);
+        self.activity_log.sample_over(c, n, self.activity());
         self.bus_q = pending.then_some(Bus {
             cmd: Command::Refresh,
             entry: None,
@@ -320,7 +333,7 @@ impl DramChannel {
             self.stats,
             self.record,
             self.arriving,
-            self.activity,
+            (self.transfer_cycles, self.row_switch_cycles),
             self.activity_log,
             self.row_switch_until,
             self.write_data_until
@@ -490,7 +503,6 @@ impl Module for DramChannel {
             match b.cmd {
                 Command::Activate { .. } => {
                     self.stats.activates += 1;
-                    self.activity.activates += 1;
                     self.row_switch_until = self.row_switch_until.max(cycle + self.p.t_rcd);
                 }
                 Command::Precharge { .. } => {
@@ -498,7 +510,6 @@ impl Module for DramChannel {
                     self.row_switch_until = self.row_switch_until.max(cycle + self.p.t_rp);
                 }
                 Command::Read { .. } => {
-                    self.activity.columns += 1;
                     self.stats.reads += 1;
                     self.stats.last_busy = self
                         .stats
@@ -506,7 +517,6 @@ impl Module for DramChannel {
                         .max(cycle + self.p.cl + self.p.burst as u64 - 1);
                 }
                 Command::Write { .. } => {
-                    self.activity.columns += 1;
                     self.stats.writes += 1;
                     self.stats.last_busy =
                         self.stats.last_busy.max(cycle + self.p.burst as u64 - 1);
@@ -519,9 +529,9 @@ impl Module for DramChannel {
             }
         }
         if self.sdram.dq_now().is_some() || cycle < self.write_data_until {
-            self.activity.transfer_cycles += 1;
+            self.transfer_cycles += 1;
         } else if cycle < self.row_switch_until && self.scheduler.depth() > 0 {
-            self.activity.row_switch_cycles += 1;
+            self.row_switch_cycles += 1;
         }
         if self.sdram.dq_now().is_some() {
             self.stats.data_bus_cycles += 1;
@@ -545,7 +555,7 @@ impl Module for DramChannel {
         self.bus_q = self.bus_d.take();
         self.cycle += 1;
         self.stats.cycles = self.cycle;
-        self.activity_log.sample(self.cycle, self.activity);
+        self.activity_log.sample(self.cycle, self.activity());
     }
 
     fn trace(&self, t: &mut Trace) {
