@@ -251,6 +251,15 @@ fn knob_values<'a>(axes: &'a [Axis], point: &Point) -> Vec<(&'static str, &'a st
         .collect()
 }
 
+/// A point as a person reads it: `batch=64 machine=gold16`.
+fn point_label(axes: &[Axis], point: &Point) -> String {
+    knob_values(axes, point)
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 pub fn run(a: SweepArgs) -> Result<ExitCode> {
     let axes: Vec<Axis> = a
         .knobs
@@ -493,11 +502,7 @@ fn render_points(
     let result = pool.install(|| {
         pending.par_iter().try_for_each(|point| -> Result<()> {
             let knobs = knob_values(axes, point);
-            let label = knobs
-                .iter()
-                .map(|(k, v)| format!("{k}={v}"))
-                .collect::<Vec<_>>()
-                .join(" ");
+            let label = point_label(axes, point);
             bar.set_message(label.clone());
             let result = match render_point(a, point, load_options) {
                 Ok(result) => result,
@@ -629,11 +634,7 @@ fn summary(
         .map(|point| {
             let r = &results[&point.key];
             plot::PlotPoint {
-                label: knob_values(axes, point)
-                    .iter()
-                    .map(|(k, v)| format!("{k}={v}"))
-                    .collect::<Vec<_>>()
-                    .join(" "),
+                label: point_label(axes, point),
                 cycles: r.cycles,
                 psnr_db: r.psnr_db,
             }

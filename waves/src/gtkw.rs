@@ -246,18 +246,19 @@ pub fn render_gtkw(
         .iter()
         .take_while(|(scope, signals)| control(scope, signals))
         .count();
-    let groups: Vec<(&str, Vec<&SignalDecl>, bool)> = groups[..controls]
+    // (name, signals, open whatever their number)
+    let groups: Vec<(&str, &[&SignalDecl], bool)> = groups[..controls]
         .iter()
-        .map(|(scope, signals)| (*scope, signals.clone(), true))
+        .map(|(scope, signals)| (*scope, &signals[..], true))
         .chain(
             glances
                 .iter()
-                .map(|(name, signals)| (name.as_str(), signals.clone(), true)),
+                .map(|(name, signals)| (name.as_str(), &signals[..], true)),
         )
         .chain(
             groups[controls..]
                 .iter()
-                .map(|(scope, signals)| (*scope, signals.clone(), false)),
+                .map(|(scope, signals)| (*scope, &signals[..], false)),
         )
         .collect();
     let many = decls.len() > OPEN_GROUPS_MAX_SIGNALS;
@@ -281,7 +282,7 @@ pub fn render_gtkw(
         };
         set_flags(&mut o, begin);
         let _ = writeln!(o, "-{name}");
-        for s in signals {
+        for s in signals.iter() {
             trace(&mut o, s, &mut set_flags);
         }
         set_flags(&mut o, end);

@@ -171,8 +171,7 @@ impl WaitingOn {
     pub fn of(segments: &[Segment], window: Range<u64>) -> Self {
         let mut on = WaitingOn::default();
         for s in segments {
-            let from = s.cycles.start.max(window.start);
-            let overlap = s.cycles.end.min(window.end).saturating_sub(from);
+            let overlap = s.overlap(&window);
             if overlap > 0 {
                 on.add(&s.waiting_on.part(overlap, s.cycles.end - s.cycles.start));
             }
@@ -192,12 +191,17 @@ pub struct DramActivity<'a> {
 }
 
 impl DramActivity<'_> {
-    /// Column accesses and activates of all channels over the core cycles `cycles`.
-    pub fn accesses(&self, cycles: &Range<u64>) -> (f64, f64) {
-        let (from, to) = (
+    /// The (fractional) DRAM cycles the core cycles `cycles` span.
+    fn dram_cycles(&self, cycles: &Range<u64>) -> (f64, f64) {
+        (
             cycles.start as f64 * self.dram_per_core,
             cycles.end as f64 * self.dram_per_core,
-        );
+        )
+    }
+
+    /// Column accesses and activates of all channels over the core cycles `cycles`.
+    pub fn accesses(&self, cycles: &Range<u64>) -> (f64, f64) {
+        let (from, to) = self.dram_cycles(cycles);
         self.channels.iter().fold((0.0, 0.0), |(c, a), log| {
             let s = log.between(from, to);
             (c + s.columns, a + s.activates)
@@ -207,10 +211,7 @@ impl DramActivity<'_> {
     /// Of the core cycles `cycles`, those when the busiest channel carried data and those
     /// when it switched rows with references waiting, in proportion to its cycles.
     fn split(&self, cycles: &Range<u64>) -> (u64, u64) {
-        let (from, to) = (
-            cycles.start as f64 * self.dram_per_core,
-            cycles.end as f64 * self.dram_per_core,
-        );
+        let (from, to) = self.dram_cycles(cycles);
         let span = to - from;
         // The first of the busiest (`max_by` would take the last).
         let busiest = self
@@ -239,6 +240,14 @@ pub struct Segment {
     pub cycles: Range<u64>,
     pub category: Category,
     pub waiting_on: WaitingOn,
+}
+
+impl Segment {
+    /// Its cycles inside `window`.
+    fn overlap(&self, window: &Range<u64>) -> u64 {
+        let from = self.cycles.start.max(window.start);
+        self.cycles.end.min(window.end).saturating_sub(from)
+    }
 }
 
 /// Every cycle of `window` in one category, as consecutive segments covering it exactly.
@@ -372,9 +381,7 @@ impl Attribution {
     pub fn of(segments: &[Segment], window: Range<u64>) -> Self {
         let mut a = Attribution::default();
         for s in segments {
-            let from = s.cycles.start.max(window.start);
-            let overlap = s.cycles.end.min(window.end).saturating_sub(from);
-            *a.slot(&s.category) += overlap;
+            *a.slot(&s.category) += s.overlap(&window);
         }
         a
     }
