@@ -177,6 +177,9 @@ fn machine_list_and_show_describe_every_builtin() {
         "gold8+F+C",
         "gold8+srf4x",
         "gold32combo",
+        "gold32combo+tc1",
+        "gold32combo+tc4",
+        "gold32combo+tc32",
     ] {
         assert!(
             list.lines()
@@ -194,6 +197,11 @@ fn machine_list_and_show_describe_every_builtin() {
     }
     let show = stdout(&imagine(&["machine", "show", "gold8+F"]));
     assert!(show.contains("6 adders, 4 multipliers"), "{show}");
+    let show = stdout(&imagine(&["machine", "show", "gold32combo+tc4"]));
+    assert!(
+        show.contains("texture cache") && show.contains("hit_words_per_cycle 4"),
+        "{show}"
+    );
 }
 
 /// `machine show` prints every section of the description, and every key of the sections

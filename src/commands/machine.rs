@@ -208,6 +208,19 @@ pub fn describe(m: &MachineDesc) -> String {
             mem.sync_stages
         ),
     );
+    if let Some(t) = &m.texture_cache {
+        line(
+            "texture cache",
+            format!(
+                "words {} ({} KB), line_words {}, direct-mapped, read-only, \
+                 hit_words_per_cycle {} words/cycle",
+                t.words,
+                t.words * 4 / 1024,
+                t.line_words,
+                t.hit_words_per_cycle
+            ),
+        );
+    }
     let sc = &m.stream_controller;
     line(
         "stream controller",

@@ -317,6 +317,15 @@ fn print_stats(f: &Frame, m: &Metrics, desc: &MachineDesc, host: &HostTimes) {
         dram_peak,
         100.0 * s.dram_row_hit_rate
     );
+    if let Some(tc) = &s.texture_cache {
+        println!(
+            "texture cache      {:.1} % hits ({} hits, {} misses, {} words of line fills)",
+            100.0 * tc.hit_rate,
+            tc.counts.hits,
+            tc.counts.misses,
+            tc.counts.fill_words
+        );
+    }
     println!(
         "traffic            {:.0} B per vertex, {:.1} B per fragment ({:.1} B of texels)",
         s.bytes_per_vertex, s.bytes_per_fragment, s.texel_bytes_per_fragment

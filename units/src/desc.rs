@@ -28,6 +28,9 @@ pub struct MachineDesc {
     pub dram: Dram,
     pub memory: Memory,
     pub stream_controller: StreamController,
+    /// A texture cache between memory and the SRF (thesis §6.5); none when absent.
+    #[serde(default)]
+    pub texture_cache: Option<TextureCacheDesc>,
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
@@ -160,6 +163,20 @@ pub struct Memory {
     pub sync_stages: usize,
 }
 
+/// The texture cache (thesis §6.5, [`crate::memory::TextureCache`]): read-only,
+/// direct-mapped, serving the streams the stream program marks cacheable.
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct TextureCacheDesc {
+    /// Data words (a power of two; 16 K in the thesis).
+    pub words: usize,
+    /// Words per line (a power of two; 2 in the thesis).
+    pub line_words: usize,
+    /// Words of hits handed to the address generators per core cycle, all together (the
+    /// thesis's memory-to-SRF bandwidth ×n).
+    pub hit_words_per_cycle: usize,
+}
+
 /// The stream controller (ARCHITECTURE §4).
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
@@ -272,6 +289,18 @@ pub const BUILTIN: &[(&str, &str)] = &[
     (
         "gold32combo",
         include_str!("../../machines/gold32combo.toml"),
+    ),
+    (
+        "gold32combo+tc1",
+        include_str!("../../machines/gold32combo+tc1.toml"),
+    ),
+    (
+        "gold32combo+tc4",
+        include_str!("../../machines/gold32combo+tc4.toml"),
+    ),
+    (
+        "gold32combo+tc32",
+        include_str!("../../machines/gold32combo+tc32.toml"),
     ),
 ];
 
@@ -630,6 +659,41 @@ impl MachineDesc {
                 return bad(key, format!("is {v}, must be {lo}..={hi}"));
             }
         }
+        if let Some(t) = &self.texture_cache {
+            let pow2 = |v: usize, hi: usize| v.is_power_of_two() && v <= hi;
+            if !pow2(t.words, 1 << 20) {
+                return bad(
+                    "texture_cache.words",
+                    format!("is {}, must be a power of two up to {}", t.words, 1 << 20),
+                );
+            }
+            if !pow2(t.line_words, 64.min(t.words)) {
+                return bad(
+                    "texture_cache.line_words",
+                    format!(
+                        "is {}, must be a power of two up to {} (and at most 64)",
+                        t.line_words, t.words
+                    ),
+                );
+            }
+            if !(1..=64).contains(&t.hit_words_per_cycle) {
+                return bad(
+                    "texture_cache.hit_words_per_cycle",
+                    format!("is {}, must be 1..=64", t.hit_words_per_cycle),
+                );
+            }
+            // A line fill's reply carries its word address in the reference tag.
+            let words = crate::dram::DramParams::of(self).capacity_bytes() / 4;
+            if words > crate::memory::address_gen::FILL_ADDRESS_LIMIT {
+                return bad(
+                    "texture_cache",
+                    format!(
+                        "needs DRAM of at most {} words; this machine has {words}",
+                        crate::memory::address_gen::FILL_ADDRESS_LIMIT
+                    ),
+                );
+            }
+        }
         if m.ag_reorder_words < m.ag_words_per_cycle {
             return bad(
                 "memory.ag_reorder_words",
@@ -812,6 +876,19 @@ mod tests {
             ),
             (32, 6, 3)
         );
+        // The texture-cache machines: the thesis's cache, at ×1, ×4 and ×32.
+        for (name, n) in [
+            ("gold32combo+tc1", 1),
+            ("gold32combo+tc4", 4),
+            ("gold32combo+tc32", 32),
+        ] {
+            let tc = get(name);
+            let cache = tc.texture_cache.as_ref().expect("a texture cache");
+            assert_eq!((cache.words, cache.line_words), (16384, 2));
+            assert_eq!(cache.hit_words_per_cycle, n);
+            assert_eq!(tc.cluster, combo.cluster);
+        }
+        assert!(combo.texture_cache.is_none());
         // Inherited keys stay as the base has them.
         assert_eq!(get("gold16").latency, get("gold8").latency);
     }
@@ -922,5 +999,31 @@ mod tests {
         assert_eq!(m.stream_controller.min_kernel_cycles, 300);
         let e = MachineDesc::load(Path::new("/nonexistent/m.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/m.toml"), "{e}");
+    }
+
+    #[test]
+    fn an_impossible_texture_cache_is_refused_naming_its_key() {
+        for (keys, key) in [
+            (
+                "words = 1000\nline_words = 2\nhit_words_per_cycle = 1",
+                "texture_cache.words",
+            ),
+            (
+                "words = 16\nline_words = 3\nhit_words_per_cycle = 1",
+                "texture_cache.line_words",
+            ),
+            (
+                "words = 16\nline_words = 32\nhit_words_per_cycle = 1",
+                "texture_cache.line_words",
+            ),
+            (
+                "words = 16\nline_words = 2\nhit_words_per_cycle = 0",
+                "texture_cache.hit_words_per_cycle",
+            ),
+        ] {
+            let text = format!("name = \"x\"\nbase = \"gold8\"\n[texture_cache]\n{keys}");
+            let e = MachineDesc::parse(&text, "x.toml").unwrap_err();
+            assert!(e.to_string().contains(key), "{keys}: {e}");
+        }
     }
 }

@@ -66,7 +66,7 @@ use super::kernels::{
     self, CLIPPED_WORDS, FrameShape, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS, Varyings, WINDOW_WORDS,
 };
 use super::mergefrag::{self, GROUP};
-use super::stats::{BatchRow, Phases, Specialisation};
+use super::stats::{BatchRow, Phases, Specialisation, TextureCacheReport};
 use super::vertex_program::{self, VertexProgram};
 use crate::compile::CompileCache;
 use crate::kernel::MachineRequirementError;
@@ -1357,7 +1357,7 @@ pub fn render_with(
     let perm_words =
         turbulence::perm_stream(turbulence::PERLIN_PERMUTATION.map(u32::from), clusters);
     let m = Memory {
-        textures: dram.buffer("textures", pp.textures.words.len().max(1) as u64)?,
+        textures: dram.read_only_buffer("textures", pp.textures.words.len().max(1) as u64)?,
         perm: dram.buffer("perm", perm_words.len() as u64)?,
         texture_words: pp.textures.words.len().max(1) as u64,
         vertices: dram.buffer("vertices", input.vertex_words.len() as u64)?,
@@ -2394,7 +2394,17 @@ fn finish_stats(
             .unwrap_or(imagine_units::dram::Policy::FirstReady),
         &imagine_units::dram::DramParams::of(desc),
     );
-    s.dram_bytes = 4 * dram_words;
+    s.texture_cache = p.texture_cache().map(|c| TextureCacheReport {
+        counts: c.stats().clone(),
+        hit_rate: c.stats().hit_rate(),
+    });
+    // Words the texture cache served never reached DRAM; its line fills did. (Texture
+    // gathers run only inside the frame, so the run's counts are the frame's.)
+    let (served, filled) = s
+        .texture_cache
+        .as_ref()
+        .map_or((0, 0), |t| (t.counts.hits, t.counts.fill_words));
+    s.dram_bytes = 4 * (dram_words - served + filled);
     s.dram_gbs = s.dram_bytes as f64 / seconds.max(1e-12) / 1e9;
     s.dram_row_hit_rate = dram.row_hit_rate;
     let srf = p.machine().srf().stats();
