@@ -1003,6 +1003,51 @@ fn render_rejects_bad_scenes_with_a_clear_error() {
     }
 }
 
+/// `render --dram-trace` writes the frame's DRAM requests, which `dram --untimed` replays
+/// with no computation: the trace moves the frame's DRAM bytes, and faster than the frame
+/// did with its computation in between (Table 5.6's trace bandwidth).
+#[test]
+fn a_frames_dram_trace_replays_faster_untimed() {
+    let dir = std::env::temp_dir().join(format!("imagine-dram-trace-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (trace, stats) = (dir.join("f.trace"), dir.join("f.json"));
+    let (trace_s, stats_s) = (trace.to_str().unwrap(), stats.to_str().unwrap());
+    let o = imagine(&[
+        "render",
+        "RATE-8",
+        "--size",
+        "32",
+        "--dram-trace",
+        trace_s,
+        "--stats",
+        stats_s,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let frame: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let frame_gbs = frame["frame"]["dram_gbs"].as_f64().unwrap();
+    let replay = |extra: &[&str]| {
+        let mut args = vec!["dram", "--trace", trace_s, "--json"];
+        args.extend(extra);
+        let o = imagine(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        json["runs"][0].clone()
+    };
+    let untimed = replay(&["--untimed"]);
+    let requests = std::fs::read_to_string(&trace).unwrap().lines().count() as u64;
+    assert!(requests > 0);
+    assert_eq!(untimed["requests"].as_u64(), Some(requests));
+    assert_eq!(
+        untimed["bytes"].as_u64(),
+        frame["frame"]["dram_bytes"].as_u64(),
+        "the trace holds the frame's DRAM words, one request each"
+    );
+    let untimed_gbs = untimed["bandwidth_gbs"].as_f64().unwrap();
+    assert!(untimed_gbs > frame_gbs, "{untimed_gbs} against {frame_gbs}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn render_writes_png_and_stats() {
     let dir = std::env::temp_dir().join(format!("imagine-render-ok-{}", std::process::id()));

@@ -56,6 +56,7 @@ use std::time::Instant;
 
 use imagine_hdl::Sim;
 use imagine_units::desc::MachineDesc;
+use imagine_units::dram::trace::TraceRequest;
 use imagine_units::dram::{DramChannel, ReplayReport};
 use imagine_units::machine::{KernelStats, StreamBinding};
 use imagine_units::processor;
@@ -129,6 +130,9 @@ pub struct Frame {
     /// The frame as a timeline in the Trace Event format (see [`timeline`]), when
     /// [`RenderOptions::timeline`] asks for it.
     pub timeline: Option<serde_json::Value>,
+    /// The DRAM requests of the frame (the clear and read-back apart) as the channels
+    /// received them, when [`RenderOptions::record_dram`] asks for them.
+    pub dram_requests: Vec<TraceRequest>,
 }
 
 /// A frame that could not be rendered.
@@ -179,6 +183,8 @@ pub struct RenderOptions {
     pub batch: Option<usize>,
     /// Build the frame's timeline ([`Frame::timeline`]).
     pub timeline: bool,
+    /// Keep the frame's DRAM requests ([`Frame::dram_requests`], `--dram-trace`).
+    pub record_dram: bool,
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
@@ -200,6 +206,7 @@ impl Default for RenderOptions {
             reverse_eval_order: false,
             batch: None,
             timeline: false,
+            record_dram: false,
         }
     }
 }
@@ -1378,6 +1385,11 @@ pub fn render_with(
     };
     let mut host = StreamHost::new(desc, lib, dram, on_start, options.max_cycles)?;
     processor::processor_mut(host.sim_mut()).set_skip_idle(!options.step_idle);
+    if options.record_dram {
+        for c in host.sim_mut().modules_of_mut::<DramChannel>() {
+            c.start_recording();
+        }
+    }
     if options.reverse_eval_order {
         host.sim_mut().reverse_eval_order();
     }
@@ -1537,6 +1549,14 @@ pub fn render_with(
     stats.host_seconds = host_start.elapsed().as_secs_f64();
     stats.simulated_cycles_per_second = read as f64 / stats.simulate_seconds.max(1e-9);
     stats.skipped_cycles = processor::processor(host.sim()).skipped_cycles();
+    // The frame's requests: those the channels received between its first and last core
+    // cycles, in DRAM cycles.
+    let dram_per_core = desc.clocks.dram_mhz as f64 / desc.clocks.core_mhz as f64;
+    let window = (cleared as f64 * dram_per_core) as u64..(rendered as f64 * dram_per_core) as u64;
+    let dram_requests = imagine_units::dram::replay::recorded(host.sim())
+        .into_iter()
+        .filter(|r| window.contains(&r.cycle))
+        .collect();
     Ok(Frame {
         width: scene.width,
         height: scene.height,
@@ -1544,6 +1564,7 @@ pub fn render_with(
         stats,
         triangles,
         timeline,
+        dram_requests,
     })
 }
 
