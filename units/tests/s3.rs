@@ -263,3 +263,24 @@ proptest! {
         prop_assert_eq!(reversed, r);
     }
 }
+
+/// The built-in game frames at K = 16 with every combination of the two features draw
+/// the in-order frame (a few seconds each; `imagine s3` checks this on every run too).
+#[test]
+#[ignore]
+fn the_builtin_game_frames_are_exact_at_sixteen_accelerators() {
+    for name in ["game-strips", "game-sky"] {
+        let p = GameParams::builtin(name).unwrap();
+        let tris = generate(&p);
+        let golden = reference_frame(&tris, p.width, p.height);
+        for (split, chain_break) in [(false, false), (true, false), (false, true), (true, true)] {
+            let mut c = config(16);
+            (c.split, c.chain_break) = (split, chain_break);
+            let r = run_ok(&c, p.width, p.height, &tris);
+            assert!(
+                r.frame == golden,
+                "{name} split={split} chain_break={chain_break}"
+            );
+        }
+    }
+}

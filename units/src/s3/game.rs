@@ -112,7 +112,9 @@ pub fn generate(p: &GameParams) -> Vec<TraceTriangle> {
     }
     for _ in 0..p.strips {
         let (sx, sy) = (rng.range(0.0, w), rng.range(0.0, h));
-        let angle = rng.range(0.0, std::f32::consts::TAU);
+        // Heading roughly toward the window's centre, so that most strips stay in view.
+        let to_centre = (h / 2.0 - sy).atan2(w / 2.0 - sx);
+        let angle = to_centre + rng.range(-1.0, 1.0);
         let (dx, dy) = (angle.cos(), angle.sin());
         let (nx, ny) = (-dy * p.strip_width / 2.0, dx * p.strip_width / 2.0);
         let level = (rng.next() % p.depth_levels as u64) as f32;

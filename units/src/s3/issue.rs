@@ -46,9 +46,9 @@ pub enum Cause {
     Issued = 1,
     /// A candidate is ready but every accelerator is busy.
     NoAccelerator = 2,
-    /// An accelerator is free but every candidate waits on a dependence.
+    /// No candidate is ready, and every one waits on a dependence.
     Dependence = 3,
-    /// An accelerator is free and some candidate waits only on conflicts (chain
+    /// No candidate is ready, and some candidate waits only on conflicts (chain
     /// breaking: an overlapping independent triangle is in flight).
     Conflict = 4,
 }
