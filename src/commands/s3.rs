@@ -247,6 +247,7 @@ fn json(c: &S3Config, r: &S3Report, base: Option<u64>) -> serde_json::Value {
         "accelerators": c.accelerators,
         "candidate_buffers": c.candidates(),
         "dest_reservation_stations": c.dest_rs(),
+        "issue_storage_bits": c.issue_storage_bits(),
         "split": c.split,
         "split_height": c.split_height,
         "chain_break": c.chain_break,

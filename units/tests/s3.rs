@@ -284,3 +284,33 @@ fn the_builtin_game_frames_are_exact_at_sixteen_accelerators() {
         }
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(16))]
+
+    /// Vertices far outside a small window (clamped boxes, huge edge values) change
+    /// nothing: exact, safe and live.
+    #[test]
+    fn far_vertices_are_clamped_and_exact(
+        v in prop::collection::vec(
+            ([(-1.0e6f32..1.0e6, -1.0e6f32..1.0e6), (-1.0e6f32..1.0e6, -1.0e6f32..1.0e6),
+              (0.0f32..32.0, 0.0f32..32.0)], 0u32..3),
+            1..8),
+        k in 1usize..5,
+        split in any::<bool>(),
+    ) {
+        let tris: Vec<TraceTriangle> = v
+            .iter()
+            .map(|(p, level)| TraceTriangle {
+                positions: p.map(|(x, y)| [x, y, 0.3 * *level as f32]),
+                colours: [[0.1 * *level as f32, 0.4, 0.9]; 3],
+                mode: Mode::Opaque,
+            })
+            .collect();
+        let mut c = config(k);
+        (c.split, c.split_height) = (split, 4);
+        let r = run(&c, 32, 32, &tris, RunOptions::default()).expect("finishes");
+        prop_assert_eq!(r.in_flight_hazards, 0);
+        prop_assert!(r.frame == reference_frame(&tris, 32, 32), "frame differs");
+    }
+}
