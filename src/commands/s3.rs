@@ -27,7 +27,7 @@ opaque and Z-buffered, depth test LESS) or a built-in generated game-like frame:
   game-sky     640×480: a 92,160-pixel sky of two triangles, then strips and particles (turok3-like)
 
 Parameters come from the machine's [s3] table (accelerators, window_per_accelerator,
-split, split_height, chain_break, select, ...); the flags below override some of them.
+split, split_height, chain_break, select, ...); the flags above override some of them.
 Every run checks its frame against in-order drawing of the trace and fails if they differ.")]
 pub struct S3Args {
     /// Triangle trace: a `.tri` file or a built-in (game-strips, game-sky)
