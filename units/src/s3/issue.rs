@@ -24,6 +24,9 @@
 //! chain of earlier unissued ones; toward blended primitives its dependences stay. The
 //! paper gives no encoding; this is the natural reading of l.265–267 (spec §1.2), and it
 //! keeps the invariant that no two overlapping primitives are ever in flight at once.
+//! (The stricter reading the spec mentions, also waiting for overlapping earlier
+//! independent primitives that have not issued, would wait for them to issue and then,
+//! by conflict, to retire: the basic model again, so it is not offered as a switch.)
 //!
 //! The retire, issue and insert decisions are made in `eval` from the committed state;
 //! `commit` applies them (the next-state logic of the large RS and candidate arrays).
