@@ -51,6 +51,9 @@ enum Command {
     /// (machine, batch, filter, flush_to_zero), each point's cycles, frames/s and error
     /// against the reference as a CSV row, and PSNR against cycles as a plot
     Sweep(commands::sweep::SweepArgs),
+    /// Run a triangle trace through the S3 superscalar out-of-order rasterizer (Wolfe &
+    /// Noonburg): triangle-level parallelism, cycles, stalls, speedup over one accelerator
+    S3(commands::s3::S3Args),
 }
 
 /// Output into a closed pipe (`imagine kernel show vertex --microcode | head -1`) ends the
@@ -78,6 +81,7 @@ fn main() -> ExitCode {
         Command::Bench(a) => commands::bench::frames(a),
         Command::Compare(a) => commands::compare::run(a),
         Command::Sweep(a) => commands::sweep::run(a),
+        Command::S3(a) => commands::s3::run_cmd(a),
     };
     match result {
         Ok(code) => code,

@@ -31,7 +31,69 @@ pub struct MachineDesc {
     /// A texture cache between memory and the SRF (thesis §6.5); none when absent.
     #[serde(default)]
     pub texture_cache: Option<TextureCacheDesc>,
+    /// The S3 superscalar rasterizer (Wolfe & Noonburg); absent means the paper's defaults.
+    #[serde(default)]
+    pub s3: S3,
 }
+
+/// The S3 superscalar out-of-order rasterizer (`units::s3`): Wolfe & Noonburg, "A
+/// Superscalar 3D Graphics Engine" (spec `s3-ellsworth-piko.md` §1.2). Every key has the
+/// paper's value as its default; where the paper gives none the default is ours, marked (A).
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields, default)]
+pub struct S3 {
+    /// Rasterizing accelerators K; the paper quotes its results at 16.
+    pub accelerators: usize,
+    /// Candidate buffers per accelerator (the issue window is this × K): 8 in Fig. 12,
+    /// swept 1, 2, 4, 8 in Fig. 13. Destination reservation stations are candidates + K
+    /// (the paper's sizing rule).
+    pub window_per_accelerator: usize,
+    /// Source-region slots per primitive (each a source reservation-station file): 0 to 2.
+    pub source_slots: usize,
+    /// Cut triangles taller than `split_height` rows into slices at fetch (§4.5).
+    pub split: bool,
+    /// Rows per slice when splitting: 32.
+    pub split_height: usize,
+    /// Dependence-chain breaking for opaque Z-buffered triangles (§4.6).
+    pub chain_break: bool,
+    /// Which ready candidate issues: `random` (l.175, from a 32-bit LFSR seeded with
+    /// `select_seed`) or `oldest` (l.128).
+    pub select: String,
+    /// Seed of the random select policy's LFSR (non-zero).
+    pub select_seed: u32,
+    /// Entries of the command queue between the host and fetch (A).
+    pub queue_entries: usize,
+    /// Cycles of triangle setup in an accelerator (A: the paper calls setup negligible
+    /// and gives no figure).
+    pub setup_cycles: u32,
+    /// Frame-buffer memory: `ideal` (multi-ported, fixed latency, 128 bits per clock per
+    /// accelerator, as simulated in the paper).
+    pub memory: String,
+    /// Cycles from an accelerator's request to the memory and from the memory back (A).
+    pub memory_latency: u32,
+}
+
+impl Default for S3 {
+    fn default() -> Self {
+        S3 {
+            accelerators: 16,
+            window_per_accelerator: 8,
+            source_slots: 1,
+            split: true,
+            split_height: 32,
+            chain_break: true,
+            select: "random".into(),
+            select_seed: 1,
+            queue_entries: 16,
+            setup_cycles: 8,
+            memory: "ideal".into(),
+            memory_latency: 1,
+        }
+    }
+}
+
+/// The select policies of [`S3::select`].
+pub const S3_SELECT: &[&str] = &["random", "oldest"];
 
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
@@ -536,6 +598,7 @@ impl MachineDesc {
             }
         }
         self.validate_memory()?;
+        self.validate_s3()?;
         let shortest = l.div.min(l.sqrt);
         if l.divsqrt_issue_interval > shortest {
             return bad(
@@ -720,6 +783,76 @@ impl MachineDesc {
                 format!(
                     "is {}, must be at most {MAX_MIN_KERNEL_CYCLES}",
                     self.stream_controller.min_kernel_cycles,
+                ),
+            );
+        }
+        Ok(())
+    }
+}
+
+impl MachineDesc {
+    fn validate_s3(&self) -> Result<(), DescError> {
+        let bad = |key, problem: String| {
+            Err(DescError::Invalid {
+                machine: self.name.clone(),
+                source: None,
+                key,
+                problem,
+            })
+        };
+        let s = &self.s3;
+        for (key, v, lo, hi) in [
+            (
+                "s3.accelerators",
+                s.accelerators,
+                1,
+                crate::limits::MAX_S3_ACCELERATORS,
+            ),
+            ("s3.window_per_accelerator", s.window_per_accelerator, 1, 64),
+            ("s3.source_slots", s.source_slots, 0, 2),
+            (
+                "s3.split_height",
+                s.split_height,
+                1,
+                crate::limits::MAX_WINDOW as usize,
+            ),
+            ("s3.queue_entries", s.queue_entries, 1, 1 << 16),
+            (
+                "s3.setup_cycles",
+                s.setup_cycles as usize,
+                1,
+                MAX_LATENCY as usize,
+            ),
+            (
+                "s3.memory_latency",
+                s.memory_latency as usize,
+                1,
+                MAX_LATENCY as usize,
+            ),
+        ] {
+            if !(lo..=hi).contains(&v) {
+                return bad(key, format!("is {v}, must be {lo}..={hi}"));
+            }
+        }
+        if !S3_SELECT.contains(&s.select.as_str()) {
+            return bad(
+                "s3.select",
+                format!("is `{}`, must be one of {}", s.select, S3_SELECT.join(", ")),
+            );
+        }
+        if s.select_seed == 0 {
+            return bad(
+                "s3.select_seed",
+                "is 0, must be non-zero (an LFSR seed)".into(),
+            );
+        }
+        if s.memory != "ideal" {
+            return bad(
+                "s3.memory",
+                format!(
+                    "is `{}`: only `ideal` is modelled (the paper's memory); the DRAM mode is \
+                     not built yet",
+                    s.memory
                 ),
             );
         }
