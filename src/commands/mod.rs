@@ -10,6 +10,7 @@ pub mod outputs;
 pub mod reference_error;
 pub mod render;
 pub mod scene;
+pub mod stress;
 pub mod sweep;
 pub mod verify;
 pub mod waves;

@@ -126,6 +126,10 @@ pub struct Frame {
     /// For every pixel (row 0 at the bottom), the triangle it shows, `None` where no
     /// fragment was drawn: the framebuffer's primitive words, read after the frame.
     pub triangles: Vec<Option<TriangleId>>,
+    /// For every pixel (row 0 at the bottom), the depth word of its framebuffer record
+    /// (fp32 bits; 1.0 where nothing was drawn), read with [`Frame::triangles`]: what the
+    /// stress suite checks for NaN and infinities, which the RGBA8 colour cannot show.
+    pub depths: Vec<u32>,
     /// The frame as a timeline in the Trace Event format (see [`timeline`]), when
     /// [`RenderOptions::timeline`] asks for it.
     pub timeline: Option<serde_json::Value>,
@@ -1490,7 +1494,14 @@ pub fn render_with(
     let read = host.cycles();
     host.finish()?;
     let simulate_seconds = sim_start.elapsed().as_secs_f64();
-    let triangles = visible_triangles(&host, desc, m.framebuffer, pixels - 1, &input, batch);
+    let records = processor::read_dram(
+        host.sim(),
+        desc,
+        host.dram.base(m.framebuffer),
+        (pixels - 1) * PIXEL_WORDS,
+    );
+    let triangles = visible_triangles(&records, &input, batch);
+    let depths = records.chunks(PIXEL_WORDS).map(|r| r[1]).collect();
 
     stats.phases = Phases {
         load_cycles: loaded,
@@ -1543,23 +1554,17 @@ pub fn render_with(
         pixels: pixels_out,
         stats,
         triangles,
+        depths,
         timeline,
     })
 }
 
-/// Which triangle each of the window's `pixels` shows: the primitive word of its
-/// framebuffer record (`baryprep` numbers primitives `first_prim + index + 1`, 0 for a
-/// pixel never drawn, and every batch spans `batch` numbers, padding included) read
-/// through the DRAM's backdoor after the frame, so that it costs no simulated cycle and
-/// leaves the read-back phase as it is.
-fn visible_triangles(
-    host: &StreamHost,
-    desc: &MachineDesc,
-    framebuffer: Buffer,
-    pixels: usize,
-    input: &Inputs,
-    batch: usize,
-) -> Vec<Option<TriangleId>> {
+/// Which triangle each pixel shows: the primitive word of its framebuffer `records`
+/// (`baryprep` numbers primitives `first_prim + index + 1`, 0 for a pixel never drawn, and
+/// every batch spans `batch` numbers, padding included), read through the DRAM's backdoor
+/// after the frame, so that it costs no simulated cycle and leaves the read-back phase as
+/// it is.
+fn visible_triangles(records: &[u32], input: &Inputs, batch: usize) -> Vec<Option<TriangleId>> {
     // Each batch's first triangle within its object.
     let mut first_triangle = Vec::with_capacity(input.batches.len());
     let mut object_triangles = vec![
@@ -1575,13 +1580,7 @@ fn visible_triangles(
         first_triangle.push(object_triangles[b.object]);
         object_triangles[b.object] += b.triangles;
     }
-    let words = processor::read_dram(
-        host.sim(),
-        desc,
-        host.dram.base(framebuffer),
-        pixels * PIXEL_WORDS,
-    );
-    words
+    records
         .chunks(PIXEL_WORDS)
         .map(|record| {
             let primitive = (record[2] as usize).checked_sub(1)?;
