@@ -1,4 +1,5 @@
-//! `imagine stress`: a subset chosen with `--filter` runs, prints a verdict per case and
+//! `imagine stress`: a subset chosen with `--filter` runs (among them the case of clip
+//! coordinates at 2^-56, which no longer vanish), prints a verdict per case and
 //! `N passed, M failed`, writes its JSON report, and exits zero only when nothing failed;
 //! `--list` names at least 30 cases; a filter that matches nothing is an error.
 
@@ -25,8 +26,10 @@ fn text(bytes: &[u8]) -> String {
 fn a_filtered_subset_reports_each_case_and_the_totals() {
     let json = Path::new(env!("CARGO_TARGET_TMPDIR")).join("stress-subset.json");
     let _ = std::fs::remove_file(&json);
-    // The invalid-input family (no render) and one rendered case that must draw nothing.
-    for (filter, cases) in [("invalid", 10), ("zero-area", 1)] {
+    // The invalid-input family (no render), a rendered case that must draw nothing, and
+    // clip space scaled by 2^-56, whose determinant underflowed fp32 before
+    // `viewport_cull` normalised each triangle's corners (nothing was drawn).
+    for (filter, cases) in [("invalid", 10), ("zero-area", 1), ("clip-scale-2^-56", 1)] {
         let o = imagine(&[
             "stress",
             "--filter",

@@ -375,7 +375,8 @@ pub fn assemble_clip(
     Ok(finish(b))
 }
 
-/// `viewport_cull`: per `clipped` record — the viewport transform to window-homogeneous
+/// `viewport_cull`: per `clipped` record — the corners scaled exactly by a power of two
+/// (their largest magnitude into [1, 2)), the viewport transform to window-homogeneous
 /// corners, the edge functions and the determinant (whose sign is the facing), culling
 /// (degenerate triangles, and back faces when the frame culls them), and the window
 /// position of each corner when every w > 0 (for the bounding box).
@@ -401,6 +402,37 @@ pub fn viewport_cull(
         .map(|_| std::array::from_fn(|_| b.read_f32(clipped)))
         .collect();
     let not_rejected = b.read_i32(clipped);
+    // The corners scaled by the power of two 2^-e that brings their largest magnitude
+    // into [1, 2): exact, and the same picture (clip space is homogeneous), but the edge
+    // functions (products of two coordinates) and the determinant (of three) then neither
+    // underflow nor overflow at any scale of clip space, which the divide by w of other
+    // OpenGLs removes and this rasterizer otherwise keeps (clip coordinates of 1e-17 had
+    // a determinant of 1e-46: zero, a degenerate triangle). The largest is held within
+    // [2^-126, 2^126] first, so that e and 2^-e are normal numbers.
+    let (v, unscale) = {
+        let largest = v
+            .iter()
+            .flatten()
+            .map(|&c| b.fabs(c))
+            .collect::<Vec<_>>()
+            .into_iter()
+            .reduce(|m, c| b.fmax(m, c))
+            .expect("nine coordinates");
+        let (tiny, huge) = (b.f32(2f32.powi(-126)), b.f32(2f32.powi(126)));
+        let largest = b.fmax(largest, tiny);
+        let largest = b.fmin(largest, huge);
+        // Biased exponent x of the largest: 2^-e has exponent field 254 - x, 2^e field x.
+        let bits = b.cast(largest, Ty::Word);
+        let field = b.i32(23);
+        let biased = b.shr(bits, field);
+        let c254 = b.i32(254);
+        let down = b.isub(c254, biased);
+        let down = b.shl(down, field);
+        let up = b.shl(biased, field);
+        let scale = b.cast(down, Ty::F32);
+        let v: Vec<[Value; 3]> = v.iter().map(|c| c.map(|x| b.fmul(x, scale))).collect();
+        (v, b.cast(up, Ty::F32))
+    };
     // Window-homogeneous corners and the edge functions.
     let hv: Vec<[Value; 3]> = v
         .iter()
@@ -528,6 +560,10 @@ pub fn viewport_cull(
         b.write(window, *w);
     }
     b.write(window, flags);
+    // `baryprep` divides the corners' (unscaled) clip z by it and `irast` multiplies the
+    // quotients by the edge values: scaled by 2^-2e like the edge functions, the product
+    // is as without the scaling.
+    let abs_det = b.fmul(abs_det, unscale);
     b.write(det_out, abs_det);
     b.end_loop();
     Ok(finish(b))

@@ -15,7 +15,7 @@ use imagine_pipelines::scene::{LoadOptions, file};
 
 use super::case::{Case, Expect, Kind, Render};
 use super::check::Bound;
-use super::window_space::{TILE_LEVEL, known};
+use super::window_space::TILE_LEVEL;
 
 /// A scene file's text; its objects' meshes replaced by `meshes` in order (as many as it
 /// has objects).
@@ -181,7 +181,7 @@ fn scaled_clip(s: f32) -> Result<Scene> {
     let p = |v: f32| v * s;
     let text = format!(
         "{ORTHO_64}[camera]\nmodelview = [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]\n\
-         projection = [{}, 0, 0, 0,  0, {}, 0, 0,  0, 0, {}, 0,  0, 0, 0, {}]\n\
+         projection = [{:e}, 0, 0, 0,  0, {:e}, 0, 0,  0, 0, {:e}, 0,  0, 0, 0, {:e}]\n\
          [[material]]\nname = \"m\"\nshader = \"unlit\"\n{}",
         p(1.0 / 32.0),
         p(1.0 / 32.0),
@@ -423,19 +423,26 @@ pub fn cases() -> Vec<Case> {
             || scaled_clip(2f32.powi(33)),
             vec![Expect::SameFrameAs(|| scaled_clip(1.0))],
         ),
-        known(
-            render(
-                "clip-scale-2^-56",
-                "clip coordinates scaled by 2^-56 (w ~ 1e-17, det ~1e-46): the unscaled frame",
-                false,
-                || scaled_clip(2f32.powi(-56)),
-                vec![Expect::SameFrameAs(|| scaled_clip(1.0))],
-            ),
-            "`viewport_cull` multiplies three clip coordinates into the determinant (products \
-             ~1e-46 here) and takes a determinant that underflows fp32 to 0 for a degenerate \
-             triangle: both triangles vanish (1781 pixels), where the divide by w of every \
-             other OpenGL removes the scale; scaling each triangle's corners by a power of \
-             two (exact) before the edge functions would fix it in the kernel; not done",
+        render(
+            "clip-scale-2^-56",
+            "clip coordinates scaled by 2^-56 (w ~ 1e-17; unnormalised, det ~1e-46 underflows): the unscaled frame",
+            false,
+            || scaled_clip(2f32.powi(-56)),
+            vec![Expect::SameFrameAs(|| scaled_clip(1.0))],
+        ),
+        render(
+            "clip-scale-2^-100",
+            "clip coordinates scaled by 2^-100 (w ~ 1e-30): the unscaled frame",
+            false,
+            || scaled_clip(2f32.powi(-100)),
+            vec![Expect::SameFrameAs(|| scaled_clip(1.0))],
+        ),
+        render(
+            "clip-scale-2^100",
+            "clip coordinates scaled by 2^100 (w ~ 1e30; unnormalised, edge products overflow): the unscaled frame",
+            false,
+            || scaled_clip(2f32.powi(100)),
+            vec![Expect::SameFrameAs(|| scaled_clip(1.0))],
         ),
         render(
             "subnormal-texcoords",
