@@ -364,7 +364,26 @@ fn kernels_a_small_microcode_store_evicts_are_loaded_again() {
     let want = render_with(&scene, &desc, cached(), None, |_, _| {}).unwrap();
     let got = render_with(&scene, &small, cached(), None, |_, _| {}).unwrap();
     assert_eq!(got.pixels, want.pixels);
-    assert!(got.stats.cycles > want.stats.cycles, "reloads cost cycles");
+    // The reloads are waited on (the frame's total need not grow: on gold8 the reloads
+    // shift the kernels against the memory system, and the frame came out 1 % shorter
+    // once `assemble_clip` grew).
+    let waited =
+        |f: &imagine_pipelines::opengl::render::Frame| f.stats.attribution.waiting_microcode_load;
+    println!(
+        "400-word store: {} cycles, {} waiting on microcode loads; gold8: {} and {}",
+        got.stats.cycles,
+        waited(&got),
+        want.stats.cycles,
+        waited(&want)
+    );
+    assert!(
+        waited(&got) > waited(&want),
+        "reloads are waited on: {} cycles against {} ({} and {} cycles in all)",
+        waited(&got),
+        waited(&want),
+        got.stats.cycles,
+        want.stats.cycles
+    );
 }
 
 /// Everything a frame reports but the host's own timings and cache use.

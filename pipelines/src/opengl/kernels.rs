@@ -264,7 +264,9 @@ pub const WINDOW_WORDS: usize = 14;
 /// `(3c + k) mod C`; since 3 is invertible modulo `C`, the map from `c` to that cluster is
 /// a permutation, so each corner word is one comm (the sender picks the row its receiver
 /// needs). Trivial reject: all three corners outside one of the six clip planes (what is
-/// left is rasterized homogeneously, with no clipping).
+/// left is rasterized homogeneously, with no clipping). The corners then go out scaled by
+/// a power of two for the triangle that brings the largest x, y or w near 1 (exact; it
+/// keeps the rasterizer's products within fp32's range at any scale of clip space).
 ///
 /// Outputs per triangle: `clipped` ([`CLIPPED_WORDS`]) and `attribs` ([`ATTRIB_WORDS`]).
 ///
@@ -352,6 +354,48 @@ pub fn assemble_clip(
         let f = flag(&mut b, outside);
         b.xor(f, one)
     };
+    // The corners' x, y, z, w scaled by one power of two for the triangle, 2^-k with k
+    // half the exponent of the largest square of an x, y or w: their largest magnitude
+    // then lies in [1, 2) (up to the square's rounding). Exact, and the same triangle (clip space is
+    // homogeneous; `irast`'s depth Σ E·(z/det) has z scaling once, the edge functions E
+    // twice and the determinant three times), but `viewport_cull`'s edge functions
+    // (products of two coordinates) and determinant (of three) then neither underflow
+    // nor overflow at any scale of clip space, which the divide by w of other OpenGLs
+    // removes and a homogeneous rasterizer otherwise keeps: clip coordinates of 1e-17
+    // had a determinant of 1e-46, zero, and the triangle was dropped as degenerate. The
+    // squares go to the multipliers, which this kernel leaves idle; a square that
+    // overflows or underflows still gives a scale within [2^-64, 2^64].
+    let v: Vec<Vec<Value>> = {
+        let largest = v
+            .iter()
+            .flat_map(|c| [c[0], c[1], c[3]])
+            .collect::<Vec<_>>()
+            .into_iter()
+            .map(|x| b.fmul(x, x))
+            .collect::<Vec<_>>()
+            .into_iter()
+            .reduce(|m, q| b.fmax(m, q))
+            .expect("nine coordinates");
+        // With e the square's biased exponent, 2^-k has the exponent field
+        // 127 - ⌊(e - 127) / 2⌋ = ⌊(382 - e) / 2⌋.
+        let bits = b.cast(largest, Ty::Word);
+        let field = b.i32(23);
+        let e = b.shr(bits, field);
+        let c382 = b.i32(382);
+        let down = b.isub(c382, e);
+        let down = b.shr(down, one);
+        let down = b.shl(down, field);
+        let scale = b.cast(down, Ty::F32);
+        v.iter()
+            .map(|c| {
+                let mut c = c.clone();
+                for x in &mut c[..4] {
+                    *x = b.fmul(*x, scale);
+                }
+                c
+            })
+            .collect()
+    };
     for c in &v {
         for w in [c[0], c[1], c[3]] {
             b.write(clipped, w);
@@ -375,8 +419,7 @@ pub fn assemble_clip(
     Ok(finish(b))
 }
 
-/// `viewport_cull`: per `clipped` record — the corners scaled exactly by a power of two
-/// (their largest magnitude into [1, 2)), the viewport transform to window-homogeneous
+/// `viewport_cull`: per `clipped` record — the viewport transform to window-homogeneous
 /// corners, the edge functions and the determinant (whose sign is the facing), culling
 /// (degenerate triangles, and back faces when the frame culls them), and the window
 /// position of each corner when every w > 0 (for the bounding box).
@@ -402,37 +445,6 @@ pub fn viewport_cull(
         .map(|_| std::array::from_fn(|_| b.read_f32(clipped)))
         .collect();
     let not_rejected = b.read_i32(clipped);
-    // The corners scaled by the power of two 2^-e that brings their largest magnitude
-    // into [1, 2): exact, and the same picture (clip space is homogeneous), but the edge
-    // functions (products of two coordinates) and the determinant (of three) then neither
-    // underflow nor overflow at any scale of clip space, which the divide by w of other
-    // OpenGLs removes and this rasterizer otherwise keeps (clip coordinates of 1e-17 had
-    // a determinant of 1e-46: zero, a degenerate triangle). The largest is held within
-    // [2^-126, 2^126] first, so that e and 2^-e are normal numbers.
-    let (v, unscale) = {
-        let largest = v
-            .iter()
-            .flatten()
-            .map(|&c| b.fabs(c))
-            .collect::<Vec<_>>()
-            .into_iter()
-            .reduce(|m, c| b.fmax(m, c))
-            .expect("nine coordinates");
-        let (tiny, huge) = (b.f32(2f32.powi(-126)), b.f32(2f32.powi(126)));
-        let largest = b.fmax(largest, tiny);
-        let largest = b.fmin(largest, huge);
-        // Biased exponent x of the largest: 2^-e has exponent field 254 - x, 2^e field x.
-        let bits = b.cast(largest, Ty::Word);
-        let field = b.i32(23);
-        let biased = b.shr(bits, field);
-        let c254 = b.i32(254);
-        let down = b.isub(c254, biased);
-        let down = b.shl(down, field);
-        let up = b.shl(biased, field);
-        let scale = b.cast(down, Ty::F32);
-        let v: Vec<[Value; 3]> = v.iter().map(|c| c.map(|x| b.fmul(x, scale))).collect();
-        (v, b.cast(up, Ty::F32))
-    };
     // Window-homogeneous corners and the edge functions.
     let hv: Vec<[Value; 3]> = v
         .iter()
@@ -560,10 +572,6 @@ pub fn viewport_cull(
         b.write(window, *w);
     }
     b.write(window, flags);
-    // `baryprep` divides the corners' (unscaled) clip z by it and `irast` multiplies the
-    // quotients by the edge values: scaled by 2^-2e like the edge functions, the product
-    // is as without the scaling.
-    let abs_det = b.fmul(abs_det, unscale);
     b.write(det_out, abs_det);
     b.end_loop();
     Ok(finish(b))
