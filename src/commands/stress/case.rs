@@ -126,36 +126,6 @@ fn render(scene: &Scene, desc: &MachineDesc, cache: &CompileCache) -> Result<Fra
     render_with(scene, desc, options, None, |_, _| {}).map_err(|e| format!("render failed: {e}"))
 }
 
-/// The same pixels, depths and visible triangles (the cycles may differ).
-fn same_image(a: &Frame, b: &Frame) -> Result<(), String> {
-    let first = |x: &[u32], y: &[u32]| x.iter().zip(y).position(|(p, q)| p != q);
-    let at = |i: usize| (i % a.width as usize, i / a.width as usize);
-    if let Some(i) = first(&a.pixels, &b.pixels) {
-        let n = a
-            .pixels
-            .iter()
-            .zip(&b.pixels)
-            .filter(|(p, q)| p != q)
-            .count();
-        return Err(format!("{n} pixels differ, the first {:?}", at(i)));
-    }
-    if let Some(i) = first(&a.depths, &b.depths) {
-        return Err(format!("depths differ, the first at {:?}", at(i)));
-    }
-    if let Some(i) = a
-        .triangles
-        .iter()
-        .zip(&b.triangles)
-        .position(|(p, q)| p != q)
-    {
-        return Err(format!(
-            "visible triangles differ, the first at {:?}",
-            at(i)
-        ));
-    }
-    Ok(())
-}
-
 fn run_render(r: &Render, cache: &CompileCache) -> Result<Measured, Measured> {
     let mut measured = Measured::said("");
     let fail = |m: &Measured, reason: String| Measured {
@@ -223,7 +193,7 @@ fn run_render(r: &Render, cache: &CompileCache) -> Result<Measured, Measured> {
             Expect::SameFrameAs(other) => {
                 let other = other().map_err(|e| fail(&measured, format!("scene: {e:#}")))?;
                 let b = render(&other, &desc, cache).map_err(|e| fail(&measured, e))?;
-                same_image(&frame, &b).map_err(|e| fail(&measured, e))?;
+                check::same_image(&frame, &b).map_err(|e| fail(&measured, e))?;
                 said.push(format!("the same frame as `{}`", other.name));
             }
             Expect::OnlyColours(colours) => {
@@ -234,7 +204,7 @@ fn run_render(r: &Render, cache: &CompileCache) -> Result<Measured, Measured> {
                 let mut other = desc.clone();
                 other.arithmetic.flush_to_zero = !r.flush_to_zero;
                 let b = render(&scene, &other, cache).map_err(|e| fail(&measured, e))?;
-                same_image(&frame, &b).map_err(|e| {
+                check::same_image(&frame, &b).map_err(|e| {
                     let ftz = if r.flush_to_zero { "off" } else { "on" };
                     fail(&measured, format!("with flush-to-zero {ftz}: {e}"))
                 })?;
