@@ -11,6 +11,7 @@ pub mod reference_error;
 pub mod render;
 pub mod s3;
 pub mod scene;
+pub mod stress;
 pub mod sweep;
 pub mod verify;
 pub mod waves;

@@ -127,6 +127,10 @@ pub struct Frame {
     /// For every pixel (row 0 at the bottom), the triangle it shows, `None` where no
     /// fragment was drawn: the framebuffer's primitive words, read after the frame.
     pub triangles: Vec<Option<TriangleId>>,
+    /// For every pixel (row 0 at the bottom), the depth word of its framebuffer record
+    /// (fp32 bits; 1.0 where nothing was drawn), read with [`Frame::triangles`]: what the
+    /// stress suite checks for NaN and infinities, which the RGBA8 colour cannot show.
+    pub depths: Vec<u32>,
     /// The frame as a timeline in the Trace Event format (see [`timeline`]), when
     /// [`RenderOptions::timeline`] asks for it.
     pub timeline: Option<serde_json::Value>,
@@ -603,7 +607,10 @@ fn register_kernels(
         .collect();
     // Built in pipeline order, so that a machine shape none of them can serve is named by
     // the first kernel a frame needs.
-    let assemble_clip = lib.register("assemble_clip", kernels::assemble_clip(desc, varyings)?);
+    let assemble_clip = lib.register(
+        "assemble_clip",
+        kernels::assemble_clip(desc, varyings, pp.normalise_clip)?,
+    );
     let viewport_cull = lib.register("viewport_cull", kernels::viewport_cull(desc, shape)?);
     let baryprep = lib.register("baryprep", kernels::baryprep(desc, varyings)?);
     let xyprep = lib.register("xyprep", kernels::xyprep(desc, shape)?);
@@ -963,6 +970,9 @@ pub struct PipelinePlan {
     pub fragment_programs: Vec<Option<FragmentProgram>>,
     /// Where the textures lie in DRAM.
     pub textures: TextureMemory,
+    /// Whether `assemble_clip` normalises each triangle's clip corners
+    /// (`pipeline.normalise_clip`).
+    pub normalise_clip: bool,
 }
 
 impl PipelinePlan {
@@ -1289,6 +1299,7 @@ pub fn plan_pipeline(
         varyings,
         fragment_programs,
         textures,
+        normalise_clip: scene.pipeline.normalise_clip,
     })
 }
 
@@ -1502,7 +1513,14 @@ pub fn render_with(
     let read = host.cycles();
     host.finish()?;
     let simulate_seconds = sim_start.elapsed().as_secs_f64();
-    let triangles = visible_triangles(&host, desc, m.framebuffer, pixels - 1, &input, batch);
+    let records = processor::read_dram(
+        host.sim(),
+        desc,
+        host.dram.base(m.framebuffer),
+        (pixels - 1) * PIXEL_WORDS,
+    );
+    let triangles = visible_triangles(&records, &input, batch);
+    let depths = records.chunks(PIXEL_WORDS).map(|r| r[1]).collect();
 
     stats.phases = Phases {
         load_cycles: loaded,
@@ -1563,24 +1581,18 @@ pub fn render_with(
         pixels: pixels_out,
         stats,
         triangles,
+        depths,
         timeline,
         dram_requests,
     })
 }
 
-/// Which triangle each of the window's `pixels` shows: the primitive word of its
-/// framebuffer record (`baryprep` numbers primitives `first_prim + index + 1`, 0 for a
-/// pixel never drawn, and every batch spans `batch` numbers, padding included) read
-/// through the DRAM's backdoor after the frame, so that it costs no simulated cycle and
-/// leaves the read-back phase as it is.
-fn visible_triangles(
-    host: &StreamHost,
-    desc: &MachineDesc,
-    framebuffer: Buffer,
-    pixels: usize,
-    input: &Inputs,
-    batch: usize,
-) -> Vec<Option<TriangleId>> {
+/// Which triangle each pixel shows: the primitive word of its framebuffer `records`
+/// (`baryprep` numbers primitives `first_prim + index + 1`, 0 for a pixel never drawn, and
+/// every batch spans `batch` numbers, padding included), read through the DRAM's backdoor
+/// after the frame, so that it costs no simulated cycle and leaves the read-back phase as
+/// it is.
+fn visible_triangles(records: &[u32], input: &Inputs, batch: usize) -> Vec<Option<TriangleId>> {
     // Each batch's first triangle within its object.
     let mut first_triangle = Vec::with_capacity(input.batches.len());
     let mut object_triangles = vec![
@@ -1596,13 +1608,7 @@ fn visible_triangles(
         first_triangle.push(object_triangles[b.object]);
         object_triangles[b.object] += b.triangles;
     }
-    let words = processor::read_dram(
-        host.sim(),
-        desc,
-        host.dram.base(framebuffer),
-        pixels * PIXEL_WORDS,
-    );
-    words
+    records
         .chunks(PIXEL_WORDS)
         .map(|record| {
             let primitive = (record[2] as usize).checked_sub(1)?;
