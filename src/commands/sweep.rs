@@ -204,8 +204,8 @@ fn point_key(scene_hash: &blake3::Hash, size: Option<u32>, setup: &Setup) -> Str
     h.update(scene_hash.as_bytes());
     h.update(
         format!(
-            "{size:?}\n{:?}\n{:?}\n{:?}",
-            setup.machine, setup.batch, setup.filter
+            "{size:?}\n{:?}\n{:?}\n{:?}\n{:?}",
+            setup.machine, setup.batch, setup.filter, setup.normalise_clip
         )
         .as_bytes(),
     );
@@ -558,7 +558,10 @@ fn render_point(
     load_options: &(dyn Fn(Option<Filter>) -> LoadOptions + Sync),
 ) -> Result<PointResult> {
     let start = Instant::now();
-    let scene = scene::load(&a.scene, &load_options(point.setup.filter))?;
+    let mut scene = scene::load(&a.scene, &load_options(point.setup.filter))?;
+    if let Some(on) = point.setup.normalise_clip {
+        scene.pipeline.normalise_clip = on;
+    }
     let options = RenderOptions {
         cache: CompileCache::from_env(),
         batch: point.setup.batch,
