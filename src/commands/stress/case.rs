@@ -72,6 +72,37 @@ pub struct Case {
     pub known_failure: Option<&'static str>,
 }
 
+impl Case {
+    /// A rendered case of `family`: `scene` built and rendered on the suite's machine, with
+    /// flush-to-zero as given, held to `expect` besides the common properties.
+    pub fn render(
+        family: &'static str,
+        name: &'static str,
+        about: &'static str,
+        flush_to_zero: bool,
+        scene: impl Fn() -> Result<Scene> + Send + Sync + 'static,
+        expect: Vec<Expect>,
+    ) -> Case {
+        Case {
+            name,
+            family,
+            about,
+            kind: Kind::Render(Render {
+                scene: Box::new(scene),
+                flush_to_zero,
+                expect,
+            }),
+            known_failure: None,
+        }
+    }
+
+    /// The case marked as a known failure for `why`.
+    pub fn known(mut self, why: &'static str) -> Case {
+        self.known_failure = Some(why);
+        self
+    }
+}
+
 /// What a case measured: its verdict's reason, and for a rendered case its cycles and the
 /// error against the reference where it was measured.
 #[derive(Clone, Debug, Serialize)]

@@ -9,7 +9,7 @@ use imagine_pipelines::scene::bpt::{self, Basis, Patch};
 use imagine_pipelines::scene::model::{Blend, DepthTest, Mesh, Scene};
 use imagine_pipelines::scene::obj;
 
-use super::case::{Case, Expect, Kind, Render};
+use super::case::{Case, Expect};
 use super::check::Bound;
 use super::window_space::TILE_LEVEL;
 use super::world_space::{grid, scene};
@@ -111,17 +111,7 @@ fn render(
     scene: impl Fn() -> Result<Scene> + Send + Sync + 'static,
     expect: Vec<Expect>,
 ) -> Case {
-    Case {
-        name,
-        family: "degenerate",
-        about,
-        kind: Kind::Render(Render {
-            scene: Box::new(scene),
-            flush_to_zero: false,
-            expect,
-        }),
-        known_failure: None,
-    }
+    Case::render("degenerate", name, about, false, scene, expect)
 }
 
 pub fn cases() -> Vec<Case> {

@@ -12,7 +12,7 @@ use imagine_pipelines::scene::model::{Blend, DepthTest, Scene};
 use imagine_pipelines::scene::{self as scenes, window_scene};
 use imagine_verif::stress;
 
-use super::case::{Case, Expect, Kind, Render};
+use super::case::{Case, Expect};
 use super::check::Bound;
 
 /// A `.tri` file's text as a scene.
@@ -43,17 +43,7 @@ fn render(
     scene: impl Fn() -> Result<Scene> + Send + Sync + 'static,
     expect: Vec<Expect>,
 ) -> Case {
-    Case {
-        name,
-        family: "window",
-        about,
-        kind: Kind::Render(Render {
-            scene: Box::new(scene),
-            flush_to_zero: false,
-            expect,
-        }),
-        known_failure: None,
-    }
+    Case::render("window", name, about, false, scene, expect)
 }
 
 /// Rectangles with their corners on pixel centres, two triangles each (one diagonal
@@ -294,7 +284,6 @@ const NPOT_TILING: &str = "with 2/W inexact, vertices on half pixels land a roun
     window coordinates: sub-pixel snapping) make float-free tiling certain; not done";
 
 /// `case` marked as a known failure for `why`.
-pub fn known(mut case: Case, why: &'static str) -> Case {
-    case.known_failure = Some(why);
-    case
+fn known(case: Case, why: &'static str) -> Case {
+    case.known(why)
 }

@@ -13,9 +13,9 @@ use anyhow::{Result, anyhow};
 use imagine_pipelines::scene::model::{Blend, DepthTest, Mesh, Scene};
 use imagine_pipelines::scene::{LoadOptions, file};
 
-use super::case::{Case, Expect, Kind, Render};
+use super::case::{Case, Expect};
 use super::check::Bound;
-use super::window_space::{TILE_LEVEL, known};
+use super::window_space::TILE_LEVEL;
 
 /// A scene file's text; its objects' meshes replaced by `meshes` in order (as many as it
 /// has objects).
@@ -135,17 +135,7 @@ fn render(
     scene: impl Fn() -> Result<Scene> + Send + Sync + 'static,
     expect: Vec<Expect>,
 ) -> Case {
-    Case {
-        name,
-        family: "world",
-        about,
-        kind: Kind::Render(Render {
-            scene: Box::new(scene),
-            flush_to_zero,
-            expect,
-        }),
-        known_failure: None,
-    }
+    Case::render("world", name, about, flush_to_zero, scene, expect)
 }
 
 /// Triangles at subnormal fp32 coordinates (below 1.18e-38) seen through an orthographic
@@ -443,16 +433,14 @@ pub fn cases() -> Vec<Case> {
             || normalised_clip(2f32.powi(-56)),
             vec![Expect::SameFrameAs(|| scaled_clip(1.0))],
         ),
-        known(
-            render(
-                "clip-scale-2^-56-unnormalised",
-                "the same with normalise_clip off (the default): the unscaled frame",
-                false,
-                || scaled_clip(2f32.powi(-56)),
-                vec![Expect::SameFrameAs(|| scaled_clip(1.0))],
-            ),
-            UNNORMALISED,
-        ),
+        render(
+            "clip-scale-2^-56-unnormalised",
+            "the same with normalise_clip off (the default): the unscaled frame",
+            false,
+            || scaled_clip(2f32.powi(-56)),
+            vec![Expect::SameFrameAs(|| scaled_clip(1.0))],
+        )
+        .known(UNNORMALISED),
         render(
             "clip-scale-2^-100",
             "clip coordinates scaled by 2^-100 (w ~ 1e-30), normalise_clip on: the unscaled frame",
