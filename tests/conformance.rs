@@ -199,3 +199,23 @@ fn blend_alpha() {
 fn blend_add() {
     check_with("spot-add-blend.toml", MIN_TEXTURED_PSNR_DB);
 }
+
+/// A textured floor through the eye plane: its two triangles have corners behind the eye
+/// (w < 0) and are clipped at the near plane; Spot stands on it, lit and textured.
+#[test]
+fn extreme_floor_through_eye_plane() {
+    check_with("floor-through-eye-plane.toml", MIN_TEXTURED_PSNR_DB);
+}
+
+/// Near and far planes 1e-3 and 1e6: the depths of the whole scene within 2e-4 of 1.
+#[test]
+fn extreme_near_far_ratio() {
+    check("near-far-extreme.toml");
+}
+
+/// The teapot's patches diced 3 × 3 into stitched strips: a quarter of the triangles, and
+/// more at the collapsed corners, have zero area.
+#[test]
+fn extreme_degenerate_faces() {
+    check("teapot-patches-degenerate.toml");
+}

@@ -54,6 +54,11 @@ fn pipeline_kernels_compile_on(name: &str) {
     let textured = Varyings {
         extras: 2,
         derivatives: true,
+        reference_depth: false,
+    };
+    let with_reference_depth = Varyings {
+        reference_depth: true,
+        ..Varyings::default()
     };
 
     let lit8_passes = lit8.passes(&desc);
@@ -72,11 +77,14 @@ fn pipeline_kernels_compile_on(name: &str) {
         kernels::clear(&desc).unwrap(),
         kernels::assemble_clip(&desc, Varyings::default(), false).unwrap(),
         kernels::assemble_clip(&desc, Varyings::default(), true).unwrap(),
+        kernels::assemble_clip(&desc, with_reference_depth, false).unwrap(),
         kernels::viewport_cull(&desc, shape).unwrap(),
         kernels::xyprep(&desc, shape).unwrap(),
         kernels::baryprep(&desc, Varyings::default()).unwrap(),
+        kernels::baryprep(&desc, with_reference_depth).unwrap(),
         kernels::xyrast(&desc, shape).unwrap(),
         kernels::irast(&desc, Varyings::default()).unwrap(),
+        kernels::irast(&desc, with_reference_depth).unwrap(),
         // A textured frame's (texture coordinates and their derivatives).
         kernels::baryprep(&desc, textured).unwrap(),
         kernels::irast(&desc, textured).unwrap(),
@@ -312,8 +320,17 @@ fn run_checked(
 fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
     use imagine_pipelines::kernel::KernelInputs;
     // gold8's frame normalises its clip corners (`pipeline.normalise_clip`), the others'
-    // pass them on as they are.
-    for (name, normalise) in [("gold1", false), ("gold8", true), ("gold32", false)] {
+    // pass them on as they are; gold1's and gold8's interpolate depth from each triangle's
+    // reference depth (`pipeline.reference_depth`), gold32's from 0.
+    for (name, normalise, reference_depth) in [
+        ("gold1", false, true),
+        ("gold8", true, true),
+        ("gold32", false, false),
+    ] {
+        let varyings = Varyings {
+            reference_depth,
+            ..Varyings::default()
+        };
         let desc = MachineDesc::resolve(name).unwrap();
         let c = desc.cluster.count;
         let scene = imagine_pipelines::scene::sphere(3, 128);
@@ -344,7 +361,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             })
             .collect();
         let assembled = run_checked(
-            &kernels::assemble_clip(&desc, Varyings::default(), normalise).unwrap(),
+            &kernels::assemble_clip(&desc, varyings, normalise).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![records_to_stream(&vertices, c), vec![], vec![]],
@@ -352,7 +369,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             },
         );
         let clipped = stream_to_records(&assembled[1], kernels::CLIPPED_WORDS, c);
-        let attribs = stream_to_records(&assembled[2], kernels::ATTRIB_WORDS, c);
+        let attribs = stream_to_records(&assembled[2], varyings.attrib_words(), c);
         assert_eq!((clipped.len(), attribs.len()), (tris, tris), "{name}");
         for t in 0..tris {
             let corner = |k: usize| &vertices[3 * t + k];
@@ -380,11 +397,27 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
                 !normalise || (0.99..2.0).contains(&biggest),
                 "{name}: {biggest}"
             );
-            let z: Vec<u32> = (0..3).map(|k| scaled(corner(k)[2])).collect();
+            // With a reference depth, ζ (corner 0's z/w within [-1, 1]) and each corner's
+            // z − ζ·w (fp32, rounded after the multiply and after the subtract); without,
+            // each corner's z.
+            let f = |w: u32| f32::from_bits(scaled(w));
+            let depths: Vec<u32> = if reference_depth {
+                let zeta = (f(corner(0)[2]) / f(corner(0)[3])).clamp(-1.0, 1.0);
+                std::iter::once(zeta.to_bits())
+                    .chain((0..3).map(|k| (f(corner(k)[2]) - zeta * f(corner(k)[3])).to_bits()))
+                    .collect()
+            } else {
+                (0..3).map(|k| scaled(corner(k)[2])).collect()
+            };
+            let depth = varyings.depth_words();
             let colours: Vec<u32> = (0..3).flat_map(|k| corner(k)[4..7].to_vec()).collect();
-            assert_eq!(attribs[t][..3], z[..], "{name}: triangle {t}'s depths");
             assert_eq!(
-                attribs[t][3..],
+                attribs[t][..depth],
+                depths[..],
+                "{name}: triangle {t}'s depths"
+            );
+            assert_eq!(
+                attribs[t][depth..],
                 colours[..],
                 "{name}: triangle {t}'s colours"
             );
@@ -407,19 +440,30 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             "{name}: {kept} of {tris} triangles face the eye"
         );
         let bary = run_checked(
-            &kernels::baryprep(&desc, Varyings::default()).unwrap(),
+            &kernels::baryprep(&desc, varyings).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![assembled[2].clone(), viewed[2].clone(), vec![]],
                 params: vec![1000],
             },
         );
-        let interp = stream_to_records(&bary[2], kernels::INTERP_WORDS, c);
+        let interp = stream_to_records(&bary[2], varyings.interp_words(), c);
+        let depth = varyings.depth_words();
         for (t, rec) in interp.iter().enumerate() {
-            assert_eq!(rec[12], 1001 + t as u32, "{name}: triangle {t}'s primitive");
             assert_eq!(
-                rec[3..12],
-                attribs[t][3..],
+                rec[varyings.prim_at()],
+                1001 + t as u32,
+                "{name}: triangle {t}'s primitive"
+            );
+            if reference_depth {
+                assert_eq!(
+                    rec[0], attribs[t][0],
+                    "{name}: triangle {t}'s reference depth"
+                );
+            }
+            assert_eq!(
+                rec[depth..varyings.prim_at()],
+                attribs[t][depth..],
                 "{name}: triangle {t}'s colours"
             );
         }

@@ -47,7 +47,8 @@ pub struct SweepArgs {
     scene: String,
     /// A knob and its values, NAME=V1,V2,…: machine (a built-in name or a TOML file),
     /// batch (triangles per batch), filter (nearest, bilinear, trilinear: every texture's),
-    /// flush_to_zero (true, false); repeat for a grid of every combination
+    /// flush_to_zero, normalise_clip and reference_depth (true, false: the machine's
+    /// arithmetic and the scene's pipeline settings); repeat for a grid of every combination
     #[arg(long = "knob", value_name = "NAME=V1,V2,…", required = true)]
     knobs: Vec<String>,
     /// The CSV to write, one row per point in grid order; finished points are kept in
@@ -200,12 +201,12 @@ fn scene_content_hash(name_or_path: &str) -> Result<blake3::Hash> {
 /// A point's key: every input that decides its frame and cycles.
 fn point_key(scene_hash: &blake3::Hash, size: Option<u32>, setup: &Setup) -> String {
     let mut h = blake3::Hasher::new();
-    h.update(b"imagine sweep point 3\n");
+    h.update(b"imagine sweep point 4\n");
     h.update(scene_hash.as_bytes());
     h.update(
         format!(
-            "{size:?}\n{:?}\n{:?}\n{:?}\n{:?}",
-            setup.machine, setup.batch, setup.filter, setup.normalise_clip
+            "{size:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{:?}",
+            setup.machine, setup.batch, setup.filter, setup.normalise_clip, setup.reference_depth
         )
         .as_bytes(),
     );
@@ -561,6 +562,9 @@ fn render_point(
     let mut scene = scene::load(&a.scene, &load_options(point.setup.filter))?;
     if let Some(on) = point.setup.normalise_clip {
         scene.pipeline.normalise_clip = on;
+    }
+    if let Some(on) = point.setup.reference_depth {
+        scene.pipeline.reference_depth = on;
     }
     let options = RenderOptions {
         cache: CompileCache::from_env(),

@@ -835,6 +835,7 @@ mod tests {
                 stop_length: 1.5,
                 batch: None,
                 normalise_clip: false,
+                reference_depth: false,
             },
             lights: Vec::new(),
             textures: Vec::new(),

@@ -28,9 +28,22 @@
 //! `det = v_0·(v_1 × v_2)`; `det > 0` is front-facing. After flipping the signs of
 //! clockwise triangles, a pixel is covered when every `E_i > 0`, or `E_i = 0` on a top or
 //! left edge (`A > 0`, or `A = 0` and `B < 0`, for `E = A·X + B·Y + C`). The perspective-
-//! correct barycentrics are `λ_i = E_i / ΣE` and the depth is `z_ndc = Σ E_i·z_i / |det|`:
-//! no divide by w per vertex, and triangles that cross w = 0 need no clipping. Fragments
-//! outside depth [0, 1] are discarded (near and far clipping).
+//! correct barycentrics are `λ_i = E_i / ΣE` and the depth is
+//! `z_ndc = ζ + Σ E_i·(z_i − ζ·w_i) / |det|` for any `ζ` (as `Σ E_i·w_i = |det|`, it is
+//! `Σ E_i·z_i / |det|`): no divide by w per vertex, and triangles that cross w = 0 need no
+//! clipping. Fragments outside depth [0, 1] are discarded (near and far clipping).
+//! With the scene's `pipeline.reference_depth`, `assemble_clip` takes the triangle's own
+//! depth for `ζ`, corner 0's `z_0/w_0` clamped to [−1, 1]; without it, `ζ = 0` (and no
+//! word carries it). Why: the rounding of the edge functions, which grows as a triangle
+//! turns edge-on, is multiplied by what is interpolated — with `ζ = 0` by `z_i`, which is
+//! about `w_i` wherever far/near is large (near 1e-3 and far 1e6 pushed 0.8 % of a lit
+//! mesh's pixels, along its silhouettes, past depth 1), with the triangle's own `ζ` by the
+//! depth differences across the triangle, small at any depth range. It costs 5 adder ops
+//! in `assemble_clip` (the clamp and the subtracts) and a word of the `attribs` and
+//! interpolation records, which every fragment gathers (SPHERE 0.9 %, VERONA 3.3 % more
+//! cycles), so it is the scene's choice, off by default. (Taking `ζ = 1`, the far plane,
+//! for no ops and no word, fixed that case but lost 2.3 dB on ADVS-8, whose depths fill
+//! [−1, 1].)
 //!
 //! **Layouts.** Multi-word records in the SRF are in the cluster-row layout the kernels
 //! read (see [`crate::kernel`]); conditional outputs are one-word streams. Vertices are in
@@ -66,7 +79,8 @@ pub const RASTER_WORDS: usize = 12;
 const LO: u16 = 0;
 const HI: u16 = 1;
 const TAG: u16 = 2;
-/// Words of an interpolation record: z_k / |det| (3), r, g, b per corner (9), primitive.
+/// Words of an interpolation record without a reference depth: z_k / |det| (3), r, g, b per
+/// corner (9), primitive (see [`Varyings::interp_words`]).
 pub const INTERP_WORDS: usize = 13;
 /// Words of a framebuffer pixel in DRAM (gathered and written back whole): colour, depth,
 /// primitive.
@@ -129,6 +143,9 @@ pub fn in_primitive_order(blend: Blend) -> bool {
 pub struct Varyings {
     pub extras: usize,
     pub derivatives: bool,
+    /// Whether each triangle's records carry its reference depth ζ (the scene's
+    /// `pipeline.reference_depth`; see the module notes).
+    pub reference_depth: bool,
 }
 
 impl Varyings {
@@ -142,16 +159,36 @@ impl Varyings {
         SHADED_WORDS + self.extras
     }
 
-    /// Words of an `attribs` record: [`ATTRIB_WORDS`], then the extras of each corner.
+    /// Words of an `attribs` record: ζ if the frame has it, [`ATTRIB_WORDS`], then the
+    /// extras of each corner.
     pub fn attrib_words(self) -> usize {
-        ATTRIB_WORDS + 3 * self.extras
+        usize::from(self.reference_depth) + ATTRIB_WORDS + 3 * self.extras
     }
 
-    /// Words of an interpolation record: [`INTERP_WORDS`], then the extras of each corner,
+    /// Words of an interpolation record before its colours: ζ if the frame has it, then
+    /// the three corners' depths.
+    pub fn depth_words(self) -> usize {
+        usize::from(self.reference_depth) + 3
+    }
+
+    /// Where an interpolation record's extras start: after ζ if the frame has it and the
+    /// [`INTERP_WORDS`].
+    pub fn extras_at(self) -> usize {
+        usize::from(self.reference_depth) + INTERP_WORDS
+    }
+
+    /// Where an interpolation record's primitive number is (its last word before the
+    /// extras).
+    pub fn prim_at(self) -> usize {
+        self.extras_at() - 1
+    }
+
+    /// Words of an interpolation record: ζ if the frame has it, [`INTERP_WORDS`], then the
+    /// extras of each corner,
     /// then the derivative sums `ΣA, ΣB, Σs·A, Σs·B, Σt·A, Σt·B` over the edge functions
     /// `E_k = A_k·X + B_k·Y + C_k`.
     pub fn interp_words(self) -> usize {
-        INTERP_WORDS + 3 * self.extras + 6 * usize::from(self.derivatives)
+        self.extras_at() + 3 * self.extras + 6 * usize::from(self.derivatives)
     }
 
     /// Words `irast` writes per fragment to `varyings` (frames with a fragment program):
@@ -247,8 +284,8 @@ pub const SHADED_WORDS: usize = 7;
 /// Words of a `clipped` record (`assemble_clip` → `viewport_cull`): clip-space x, y and w
 /// of each corner, then 1 if no clip plane rejects the triangle, else 0.
 pub const CLIPPED_WORDS: usize = 10;
-/// Words of an `attribs` record (`assemble_clip` → `baryprep`): clip-space z of each
-/// corner, then r, g, b of each.
+/// Words of an `attribs` record (`assemble_clip` → `baryprep`) without a reference depth:
+/// clip-space z of each corner, then r, g, b of each (see [`Varyings::attrib_words`]).
 pub const ATTRIB_WORDS: usize = 12;
 /// Words of a `window` record (`viewport_cull` → `xyprep`): the nine edge coefficients
 /// (counter-clockwise), the bounding box's first and last pixel `x0, y0, x1, y1` (int32,
@@ -270,7 +307,9 @@ pub const WINDOW_WORDS: usize = 14;
 /// products within fp32's range at any scale of clip space, for about 1 % of SPHERE's
 /// cycles, so it is the scene's choice).
 ///
-/// Outputs per triangle: `clipped` ([`CLIPPED_WORDS`]) and `attribs` ([`ATTRIB_WORDS`]).
+/// Outputs per triangle: `clipped` ([`CLIPPED_WORDS`]) and `attribs`
+/// ([`Varyings::attrib_words`]), whose depths are taken from the triangle's reference
+/// depth when the frame has one (see the module notes).
 ///
 /// Needs a power-of-two cluster count (a vertex's row is its index shifted right by
 /// `log2 C`).
@@ -360,7 +399,7 @@ pub fn assemble_clip(
     // The corners' x, y, z, w scaled by one power of two for the triangle, 2^-k with k
     // half the exponent of the largest square of an x, y or w: their largest magnitude
     // then lies in [1, 2) (up to the square's rounding). Exact, and the same triangle (clip space is
-    // homogeneous; `irast`'s depth Σ E·(z/det) has z scaling once, the edge functions E
+    // homogeneous; `irast`'s depth Σ E·((z − ζw)/det) has z − ζw scaling once (ζ not at all), the edge functions E
     // twice and the determinant three times), but `viewport_cull`'s edge functions
     // (products of two coordinates) and determinant (of three) then neither underflow
     // nor overflow at any scale of clip space, which the divide by w of other OpenGLs
@@ -407,8 +446,26 @@ pub fn assemble_clip(
         }
     }
     b.write(clipped, not_rejected);
-    for c in &v {
-        b.write(attribs, c[2]);
+    // The reference depth ζ and each corner's depth from it (see the module notes): a
+    // divide the divider, idle here, takes, and 3 multiplies on idle multipliers.
+    if varyings.reference_depth {
+        let zeta = {
+            let q = b.fdiv(v[0][2], v[0][3]);
+            let minus_one = b.f32(-1.0);
+            let q = b.fmax(q, minus_one);
+            let one_f = b.f32(1.0);
+            b.fmin(q, one_f)
+        };
+        b.write(attribs, zeta);
+        for c in &v {
+            let on_zeta = b.fmul(zeta, c[3]);
+            let d = b.fsub(c[2], on_zeta);
+            b.write(attribs, d);
+        }
+    } else {
+        for c in &v {
+            b.write(attribs, c[2]);
+        }
     }
     for c in &v {
         for &channel in &c[4..7] {
@@ -700,8 +757,10 @@ pub fn xyprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     Ok(finish(b))
 }
 
-/// `baryprep`: per triangle, the interpolation record `irast` reads ([`INTERP_WORDS`]):
-/// `z_k / |det|` of each corner, the corners' colours and the primitive number
+/// `baryprep`: per triangle, the interpolation record `irast` reads
+/// ([`Varyings::interp_words`]):
+/// the reference depth ζ, `(z_k − ζ·w_k) / |det|` of each corner, the corners' colours and
+/// the primitive number
 /// `prim_base + index + 1` (parameter `prim_base`). Inputs: `attribs` and `det`.
 pub fn baryprep(desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("baryprep");
@@ -716,6 +775,7 @@ pub fn baryprep(desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, Machin
     let cluster = b.cluster_id();
     b.begin_loop(LoopSpec::OverStream(attribs));
     let index0 = b.carried(cluster);
+    let zeta = varyings.reference_depth.then(|| b.read_f32(attribs));
     let z: [Value; 3] = std::array::from_fn(|_| b.read_f32(attribs));
     let colours: [Value; 9] = std::array::from_fn(|_| b.read_f32(attribs));
     let extras: Vec<Value> = (0..3 * varyings.extras)
@@ -728,6 +788,9 @@ pub fn baryprep(desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, Machin
     });
     let abs_det = b.read_f32(det);
     let inv_det = b.fdiv(one_f, abs_det);
+    if let Some(zeta) = zeta {
+        b.write(interp, zeta);
+    }
     for z in z {
         let q = b.fmul(z, inv_det);
         b.write(interp, q);
@@ -1060,11 +1123,19 @@ pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineR
         let d = b.fmul(w[2], v[2]);
         b.fadd(s, d)
     };
-    let z_ndc = weighted(&mut b, &e, [rec[0], rec[1], rec[2]]);
+    // z_ndc = ζ + Σ E_k·(z_k − ζ·w_k)/|det| (see the module notes).
+    let depth = varyings.depth_words();
+    let from_zeta = weighted(&mut b, &e, [rec[depth - 3], rec[depth - 2], rec[depth - 1]]);
+    let z_ndc = if varyings.reference_depth {
+        b.fadd(rec[0], from_zeta)
+    } else {
+        from_zeta
+    };
     let z = b.fmul(z_ndc, half);
     let z = b.fadd(z, half);
     let channel = |b: &mut KernelBuilder, ch: usize| {
-        let c = weighted(b, &lambda, [rec[3 + ch], rec[6 + ch], rec[9 + ch]]);
+        let corners = std::array::from_fn(|k| rec[depth + 3 * k + ch]);
+        let c = weighted(b, &lambda, corners);
         let c = b.fmax(c, zero_f);
         b.fmin(c, one_f)
     };
@@ -1086,7 +1157,7 @@ pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineR
         let n = varyings.extras;
         let extras: Vec<Value> = (0..n)
             .map(|ch| {
-                let corners = std::array::from_fn(|k| rec[INTERP_WORDS + n * k + ch]);
+                let corners = std::array::from_fn(|k| rec[varyings.extras_at() + n * k + ch]);
                 weighted(&mut b, &lambda, corners)
             })
             .collect();
@@ -1096,7 +1167,7 @@ pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineR
         if varyings.derivatives {
             // ∂s/∂X = (Σs·A − s·ΣA)/ΣE, and so on (4 multiplies and 4 subtracts, then the
             // 4 multiplies by 1/ΣE).
-            let sums = INTERP_WORDS + 3 * n;
+            let sums = varyings.extras_at() + 3 * n;
             let (sum_a, sum_b) = (rec[sums], rec[sums + 1]);
             for (ch, &value) in extras[..2].iter().enumerate() {
                 for (k, total) in [sum_a, sum_b].into_iter().enumerate() {
@@ -1108,7 +1179,7 @@ pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineR
             }
         }
     }
-    b.write(prim_out, rec[12]);
+    b.write(prim_out, rec[varyings.prim_at()]);
     b.end_loop();
     Ok(finish(b))
 }

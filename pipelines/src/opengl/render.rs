@@ -1174,6 +1174,7 @@ pub fn plan_pipeline(
             .iter()
             .flatten()
             .any(|f| f.mipmapped() > 0),
+        reference_depth: scene.pipeline.reference_depth,
     };
     let most_of = |f: fn(&FragmentProgram) -> usize| {
         fragment_programs.iter().flatten().map(f).max().unwrap_or(0)

@@ -9,7 +9,9 @@
 //!   initial state), `blend = "none"`, `stop_length = 1.5`; `batch` (the most triangles per
 //!   batch, an addition to the format) defaults to the pipeline's choice, and
 //!   `normalise_clip` (an addition: scale each triangle's clip corners by a power of two,
-//!   exactly, so that clip coordinates of any magnitude rasterize) to false.
+//!   exactly, so that clip coordinates of any magnitude rasterize) to false, and
+//!   `reference_depth` (an addition: interpolate the depth from each triangle's own, for
+//!   precision at any depth range) to false.
 //! * `[window] background` defaults to black; a material's `shader` is required.
 //! * A texture's `filter` defaults to `"nearest"` and `wrap` to `"repeat"`; a procedural
 //!   checker defaults to `size = 256`, `cells = 8`, `colours = [[1,1,1], [0,0,0]]`. A
@@ -205,6 +207,7 @@ pub fn window_scene(old: super::Scene) -> model::Scene {
             stop_length: 1.5,
             batch: None,
             normalise_clip: false,
+            reference_depth: false,
         },
         lights: Vec::new(),
         textures: Vec::new(),
@@ -301,6 +304,7 @@ struct PipelineFile {
     stop_length: Option<f64>,
     batch: Option<i64>,
     normalise_clip: Option<bool>,
+    reference_depth: Option<bool>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -873,6 +877,7 @@ impl Cx {
             },
             stop_length: stop_length as f32,
             normalise_clip: p.normalise_clip.unwrap_or(false),
+            reference_depth: p.reference_depth.unwrap_or(false),
             batch: match p.batch {
                 None => None,
                 Some(n) if (1..=i64::from(MAX_BATCH)).contains(&n) => Some(n as u32),

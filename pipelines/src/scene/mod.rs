@@ -545,6 +545,22 @@ mod tests {
     use super::*;
 
     #[test]
+    fn far_over_near_comes_from_a_perspective_projection_only() {
+        let camera = |projection| model::Camera {
+            view: IDENTITY,
+            projection,
+        };
+        let r = camera(perspective(45.0, 1.0, 2.0, 600.0))
+            .far_over_near()
+            .unwrap();
+        assert!((r - 300.0).abs() < 0.1, "{r}");
+        // fp32 rounds −(f+n)/(f−n) to −1: beyond its resolution.
+        let r = camera(perspective(45.0, 1.0, 1e-3, 1e6)).far_over_near();
+        assert_eq!(r, Some(f64::INFINITY));
+        assert_eq!(camera(window_to_clip(64, 64)).far_over_near(), None);
+    }
+
+    #[test]
     fn sphere_has_the_published_triangle_count_and_faces_outwards() {
         let s = sphere(SPHERE_SUBDIVISIONS, 720);
         assert_eq!(s.triangles(), 81_920);

@@ -274,11 +274,12 @@ fn perspective(name: &str, corners: &[[f32; 3]]) -> Result<Scene> {
 }
 
 /// Two lit balls that interpenetrate, and a third far behind them, seen with near and far
-/// planes `near`, `far`.
-fn depth_range_balls(near: f64, far: f64) -> Result<Scene> {
+/// planes `near`, `far`; depth interpolated from each triangle's own with `reference_depth`.
+fn depth_range_balls(near: f64, far: f64, reference_depth: bool) -> Result<Scene> {
     let text = format!(
         "{ORTHO_64}[camera]\neye = [0.0, 0.0, 4.0]\ntarget = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\n\
          fov_y = 40.0\nnear = {near}\nfar = {far}\n\
+         [pipeline]\nreference_depth = {reference_depth}\n\
          [[light]]\nposition = [4.0, 6.0, 8.0]\n\
          [[material]]\nname = \"a\"\nshader = \"lit\"\ndiffuse = [0.9, 0.3, 0.2]\n\
          specular = [0.5, 0.5, 0.5]\nshininess = 20.0\n\
@@ -368,7 +369,7 @@ fn long_strip() -> Result<Scene> {
 
 /// The lit balls (normal numbers throughout) for the flush-to-zero comparison.
 fn lit_balls() -> Result<Scene> {
-    depth_range_balls(1.0, 20.0)
+    depth_range_balls(1.0, 20.0, false)
 }
 
 const RED_BLUE: &[[u8; 3]] = &[[255, 0, 0], [0, 0, 255]];
@@ -570,10 +571,19 @@ pub fn cases() -> Vec<Case> {
             "depth-range-1e-3-1e6",
             "interpenetrating lit balls, near 1e-3, far 1e6: the reference's visibility",
             false,
-            || depth_range_balls(1e-3, 1e6),
-            // With near 1e-3 the fp32 depth at distance 4 resolves about 1e-3 of depth
-            // (the reference's f64, 1e-12): where the balls' surfaces cross, within that,
-            // the depth test picks either (0.7 % of the window measured).
+            || depth_range_balls(1e-3, 1e6, true),
+            // Every depth here is within 3e-4 of 1: interpolated from each triangle's own
+            // depth, the depth test sorts the balls as the reference does.
+            vec![Expect::Reference(Bound::TIGHT)],
+        ),
+        render(
+            "depth-range-1e-3-1e6-from-zero",
+            "the same with reference_depth off: the reference's coverage, visibility within 1 %",
+            false,
+            || depth_range_balls(1e-3, 1e6, false),
+            // Interpolated as Σ E·z/det, the edge functions' rounding is multiplied by
+            // z ≈ w: where the balls' surfaces cross, the depth test picks either (0.7 %
+            // of the window measured).
             vec![Expect::Reference(Bound {
                 coverage: 0.0,
                 visibility: 0.01,

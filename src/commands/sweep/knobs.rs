@@ -20,15 +20,18 @@ pub enum Knob {
     FlushToZero,
     /// The scene's `pipeline.normalise_clip` (exact clip-corner scaling in `assemble_clip`).
     NormaliseClip,
+    /// The scene's `pipeline.reference_depth` (depth interpolated from each triangle's own).
+    ReferenceDepth,
 }
 
 impl Knob {
-    pub const ALL: [Knob; 5] = [
+    pub const ALL: [Knob; 6] = [
         Knob::Machine,
         Knob::Batch,
         Knob::Filter,
         Knob::FlushToZero,
         Knob::NormaliseClip,
+        Knob::ReferenceDepth,
     ];
 
     pub fn name(self) -> &'static str {
@@ -38,6 +41,7 @@ impl Knob {
             Knob::Filter => "filter",
             Knob::FlushToZero => "flush_to_zero",
             Knob::NormaliseClip => "normalise_clip",
+            Knob::ReferenceDepth => "reference_depth",
         }
     }
 
@@ -54,7 +58,7 @@ impl Knob {
             ),
             Knob::Batch => format!("triangles per batch, 1 to {MAX_BATCH}"),
             Knob::Filter => "nearest, bilinear (or linear), trilinear".into(),
-            Knob::FlushToZero | Knob::NormaliseClip => "true, false".into(),
+            Knob::FlushToZero | Knob::NormaliseClip | Knob::ReferenceDepth => "true, false".into(),
         }
     }
 
@@ -77,6 +81,7 @@ impl Knob {
             }),
             Knob::FlushToZero => KnobValue::FlushToZero(boolean(text)?),
             Knob::NormaliseClip => KnobValue::NormaliseClip(boolean(text)?),
+            Knob::ReferenceDepth => KnobValue::ReferenceDepth(boolean(text)?),
         };
         Ok(value)
     }
@@ -98,6 +103,7 @@ pub enum KnobValue {
     Filter(Filter),
     FlushToZero(bool),
     NormaliseClip(bool),
+    ReferenceDepth(bool),
 }
 
 /// A knob and its values in the order given: one axis of the grid.
@@ -155,14 +161,15 @@ pub fn parse_axis(arg: &str) -> Result<Axis> {
 }
 
 /// What a point's knob values make of the base machine and the render: the machine
-/// description, the batch limit, the texture filter override and the clip normalisation
-/// override.
+/// description, the batch limit, the texture filter override and the overrides of the
+/// scene's clip normalisation and reference depth.
 #[derive(Clone, Debug)]
 pub struct Setup {
     pub machine: MachineDesc,
     pub batch: Option<usize>,
     pub filter: Option<Filter>,
     pub normalise_clip: Option<bool>,
+    pub reference_depth: Option<bool>,
 }
 
 impl Setup {
@@ -181,6 +188,7 @@ impl Setup {
             batch: None,
             filter: None,
             normalise_clip: None,
+            reference_depth: None,
         };
         for value in values {
             match value {
@@ -189,6 +197,7 @@ impl Setup {
                 KnobValue::Filter(f) => setup.filter = Some(*f),
                 KnobValue::FlushToZero(on) => setup.machine.arithmetic.flush_to_zero = *on,
                 KnobValue::NormaliseClip(on) => setup.normalise_clip = Some(*on),
+                KnobValue::ReferenceDepth(on) => setup.reference_depth = Some(*on),
             }
         }
         Ok(setup)
@@ -215,6 +224,7 @@ mod tests {
             ("filter=cubic", "nearest, bilinear"),
             ("flush_to_zero=yes", "true, false"),
             ("normalise_clip=1", "true, false"),
+            ("reference_depth=on", "true, false"),
             ("machine=gold7", "gold8"),
         ] {
             let e = format!("{:#}", parse_axis(bad).unwrap_err());
@@ -235,8 +245,13 @@ mod tests {
         assert_eq!(setup.batch, Some(32));
         assert_eq!(setup.filter, None);
         assert_eq!(setup.normalise_clip, None);
-        let on = [KnobValue::NormaliseClip(true)];
+        assert_eq!(setup.reference_depth, None);
+        let on = [
+            KnobValue::NormaliseClip(true),
+            KnobValue::ReferenceDepth(false),
+        ];
         let setup = Setup::of("gold8", &on.iter().collect::<Vec<_>>()).unwrap();
         assert_eq!(setup.normalise_clip, Some(true));
+        assert_eq!(setup.reference_depth, Some(false));
     }
 }
