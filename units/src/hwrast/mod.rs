@@ -138,6 +138,8 @@ pub struct Rasterizer {
     job: Option<Job>,
     cycle: u64,
     finished: Option<RasterResult>,
+    /// Whether a ready word waited for room this cycle.
+    stalled: bool,
     stats: RasterStats,
     /// busy, fetched triangle index, in flight, row level, words written, stalled,
     /// overflowed.
@@ -177,6 +179,7 @@ impl Rasterizer {
             job: None,
             cycle: 0,
             finished: None,
+            stalled: false,
             stats: RasterStats::default(),
             ids,
         })
@@ -271,6 +274,7 @@ impl Rasterizer {
     /// and the stages' moves (each stage reads what the one after it held at the edge).
     pub fn eval(&mut self, srf: &mut Srf) -> Result<(), ContractError> {
         let (c, now, mode) = (self.lanes, self.cycle, self.mode);
+        self.stalled = false;
         let Some(j) = self.job.as_mut() else {
             return Ok(());
         };
@@ -286,6 +290,7 @@ impl Rasterizer {
             let sb = self.sbs[INPUTS + k as usize];
             if srf.space(sb) == 0 {
                 self.stats.output_stall_cycles += 1;
+                self.stalled = true;
                 break;
             }
             srf.memory_write(sb, &[w])?;
@@ -429,10 +434,7 @@ impl Rasterizer {
         let fw = j.map_or(1, |j| j.job.state.fragment_words());
         t.value(self.ids[3], j.map_or(0, |j| (j.filling.len() / fw) as u64));
         t.value(self.ids[4], self.stats.words_written & 0xFFFF_FFFF);
-        t.value(
-            self.ids[5],
-            j.is_some_and(|j| !j.writing.is_empty() && !j.flushing) as u64,
-        );
+        t.value(self.ids[5], self.stalled as u64);
         t.value(self.ids[6], j.is_some_and(|j| j.overflowed) as u64);
     }
 }
