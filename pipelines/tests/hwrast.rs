@@ -44,6 +44,21 @@ fn blended() -> Scene {
     s
 }
 
+/// Fails naming how many words differ and the first, not printing whole framebuffers.
+fn same<T: PartialEq + std::fmt::Debug>(a: &[T], b: &[T], what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: sizes");
+    let differ: Vec<usize> = (0..a.len()).filter(|&i| a[i] != b[i]).collect();
+    if let Some(&i) = differ.first() {
+        panic!(
+            "{what}: {} of {} words differ, the first at {i}: {:?} against {:?}",
+            differ.len(),
+            a.len(),
+            a[i],
+            b[i]
+        );
+    }
+}
+
 fn render(scene: &Scene, desc: &MachineDesc) -> Frame {
     render_with(scene, desc, cached(), None, |_, _| {})
         .unwrap_or_else(|e| panic!("{} on {}: {e}", scene.name, desc.name))
@@ -60,9 +75,9 @@ fn the_hardware_rasterizer_draws_gold8s_frames_bit_for_bit() {
         let what = &scene.name;
         assert!(b.stats.fragments > 0, "{what}: nothing drawn");
         assert_eq!(a.stats.fragments, b.stats.fragments, "{what}");
-        assert_eq!(a.pixels, b.pixels, "{what}: colour");
-        assert_eq!(a.depths, b.depths, "{what}: depth");
-        assert_eq!(a.triangles, b.triangles, "{what}: primitives");
+        same(&a.pixels, &b.pixels, &format!("{what}: colour"));
+        same(&a.depths, &b.depths, &format!("{what}: depth"));
+        same(&a.triangles, &b.triangles, &format!("{what}: primitives"));
         // The unit did the rasterizer kernels' work: they never ran, and it appears in the
         // breakdown and in its own occupancy, not the clusters'.
         let ran = |f: &Frame, k: &str| f.stats.kernels.iter().any(|s| s.kernel == k);
@@ -97,7 +112,7 @@ fn a_hardware_rasterizer_frame_is_the_same_in_either_evaluation_order() {
         render_with(&scene, &desc, options, None, |_, _| {}).unwrap()
     };
     let (forward, reversed) = (render(false), render(true));
-    assert_eq!(forward.pixels, reversed.pixels);
+    same(&forward.pixels, &reversed.pixels, "colour");
     assert_eq!(forward.stats.cycles, reversed.stats.cycles);
     assert_eq!(
         serde_json::to_value(&forward.stats.kernels).unwrap(),
