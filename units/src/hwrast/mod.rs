@@ -33,6 +33,12 @@
 //!   the unit stops, flushes what it wrote and reports the overflow, and the host splits
 //!   the scissor tile, as it does when `xyprep` counts too many candidates.
 //!
+//! **Two phases.** `eval` sees the SRF as committed at the last edge (its stream buffers'
+//! words and room) and moves the stages' contents; nothing else reads them within the
+//! cycle, and what the rest of the processor sees — whether a call runs, what a finished
+//! call wrote — changes only at `commit` (the edge), where the outputs are flushed and the
+//! stream buffers released.
+//!
 //! The thesis gives the interface (four input streams and one output stream), the rate and
 //! the latency; the rest — fetch width, pipe depth, scan rate, row buffering, and our
 //! three input and four output streams (the records this pipeline's geometry kernels write
