@@ -350,8 +350,10 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
     let mut p = SrfPlanner::new(desc, &PHASES);
     let always = Lifetime::Always;
     // With a hardware rasterizer it writes a tile's fragments whole, and the composite
-    // takes them in chunks; `xyrast`'s streams are not used.
+    // takes them in chunks; the rasterizer kernels' streams are left empty, so that the
+    // fragments have their room.
     let hardware = desc.rasterizer.is_some();
+    let kernels_only = |records: usize| if hardware { 0 } else { records };
     let words = Layout::words();
     // A chunk is whole rows of clusters and whole SRF blocks: its slices of the fragment
     // streams start on block boundaries.
@@ -432,24 +434,24 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         interp: p.stream(
             "interp",
             Layout::records(s.varyings.interp_words()),
-            b,
+            kernels_only(b),
             live("baryprep", "xyrast"),
         ),
         raster: p.stream(
             "raster",
             Layout::records(RASTER_WORDS),
-            b,
+            kernels_only(b),
             live("xyprep", "xyrast"),
         ),
-        rows: p.stream("rows", words, 2 * c, live("xyprep", "xyprep")),
+        rows: p.stream("rows", words, kernels_only(2 * c), live("xyprep", "xyprep")),
         tickets: p.stream(
             "tickets",
             words,
-            if s.ordered {
+            kernels_only(if s.ordered {
                 ORDERED_TICKET_ROWS * c
             } else {
                 TICKET_WORDS / c * c
-            },
+            }),
             live("xyrast", "xyrast"),
         ),
         addr: p.elastic("addr", words, live("xyrast", "composite")),
@@ -476,7 +478,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         gathered: p.buffers(
             "gathered",
             Layout::records(s.varyings.interp_words()),
-            chunk,
+            kernels_only(chunk),
             live("composite", "composite"),
         ),
         zcap: [0, 1, 2].map(|set| {
@@ -1880,8 +1882,8 @@ impl FrameRun<'_> {
             &[("clipped", clipped), ("window", window), ("det", det)],
         )?;
         self.first_prim = bt.first_prim as u32;
-        let interp = p.first(s.interp, tris);
         if s.unit.is_none() {
+            let interp = p.first(s.interp, tris);
             let bparams = p.whole(s.baryprep_params);
             h.write_params(bparams, &[bt.first_prim as u32]);
             let mut bindings = vec![
@@ -1905,7 +1907,7 @@ impl FrameRun<'_> {
         }
         if s.unit.is_none() {
             let records = Layout::records(self.varyings.interp_words());
-            h.store(interp, records, tris, m.interp, 0);
+            h.store(p.first(s.interp, tris), records, tris, m.interp, 0);
         }
         let (w, ht) = (self.scene.width as i32, self.scene.height as i32);
         let splits = split_to_fit(
