@@ -1,7 +1,8 @@
 //! The hardware rasterizer (`gold8+hwrast`) in whole frames: it takes the place of the
 //! rasterizer kernels and leaves every framebuffer word as gold8's kernels leave it — on a
 //! mipmapped textured scene (fragments into a fragment program, with derivatives) and an
-//! untextured blending one (packed colour, fragments in primitive order).
+//! untextured blending one (packed colour, fragments in primitive order), also on an SRF
+//! small enough that calls overflow and tiles are split.
 
 use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
@@ -120,4 +121,24 @@ fn a_hardware_rasterizer_frame_is_the_same_in_either_evaluation_order() {
     );
     assert_eq!(forward.stats.attribution, reversed.stats.attribution);
     assert_eq!(reversed.stats.skipped_cycles, 0);
+}
+
+/// With a small SRF the unit's output streams fill: the call stops, the host splits the
+/// scissor tile and calls again, and the frame is still gold8's.
+#[test]
+fn an_overflowing_call_is_split_into_tiles_and_draws_the_same_frame() {
+    let small = |base: &str| {
+        let text = format!("name = \"small\"\nbase = \"{base}\"\n[srf]\nwords = 7168\n");
+        MachineDesc::parse(&text, "small").unwrap()
+    };
+    let scene = blended();
+    let (a, b) = (
+        render(&scene, &small("gold8")),
+        render(&scene, &small("gold8+hwrast")),
+    );
+    assert!(b.stats.tile_splits > 0, "no call overflowed");
+    assert_eq!(a.stats.fragments, b.stats.fragments);
+    same(&a.pixels, &b.pixels, "colour");
+    same(&a.depths, &b.depths, "depth");
+    same(&a.triangles, &b.triangles, "primitives");
 }
