@@ -180,6 +180,7 @@ fn machine_list_and_show_describe_every_builtin() {
         "gold32combo+tc1",
         "gold32combo+tc4",
         "gold32combo+tc32",
+        "gold8+hwrast",
     ] {
         assert!(
             list.lines()
@@ -200,6 +201,11 @@ fn machine_list_and_show_describe_every_builtin() {
     let show = stdout(&imagine(&["machine", "show", "gold32combo+tc4"]));
     assert!(
         show.contains("texture cache") && show.contains("hit_words_per_cycle 4"),
+        "{show}"
+    );
+    let show = stdout(&imagine(&["machine", "show", "gold8+hwrast"]));
+    assert!(
+        show.contains("rasterizer") && show.contains("latency 100 core cycles"),
         "{show}"
     );
 }

@@ -221,6 +221,21 @@ pub fn describe(m: &MachineDesc) -> String {
             ),
         );
     }
+    if let Some(r) = &m.rasterizer {
+        line(
+            "rasterizer",
+            format!(
+                "latency {} core cycles, output_words_per_cycle {} words/cycle, \
+                 input_words_per_cycle {} words/cycle per stream, triangles_in_flight {}, \
+                 pixels_per_cycle {} candidates/cycle",
+                r.latency,
+                r.output_words_per_cycle,
+                r.input_words_per_cycle,
+                r.triangles_in_flight,
+                r.pixels_per_cycle
+            ),
+        );
+    }
     let sc = &m.stream_controller;
     line(
         "stream controller",

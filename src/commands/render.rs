@@ -333,6 +333,12 @@ fn print_stats(f: &Frame, m: &Metrics, desc: &MachineDesc, host: &HostTimes) {
         100.0 * s.cluster_occupancy_without_stalls,
         100.0 * (s.cluster_occupancy - s.cluster_occupancy_without_stalls)
     );
+    if let Some(r) = s.rasterizer_occupancy {
+        println!(
+            "rasterizer         {:.1} % of frame cycles running a call of the hardware rasterizer",
+            100.0 * r
+        );
+    }
     println!(
         "batches            {} of {} triangles, {} tile splits, {} composite rounds ({} merged, \
          {} fragments dropped)",

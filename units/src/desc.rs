@@ -34,7 +34,38 @@ pub struct MachineDesc {
     /// The S3 superscalar rasterizer (Wolfe & Noonburg); absent means the paper's defaults.
     #[serde(default)]
     pub s3: S3,
+    /// The thesis's hardware rasterizer beside the clusters (§6.6, `gold8+hwrast`); none
+    /// when absent.
+    #[serde(default)]
+    pub rasterizer: Option<RasterizerDesc>,
 }
+
+/// The hardware rasterizer ([`crate::hwrast`]): an SRF client the stream controller runs
+/// as a *hardware kernel* (thesis §6.6). The thesis gives the output rate (1 word per
+/// cycle) and the latency (100 cycles from a triangle to its fragments); the other keys are
+/// ours (A), chosen so that they do not bind on the thesis's scenes (see the README).
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct RasterizerDesc {
+    /// Core cycles from the last word of a triangle's input records to its first
+    /// fragment word (100 in the thesis).
+    pub latency: u64,
+    /// Fragment words written into the SRF per core cycle, over all output streams (1 in
+    /// the thesis).
+    pub output_words_per_cycle: usize,
+    /// Words read per core cycle from each input stream (A).
+    pub input_words_per_cycle: usize,
+    /// Triangles between input and output at once: set up and waiting out the latency,
+    /// or being written (A).
+    pub triangles_in_flight: usize,
+    /// Candidate pixels of a triangle's bounding box tested per core cycle (A).
+    pub pixels_per_cycle: usize,
+}
+
+/// Stream buffers the rasterizer uses beside the kernels' and the address generators':
+/// its input streams (window, |det|, attributes) and its output streams (address, depth,
+/// primitive, colour or varyings).
+pub const RASTERIZER_STREAM_BUFFERS: usize = 7;
 
 /// The S3 superscalar out-of-order rasterizer (`units::s3`): Wolfe & Noonburg, "A
 /// Superscalar 3D Graphics Engine" (spec `s3-ellsworth-piko.md` §1.2). Every key has the
@@ -364,6 +395,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "gold32combo+tc32",
         include_str!("../../machines/gold32combo+tc32.toml"),
     ),
+    (
+        "gold8+hwrast",
+        include_str!("../../machines/gold8+hwrast.toml"),
+    ),
 ];
 
 impl MachineDesc {
@@ -599,6 +634,7 @@ impl MachineDesc {
         }
         self.validate_memory()?;
         self.validate_s3()?;
+        self.validate_rasterizer()?;
         let shortest = l.div.min(l.sqrt);
         if l.divsqrt_issue_interval > shortest {
             return bad(
@@ -791,6 +827,68 @@ impl MachineDesc {
 }
 
 impl MachineDesc {
+    fn validate_rasterizer(&self) -> Result<(), DescError> {
+        let Some(r) = &self.rasterizer else {
+            return Ok(());
+        };
+        let bad = |key, problem: String| {
+            Err(DescError::Invalid {
+                machine: self.name.clone(),
+                source: None,
+                key,
+                problem,
+            })
+        };
+        for (key, v, lo, hi) in [
+            ("rasterizer.latency", r.latency as usize, 1, 1 << 16),
+            (
+                "rasterizer.output_words_per_cycle",
+                r.output_words_per_cycle,
+                1,
+                64,
+            ),
+            (
+                "rasterizer.input_words_per_cycle",
+                r.input_words_per_cycle,
+                1,
+                64,
+            ),
+            (
+                "rasterizer.triangles_in_flight",
+                r.triangles_in_flight,
+                1,
+                4096,
+            ),
+            (
+                "rasterizer.pixels_per_cycle",
+                r.pixels_per_cycle,
+                1,
+                1 << 16,
+            ),
+        ] {
+            if !(lo..=hi).contains(&v) {
+                return bad(key, format!("is {v}, must be {lo}..={hi}"));
+            }
+        }
+        let needed = self.srf.kernel_streams
+            + 2 * self.memory.address_generators
+            + RASTERIZER_STREAM_BUFFERS;
+        if self.srf.stream_buffers < needed {
+            return bad(
+                "rasterizer",
+                format!(
+                    "needs {RASTERIZER_STREAM_BUFFERS} stream buffers of its own besides the \
+                     {} kernel streams and the address generators' {}: srf.stream_buffers \
+                     is {}, need {needed}",
+                    self.srf.kernel_streams,
+                    2 * self.memory.address_generators,
+                    self.srf.stream_buffers
+                ),
+            );
+        }
+        Ok(())
+    }
+
     fn validate_s3(&self) -> Result<(), DescError> {
         let bad = |key, problem: String| {
             Err(DescError::Invalid {
@@ -1158,5 +1256,37 @@ mod tests {
             let e = MachineDesc::parse(&text, "x.toml").unwrap_err();
             assert!(e.to_string().contains(key), "{keys}: {e}");
         }
+    }
+
+    #[test]
+    fn an_impossible_rasterizer_is_refused_naming_its_key() {
+        let good = MachineDesc::resolve("gold8+hwrast").unwrap();
+        let r = good
+            .rasterizer
+            .as_ref()
+            .expect("gold8+hwrast has a rasterizer");
+        assert_eq!((r.latency, r.output_words_per_cycle), (100, 1));
+        assert!(MachineDesc::gold8().rasterizer.is_none());
+        for (change, key) in [
+            ("latency = 0", "rasterizer.latency"),
+            (
+                "output_words_per_cycle = 0",
+                "rasterizer.output_words_per_cycle",
+            ),
+            (
+                "input_words_per_cycle = 100",
+                "rasterizer.input_words_per_cycle",
+            ),
+            ("triangles_in_flight = 0", "rasterizer.triangles_in_flight"),
+            ("pixels_per_cycle = 0", "rasterizer.pixels_per_cycle"),
+            ("lattency = 100", "lattency"),
+        ] {
+            let text = format!("name = \"x\"\nbase = \"gold8+hwrast\"\n[rasterizer]\n{change}");
+            let e = MachineDesc::parse(&text, "x.toml").unwrap_err();
+            assert!(e.to_string().contains(key), "{change}: {e}");
+        }
+        let text = "name = \"x\"\nbase = \"gold8+hwrast\"\n[srf]\nstream_buffers = 14";
+        let e = MachineDesc::parse(text, "x.toml").unwrap_err();
+        assert!(e.to_string().contains("`rasterizer`"), "{e}");
     }
 }

@@ -23,6 +23,8 @@
 //!   SDRAM channels) running stream programs.
 //! * [`s3`] — the S3 superscalar out-of-order rasterizer (Wolfe & Noonburg): fetch, issue
 //!   unit, K rasterizing accelerators and their frame-buffer memory, with a trace driver.
+//! * [`hwrast`] — the thesis's hardware rasterizer (§6.6): an SRF client the stream
+//!   controller runs as a hardware kernel.
 //! * [`srf`] — the stream register file: block-interleaved storage, stream buffers and the
 //!   arbiter that grants the SRF port to them.
 
@@ -33,6 +35,7 @@ pub mod delay;
 pub mod desc;
 pub mod dram;
 pub mod fu;
+pub mod hwrast;
 pub mod lanes;
 pub mod limits;
 pub mod lrf;

@@ -32,6 +32,7 @@ use imagine_hdl::{
 use crate::desc::MachineDesc;
 use crate::dram::replay::report_of;
 use crate::dram::{DramChannel, DramParams, Policy, ReplayReport, Reply};
+use crate::hwrast::Rasterizer;
 use crate::machine::Machine;
 use crate::memory::texture_cache::Waiter;
 use crate::memory::{AddressGenerator, MemPorts, MemoryConfig, TextureCache, build_memory};
@@ -96,6 +97,9 @@ pub struct Processor {
     ags: Vec<AddressGenerator>,
     ports: MemPorts,
     texture_cache: Option<TextureCache>,
+    /// The hardware rasterizer (`[rasterizer]` machines), and the call it runs.
+    rasterizer: Option<Rasterizer>,
+    raster_op: Option<usize>,
     /// Words the texture cache hands to waiting references this cycle.
     deliveries: Vec<(Waiter, u32)>,
     sc: StreamController,
@@ -142,6 +146,14 @@ impl Processor {
 
     pub fn texture_cache(&self) -> Option<&TextureCache> {
         self.texture_cache.as_ref()
+    }
+
+    pub fn rasterizer(&self) -> Option<&Rasterizer> {
+        self.rasterizer.as_ref()
+    }
+
+    fn rasterizer_busy(&self) -> bool {
+        self.rasterizer.as_ref().is_some_and(Rasterizer::is_busy)
     }
 
     pub fn address_generators(&self) -> &[AddressGenerator] {
@@ -231,6 +243,18 @@ impl Processor {
                     kind: HostTransferKind::Read(*len),
                 });
             }
+            (StreamInstr::Rasterize(job), Unit::Rasterizer) => {
+                let Some(r) = self.rasterizer.as_mut() else {
+                    return Err(self.error(
+                        "issue",
+                        "a hardware rasterizer call on a machine without a rasterizer \
+                         ([rasterizer] in its description)"
+                            .into(),
+                    ));
+                };
+                r.start((**job).clone(), self.machine.srf_mut())?;
+                self.raster_op = Some(is.id);
+            }
             _ => unreachable!("the controller picks a unit of the instruction's kind"),
         }
         Ok(())
@@ -272,6 +296,15 @@ impl Processor {
             self.sc.complete(id, cycle);
             self.kernel = None;
         }
+        if let Some(r) = &mut self.rasterizer {
+            r.commit(self.machine.srf_mut())?;
+            if let Some(result) = r.take_finished()
+                && let Some(id) = self.raster_op.take()
+            {
+                self.sc.record_raster(id, result);
+                self.sc.complete(id, cycle);
+            }
+        }
         if let Some((id, done)) = self.loader
             && cycle >= done
         {
@@ -307,6 +340,7 @@ impl Module for Processor {
         if let Some(e) = self.deferred.take() {
             return Err(e);
         }
+        let rasterizer_free = !self.rasterizer_busy();
         let ags = &self.ags;
         self.issue = self.sc.select(
             |a| !ags[a].is_busy(),
@@ -314,6 +348,7 @@ impl Module for Processor {
             self.kernel.is_none(),
             self.loader.is_none(),
             self.host_transfer.is_none(),
+            rasterizer_free,
         );
         self.replies.clear();
         self.ports.pop_replies(&mut self.replies)?;
@@ -343,6 +378,9 @@ impl Module for Processor {
                 self.texture_cache.as_mut(),
             )?;
         }
+        if let Some(r) = &mut self.rasterizer {
+            r.eval(self.machine.srf_mut())?;
+        }
         self.machine.eval()
     }
 
@@ -352,8 +390,12 @@ impl Module for Processor {
             self.deferred = Some(e);
         }
         self.cycle += 1;
-        self.maybe_idle
-            .set(self.skip_idle && self.machine.is_idle() && !self.ags.iter().any(|a| a.is_busy()));
+        self.maybe_idle.set(
+            self.skip_idle
+                && self.machine.is_idle()
+                && !self.ags.iter().any(|a| a.is_busy())
+                && !self.rasterizer_busy(),
+        );
     }
 
     fn trace(&self, t: &mut Trace) {
@@ -361,6 +403,9 @@ impl Module for Processor {
         self.ags.iter().for_each(|a| a.trace(t));
         if let Some(c) = &self.texture_cache {
             c.trace(t);
+        }
+        if let Some(r) = &self.rasterizer {
+            r.trace(t);
         }
         t.value(self.ids[0], self.sc.occupancy() as u64);
         t.value(self.ids[1], self.kernel.is_some() as u64);
@@ -412,11 +457,13 @@ pub fn build(
                 words.is_empty() || start + words.len() > desc.srf.words
             }
             StreamInstr::ReadSrf { start, len } => *len == 0 || start + len > desc.srf.words,
+            StreamInstr::Rasterize(_) => desc.rasterizer.is_none(),
         };
         if bad {
             return Err(setup(format!(
                 "stream instruction {i} names a kernel that is not in the program, has \
-                 0-word records, or moves no words or words past the end of the SRF"
+                 0-word records, moves no words or words past the end of the SRF, or calls a \
+                 rasterizer the machine does not have"
             )));
         }
     }
@@ -461,6 +508,7 @@ pub fn build(
         .texture_cache
         .as_ref()
         .map(|d| TextureCache::new(&mut top.child("texture_cache"), d));
+    let rasterizer = Rasterizer::new(&mut top.child("rasterizer"), desc);
     let mut s = top.child("sc");
     let ids = [
         s.signal(
@@ -489,6 +537,8 @@ pub fn build(
         ags,
         ports,
         texture_cache,
+        rasterizer,
+        raster_op: None,
         deliveries: Vec::new(),
         sc: StreamController::new(desc, program.kernels, program.instrs),
         cycle: 0,

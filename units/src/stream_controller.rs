@@ -37,7 +37,11 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 
 use crate::desc::MachineDesc;
+use crate::hwrast::{RasterJob, RasterResult};
 use crate::machine::{KernelStats, StreamBinding};
+
+/// The name the hardware rasterizer's calls go by in records, breakdowns and waveforms.
+pub const RASTERIZER_KERNEL: &str = "hwrast";
 use crate::memory::{MemOp, MemOpKind};
 use crate::microcode::{Program, StreamDir};
 
@@ -62,6 +66,9 @@ pub enum StreamInstr {
     /// instruction's [`InstrRecord::read`] once it completes): how the host learns a
     /// number the machine computed, such as an iteration count.
     ReadSrf { start: usize, len: usize },
+    /// Run the hardware rasterizer ([`crate::hwrast`]) as a hardware kernel: its input
+    /// streams routed from the SRF into it, its outputs back (thesis §6.6).
+    Rasterize(Box<RasterJob>),
 }
 
 /// The unit an instruction runs on.
@@ -71,6 +78,7 @@ pub enum Unit {
     Clusters,
     MicrocodeLoader,
     HostInterface,
+    Rasterizer,
 }
 
 /// When an instruction went through the controller (core cycles).
@@ -87,6 +95,8 @@ pub struct InstrRecord {
     pub kernel_stats: Option<KernelStats>,
     /// The words a host read brought back, once completed.
     pub read: Vec<u32>,
+    /// What a hardware rasterizer call did, once completed.
+    pub raster: Option<RasterResult>,
 }
 
 impl InstrRecord {
@@ -100,6 +110,7 @@ impl InstrRecord {
             outputs: Vec::new(),
             kernel_stats: None,
             read: Vec::new(),
+            raster: None,
         }
     }
 
@@ -114,6 +125,7 @@ impl InstrRecord {
             }
             StreamInstr::WriteSrf { .. } => "host write".into(),
             StreamInstr::ReadSrf { .. } => "host read".into(),
+            StreamInstr::Rasterize(_) => format!("kernel {RASTERIZER_KERNEL}"),
         }
     }
 }
@@ -173,6 +185,12 @@ impl Footprint {
             StreamInstr::LoadMicrocode { program } => f.code_write = Some(*program),
             StreamInstr::WriteSrf { start, words } => f.srf_writes.push((*start, words.len())),
             StreamInstr::ReadSrf { start, len } => f.srf_reads.push((*start, *len)),
+            StreamInstr::Rasterize(job) => {
+                f.srf_reads
+                    .extend(job.inputs.iter().map(|b| (b.start, b.words)));
+                f.srf_writes
+                    .extend(job.outputs.iter().map(|b| (b.start, b.words)));
+            }
         }
         f
     }
@@ -263,6 +281,7 @@ struct UnitsFree {
     clusters: bool,
     loader: bool,
     host: bool,
+    rasterizer: bool,
 }
 
 /// The oldest entry that may issue (its instruction and unit), and whether some entry was
@@ -342,6 +361,13 @@ impl StreamController {
         &self.stats
     }
 
+    /// Notes what a completed rasterizer call wrote.
+    pub fn record_raster(&mut self, id: usize, result: RasterResult) {
+        let r = &mut self.records[id];
+        r.outputs = result.outputs.clone();
+        r.raster = Some(result);
+    }
+
     /// Notes the words a completed host read brought back.
     pub fn record_read(&mut self, id: usize, words: Vec<u32>) {
         self.records[id].read = words;
@@ -376,8 +402,10 @@ impl StreamController {
         clusters_free: bool,
         loader_free: bool,
         host_free: bool,
+        rasterizer_free: bool,
     ) -> Option<Issue> {
-        match self.pick(free_ag, ags, clusters_free, loader_free, host_free) {
+        let free = [clusters_free, loader_free, host_free, rasterizer_free];
+        match self.pick(free_ag, ags, free) {
             (Some((id, unit)), _) => Some(Issue {
                 id,
                 unit,
@@ -402,6 +430,7 @@ impl StreamController {
         clusters_free: bool,
         loader_free: bool,
         host_free: bool,
+        rasterizer_free: bool,
     ) -> Option<IdleCounts> {
         if !self.host.is_empty() && self.queue.len() < self.queue_cap {
             return None;
@@ -409,7 +438,8 @@ impl StreamController {
         if !self.queue.is_empty() && self.scoreboard.len() < self.sb_cap {
             return None;
         }
-        match self.pick(free_ag, ags, clusters_free, loader_free, host_free) {
+        let free = [clusters_free, loader_free, host_free, rasterizer_free];
+        match self.pick(free_ag, ags, free) {
             (Some(_), _) => None,
             (None, unit_busy) => Some(IdleCounts {
                 unit_busy,
@@ -428,19 +458,15 @@ impl StreamController {
 
     /// The oldest entry that may issue (its instruction and unit), and whether some entry
     /// was ready with its unit busy.
-    fn pick(
-        &mut self,
-        free_ag: impl Fn(usize) -> bool,
-        ags: usize,
-        clusters_free: bool,
-        loader_free: bool,
-        host_free: bool,
-    ) -> Picked {
+    /// `free`: the clusters, the microcode loader, the host interface and the rasterizer.
+    fn pick(&mut self, free_ag: impl Fn(usize) -> bool, ags: usize, free: [bool; 4]) -> Picked {
+        let [clusters, loader, host, rasterizer] = free;
         let free = UnitsFree {
             ags: (0..ags).fold(0u64, |m, a| m | (u64::from(free_ag(a)) << a)),
-            clusters: clusters_free,
-            loader: loader_free,
-            host: host_free,
+            clusters,
+            loader,
+            host,
+            rasterizer,
         };
         if let Some((seen, picked)) = self.last_pick
             && seen == free
@@ -477,6 +503,7 @@ impl StreamController {
                 StreamInstr::WriteSrf { .. } | StreamInstr::ReadSrf { .. } => {
                     free.host.then_some(Unit::HostInterface)
                 }
+                StreamInstr::Rasterize(_) => free.rasterizer.then_some(Unit::Rasterizer),
             };
             match unit {
                 Some(unit) => return (Some((e.id, unit)), unit_busy),

@@ -58,6 +58,7 @@ use imagine_hdl::Sim;
 use imagine_units::desc::MachineDesc;
 use imagine_units::dram::trace::TraceRequest;
 use imagine_units::dram::{DramChannel, ReplayReport};
+use imagine_units::hwrast::{RasterJob, RasterState};
 use imagine_units::machine::{KernelStats, StreamBinding};
 use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
@@ -252,10 +253,12 @@ struct Streams {
     raster: StreamId,
     rows: StreamId,
     tickets: StreamId,
-    /// `xyrast`'s outputs.
+    /// The fragments' addresses: `xyrast`'s or the hardware rasterizer's.
     addr: StreamId,
-    tri: StreamId,
-    edges: [StreamId; 3],
+    /// `xyrast`'s other outputs, on machines without a hardware rasterizer.
+    kernel_fragments: Option<KernelFragments>,
+    /// The hardware rasterizer's other outputs, on machines with one.
+    unit: Option<UnitFragments>,
     gathered: [StreamId; 2],
     /// irast's outputs, then two recycle sets: z, colour, addr, prim.
     zcap: [[StreamId; 4]; 3],
@@ -268,6 +271,20 @@ struct Streams {
     /// The fragment program's streams (frames with textures or marble).
     texturing: Option<TexturingStreams>,
     chunk: usize,
+}
+
+/// `xyrast`'s fragments beside their addresses: the triangle index and the edge values.
+struct KernelFragments {
+    tri: StreamId,
+    edges: [StreamId; 3],
+}
+
+/// The hardware rasterizer's fragments beside their addresses (a whole tile's): depth,
+/// primitive, and the packed colour or the fragment program's varyings.
+struct UnitFragments {
+    z: StreamId,
+    prim: StreamId,
+    values: StreamId,
 }
 
 /// A chunk's streams between `irast` and the composite in a frame with fragment programs:
@@ -332,6 +349,11 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
     let b = s.batch;
     let mut p = SrfPlanner::new(desc, &PHASES);
     let always = Lifetime::Always;
+    // With a hardware rasterizer it writes a tile's fragments whole, and the composite
+    // takes them in chunks; the rasterizer kernels' streams are left empty, so that the
+    // fragments have their room.
+    let hardware = desc.rasterizer.is_some();
+    let kernels_only = |records: usize| if hardware { 0 } else { records };
     let words = Layout::words();
     // A chunk is whole rows of clusters and whole SRF blocks: its slices of the fragment
     // streams start on block boundaries.
@@ -387,13 +409,19 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
             b,
             live("assemble", "cull"),
         ),
+        // The hardware rasterizer reads them at every tile, between composites.
         attribs: p.stream(
             "attribs",
             Layout::records(s.varyings.attrib_words()),
             b,
-            live("assemble", "baryprep"),
+            live("assemble", if hardware { "composite" } else { "baryprep" }),
         ),
-        det: p.stream("det", words, b, live("cull", "baryprep")),
+        det: p.stream(
+            "det",
+            words,
+            b,
+            live("cull", if hardware { "composite" } else { "baryprep" }),
+        ),
         // Read by every tile's `xyprep`.
         window: p.stream(
             "window",
@@ -406,33 +434,51 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         interp: p.stream(
             "interp",
             Layout::records(s.varyings.interp_words()),
-            b,
+            kernels_only(b),
             live("baryprep", "xyrast"),
         ),
         raster: p.stream(
             "raster",
             Layout::records(RASTER_WORDS),
-            b,
+            kernels_only(b),
             live("xyprep", "xyrast"),
         ),
-        rows: p.stream("rows", words, 2 * c, live("xyprep", "xyprep")),
+        rows: p.stream("rows", words, kernels_only(2 * c), live("xyprep", "xyprep")),
         tickets: p.stream(
             "tickets",
             words,
-            if s.ordered {
+            kernels_only(if s.ordered {
                 ORDERED_TICKET_ROWS * c
             } else {
                 TICKET_WORDS / c * c
-            },
+            }),
             live("xyrast", "xyrast"),
         ),
         addr: p.elastic("addr", words, live("xyrast", "composite")),
-        tri: p.elastic("tri", words, live("xyrast", "composite")),
-        edges: ["e0", "e1", "e2"].map(|n| p.elastic(n, words, live("xyrast", "composite"))),
+        kernel_fragments: (!hardware).then(|| KernelFragments {
+            tri: p.elastic("tri", words, live("xyrast", "composite")),
+            edges: ["e0", "e1", "e2"].map(|n| p.elastic(n, words, live("xyrast", "composite"))),
+        }),
+        unit: hardware.then(|| {
+            let values = if s.varyings.fragment_program() {
+                s.varyings.fragment_words()
+            } else {
+                1
+            };
+            UnitFragments {
+                z: p.elastic("z", words, live("xyrast", "composite")),
+                prim: p.elastic("prim", words, live("xyrast", "composite")),
+                values: p.elastic(
+                    "values",
+                    Layout::records(values),
+                    live("xyrast", "composite"),
+                ),
+            }
+        }),
         gathered: p.buffers(
             "gathered",
             Layout::records(s.varyings.interp_words()),
-            chunk,
+            kernels_only(chunk),
             live("composite", "composite"),
         ),
         zcap: [0, 1, 2].map(|set| {
@@ -1346,19 +1392,12 @@ pub fn render_with(
                 .chain(o.passes.iter().copied())
         })
         .collect();
-    eager.extend([
-        k.clear,
-        k.assemble_clip,
-        k.viewport_cull,
-        k.baryprep,
-        k.xyprep,
-        k.xyrast,
-        k.irast,
-        k.hash,
-        k.zcompare,
-        k.recycle_zc,
-        k.recycle_ap,
-    ]);
+    eager.extend([k.clear, k.assemble_clip, k.viewport_cull]);
+    // The hardware rasterizer, where there is one, does the rasterizer kernels' work.
+    if desc.rasterizer.is_none() {
+        eager.extend([k.baryprep, k.xyprep, k.xyrast, k.irast]);
+    }
+    eager.extend([k.hash, k.zcompare, k.recycle_zc, k.recycle_ap]);
     eager.extend(k.fragment.iter().flat_map(FragmentKernels::all));
     eager.extend(k.filter8);
     if general && let Some((a, b)) = k.merge {
@@ -1492,6 +1531,7 @@ pub fn render_with(
         varyings: pp.varyings,
         fragment_programs: &pp.fragment_programs,
         current_object: 0,
+        first_prim: 0,
     };
     let batches = input.batches.len();
     let mut run = (&mut host, &mut frame);
@@ -1665,6 +1705,8 @@ struct FrameRun<'a> {
     fragment_programs: &'a [Option<FragmentProgram>],
     /// The object of the batch being rasterized.
     current_object: usize,
+    /// The primitive number before the batch's first triangle's.
+    first_prim: u32,
     merge_min_conflicts: Option<usize>,
     stats: &'a mut FrameStats,
     batch: usize,
@@ -1840,19 +1882,22 @@ impl FrameRun<'_> {
             self.k.viewport_cull,
             &[("clipped", clipped), ("window", window), ("det", det)],
         )?;
-        let bparams = p.whole(s.baryprep_params);
-        h.write_params(bparams, &[bt.first_prim as u32]);
-        let interp = p.first(s.interp, tris);
-        let mut bindings = vec![
-            ("attribs", attribs),
-            ("det", det),
-            ("interp", interp),
-            (PARAMS, bparams),
-        ];
-        if self.varyings.derivatives {
-            bindings.push(("window", window));
+        self.first_prim = bt.first_prim as u32;
+        if s.unit.is_none() {
+            let interp = p.first(s.interp, tris);
+            let bparams = p.whole(s.baryprep_params);
+            h.write_params(bparams, &[bt.first_prim as u32]);
+            let mut bindings = vec![
+                ("attribs", attribs),
+                ("det", det),
+                ("interp", interp),
+                (PARAMS, bparams),
+            ];
+            if self.varyings.derivatives {
+                bindings.push(("window", window));
+            }
+            h.call(self.k.baryprep, &bindings)?;
         }
-        h.call(self.k.baryprep, &bindings)?;
         let object = &self.scene.objects[bt.object];
         let marble = s.texturing.as_ref().and_then(|t| t.marble.as_ref());
         if let (Some(ms), Shader::Marble(shader)) =
@@ -1861,8 +1906,10 @@ impl FrameRun<'_> {
             let params = fragment_program::marble_params(self.scene, object, &shader);
             h.write_params(p.first(ms.params, params.len() * h.clusters()), &params);
         }
-        let records = Layout::records(self.varyings.interp_words());
-        h.store(interp, records, tris, m.interp, 0);
+        if s.unit.is_none() {
+            let records = Layout::records(self.varyings.interp_words());
+            h.store(p.first(s.interp, tris), records, tris, m.interp, 0);
+        }
         let (w, ht) = (self.scene.width as i32, self.scene.height as i32);
         let splits = split_to_fit(
             [0, 0, w - 1, ht - 1],
@@ -1891,6 +1938,9 @@ impl FrameRun<'_> {
     /// Bounding boxes of scissor tile `tile`, then rasterization and composite, unless the
     /// tile's fragments would overflow their streams.
     fn tile(&mut self, h: &mut StreamHost, tile: [i32; 4]) -> Result<Fit, RenderError> {
+        if self.s.unit.is_some() {
+            return self.tile_in_hardware(h, tile);
+        }
         let (p, s) = (self.plan, self.s);
         let c = h.clusters();
         let tris = self.batch;
@@ -1922,6 +1972,80 @@ impl FrameRun<'_> {
         Ok(Fit::Done)
     }
 
+    /// Scissor tile `tile` through the hardware rasterizer, then the composite, unless
+    /// the tile's fragments overflowed the rasterizer's output streams.
+    fn tile_in_hardware(&mut self, h: &mut StreamHost, tile: [i32; 4]) -> Result<Fit, RenderError> {
+        let (p, s) = (self.plan, self.s);
+        let u = s.unit.as_ref().expect("a hardware rasterizer's streams");
+        let c = h.clusters();
+        let tris = self.batch;
+        let cap = [s.addr, u.z, u.prim, u.values]
+            .into_iter()
+            .map(|id| p.capacity(id))
+            .min()
+            .unwrap_or(0);
+        let v = self.varyings;
+        let job = RasterJob {
+            inputs: [
+                p.first(s.window, tris),
+                p.first(s.det, tris),
+                p.first(s.attribs, tris),
+            ],
+            outputs: [s.addr, u.z, u.prim, u.values].map(|id| p.first(id, cap)),
+            state: RasterState {
+                width: self.scene.width,
+                trash: self.scene.width * self.scene.height,
+                tile,
+                prim_base: self.first_prim,
+                extras: v.extras,
+                derivatives: v.derivatives,
+                fragment_program: v.fragment_program(),
+            },
+        };
+        let call = h.rasterize(job)?;
+        let result = h.raster_result(call)?;
+        if result.overflowed {
+            return Ok(Fit::Overflow(format!(
+                "a one-pixel tile has more fragments than the rasterizer's output streams \
+                 hold ({cap})"
+            )));
+        }
+        let real = result.fragments;
+        let words = 3 + p.get(u.values).layout.record_words;
+        self.max_fragment_words = self.max_fragment_words.max(words * (real + c));
+        self.count_fragments(real);
+        let total = real.div_ceil(c) * c;
+        for start in (0..total).step_by(s.chunk) {
+            let len = s.chunk.min(total - start);
+            let values = p.slice(u.values, start, len);
+            let colour = match &s.texturing {
+                Some(t) => {
+                    let [_, colour, _, _] = s.zcap[0];
+                    self.fragment_program(h, t, len, values, p.first(colour, len))?;
+                    (colour, 0)
+                }
+                None => (u.values, start),
+            };
+            self.composite(
+                h,
+                [(u.z, start), colour, (s.addr, start), (u.prim, start)],
+                len,
+            )?;
+        }
+        Ok(Fit::Done)
+    }
+
+    /// Counts `real` fragments of the batch.
+    fn count_fragments(&mut self, real: usize) {
+        self.stats.fragments += real as u64;
+        if let Some(fp) = &self.fragment_programs[self.current_object] {
+            self.stats.texel_fetches += (real * fp.texel_fetches()) as u64;
+        }
+        if let Some(row) = self.stats.batch_rows.last_mut() {
+            row.fragments += real as u64;
+        }
+    }
+
     fn rasterize(
         &mut self,
         h: &mut StreamHost,
@@ -1932,16 +2056,17 @@ impl FrameRun<'_> {
         let c = h.clusters();
         let cap = p.capacity(s.addr);
         let frags = |id| p.first(id, cap);
+        let kf = s.kernel_fragments.as_ref().expect("xyrast's streams");
         let call = h.call(
             self.k.xyrast,
             &[
                 ("raster", p.first(s.raster, self.batch)),
                 ("tickets", p.first(s.tickets, rows * c)),
                 ("addr", frags(s.addr)),
-                ("tri", frags(s.tri)),
-                ("e0", frags(s.edges[0])),
-                ("e1", frags(s.edges[1])),
-                ("e2", frags(s.edges[2])),
+                ("tri", frags(kf.tri)),
+                ("e0", frags(kf.edges[0])),
+                ("e1", frags(kf.edges[1])),
+                ("e2", frags(kf.edges[2])),
             ],
         )?;
         h.wait(call)?;
@@ -1952,13 +2077,7 @@ impl FrameRun<'_> {
         // Whole rows: every real fragment and the nulls that fill its last row; the rest
         // of the nulls are not composited.
         let total = real.div_ceil(c) * c;
-        self.stats.fragments += real as u64;
-        if let Some(fp) = &self.fragment_programs[self.current_object] {
-            self.stats.texel_fetches += (real * fp.texel_fetches()) as u64;
-        }
-        if let Some(row) = self.stats.batch_rows.last_mut() {
-            row.fragments += real as u64;
-        }
+        self.count_fragments(real);
         let chunk = s.chunk;
         let chunks: Vec<(usize, usize)> = (0..total)
             .step_by(chunk)
@@ -1981,7 +2100,8 @@ impl FrameRun<'_> {
     /// (by triangle index) into buffer `buffer`.
     fn gather_interp(&self, h: &mut StreamHost, start: usize, len: usize, buffer: usize) {
         let (p, s, m) = (self.plan, self.s, self.m);
-        let tri = p.slice(s.tri, start, len);
+        let kf = s.kernel_fragments.as_ref().expect("xyrast's streams");
+        let tri = p.slice(kf.tri, start, len);
         let to = p.first(s.gathered[buffer], len);
         h.gather(
             m.interp,
@@ -2002,9 +2122,9 @@ impl FrameRun<'_> {
         len: usize,
         buffer: usize,
     ) -> Result<(), RenderError> {
-        let (p, s, m) = (self.plan, self.s, self.m);
-        let c = h.clusters();
-        let edge = |i: usize| p.slice(s.edges[i], start, len);
+        let (p, s) = (self.plan, self.s);
+        let kf = s.kernel_fragments.as_ref().expect("xyrast's streams");
+        let edge = |i: usize| p.slice(kf.edges[i], start, len);
         let [z, colour, _, prim] = s.zcap[0];
         let interpolated = match &s.texturing {
             Some(t) => ("varyings", p.first(t.varyings, len)),
@@ -2023,11 +2143,22 @@ impl FrameRun<'_> {
             ],
         )?;
         if let Some(t) = &s.texturing {
-            self.fragment_program(h, t, len, p.first(colour, len))?;
+            let varyings = p.first(t.varyings, len);
+            self.fragment_program(h, t, len, varyings, p.first(colour, len))?;
         }
-        // The current round's streams: (stream, first record).
-        let mut current = [(z, 0), (colour, 0), (s.addr, start), (prim, 0)];
-        let mut len = len;
+        self.composite(h, [(z, 0), (colour, 0), (s.addr, start), (prim, 0)], len)
+    }
+
+    /// Composites `len` fragments, their depth, colour, address and primitive in
+    /// `current` (each a stream and its first record), in rounds until none is held back.
+    fn composite(
+        &mut self,
+        h: &mut StreamHost,
+        mut current: [(StreamId, usize); 4],
+        mut len: usize,
+    ) -> Result<(), RenderError> {
+        let (p, s, m) = (self.plan, self.s, self.m);
+        let c = h.clusters();
         let mut set = 1;
         // Whether a merge of this chunk dropped fragments, or dropped none.
         let mut stacked = false;
@@ -2169,6 +2300,7 @@ impl FrameRun<'_> {
         h: &mut StreamHost,
         t: &TexturingStreams,
         len: usize,
+        varyings: StreamBinding,
         colour: StreamBinding,
     ) -> Result<(), RenderError> {
         let (p, m) = (self.plan, self.m);
@@ -2178,12 +2310,17 @@ impl FrameRun<'_> {
             dependent,
             colour: fragment,
         } = self.k.fragment[object];
-        let varyings = p.first(t.varyings, len);
         let fp = self.fragment_programs[object]
             .as_ref()
             .expect("a frame with fragment programs has one per object");
         if let Some(envaddr) = dependent {
-            return self.dependent_read(h, t, len, (texaddr, envaddr, fragment), colour);
+            return self.dependent_read(
+                h,
+                t,
+                (len, varyings),
+                (texaddr, envaddr, fragment),
+                colour,
+            );
         }
         let per_fragment = |id: Option<StreamId>, words: usize| {
             id.filter(|_| words > 0).map(|id| p.words(id, len * words))
@@ -2252,7 +2389,7 @@ impl FrameRun<'_> {
         &mut self,
         h: &mut StreamHost,
         t: &TexturingStreams,
-        len: usize,
+        (len, varyings): (usize, StreamBinding),
         (first, second, last): (Option<KernelId>, KernelId, KernelId),
         colour: StreamBinding,
     ) -> Result<(), RenderError> {
@@ -2260,7 +2397,6 @@ impl FrameRun<'_> {
         let fp = self.fragment_programs[self.current_object]
             .as_ref()
             .expect("a frame with fragment programs has one per object");
-        let varyings = p.first(t.varyings, len);
         let first = first.expect("a dependent read's first addresses");
         let (direct, dependent) = (fp.direct_fetches(), fp.dependent_fetches());
         let texels = p.words(t.addr.expect("a texel address stream"), len * direct);
@@ -2367,7 +2503,7 @@ fn finish_stats(
         })
         .collect();
     let mut shares: Vec<KernelShare> = Vec::new();
-    let (mut busy, mut stalls, mut ops) = (0, 0, 0);
+    let (mut busy, mut stalls, mut ops, mut rasterizing) = (0, 0, 0, 0);
     let tags = host.batch_tags();
     let mut dram_words = 0u64;
     for (id, r) in p.controller().records().iter().enumerate() {
@@ -2403,6 +2539,27 @@ fn finish_stats(
                     row.kernel_cycles += st.cycles;
                 }
             }
+            (StreamInstr::Rasterize(_), _) => {
+                // A hardware kernel: in the breakdown by its time from issue to
+                // completion, and apart from the clusters' occupancy.
+                let (Some(i), Some(c)) = (r.issued, r.completed) else {
+                    continue;
+                };
+                let name = imagine_units::stream_controller::RASTERIZER_KERNEL;
+                let share = match shares.iter_mut().find(|sh| sh.kernel == name) {
+                    Some(sh) => sh,
+                    None => {
+                        shares.push(KernelShare {
+                            kernel: name.into(),
+                            ..KernelShare::default()
+                        });
+                        shares.last_mut().expect("pushed")
+                    }
+                };
+                share.calls += 1;
+                share.cycles += c - i;
+                rasterizing += c - i;
+            }
             (StreamInstr::Memory(op), _) if batch.is_some() => {
                 dram_words += op.words() as u64;
                 if let Some(row) = s.batch_rows.iter_mut().find(|row| Some(row.batch) == batch) {
@@ -2416,6 +2573,10 @@ fn finish_stats(
     s.ops_per_cycle = ops as f64 / cycles as f64;
     s.cluster_occupancy = busy as f64 / cycles as f64;
     s.cluster_occupancy_without_stalls = busy.saturating_sub(stalls) as f64 / cycles as f64;
+    s.rasterizer_occupancy = desc
+        .rasterizer
+        .as_ref()
+        .map(|_| rasterizing as f64 / cycles as f64);
     let dram: ReplayReport = imagine_units::dram::replay::report_of(
         sim,
         imagine_units::dram::Policy::parse(&desc.memory.policy)

@@ -129,6 +129,9 @@ pub struct FrameStats {
     /// Share of the frame's cycles a kernel was running, and running without a stall.
     pub cluster_occupancy: f64,
     pub cluster_occupancy_without_stalls: f64,
+    /// Share of the frame's cycles the hardware rasterizer was running a call (machines
+    /// with one; its calls are `hwrast` in `kernels`, and not cluster time).
+    pub rasterizer_occupancy: Option<f64>,
     /// Every frame cycle in one category (kernels running, dispatch, waiting on a stream
     /// operation by kind, issue, host, drain; see `stream::attribution`); they sum to
     /// `cycles`.

@@ -62,6 +62,8 @@ pub enum Wait {
     Scatter,
     HostTransfer,
     MicrocodeLoad,
+    /// A call of the hardware rasterizer (a hardware kernel beside the clusters).
+    Rasterizer,
 }
 
 impl Wait {
@@ -73,6 +75,7 @@ impl Wait {
             Wait::Scatter => "scatter",
             Wait::HostTransfer => "host transfer",
             Wait::MicrocodeLoad => "microcode load",
+            Wait::Rasterizer => "hardware rasterizer",
         }
     }
 
@@ -86,6 +89,7 @@ impl Wait {
             },
             StreamInstr::WriteSrf { .. } | StreamInstr::ReadSrf { .. } => Wait::HostTransfer,
             StreamInstr::LoadMicrocode { .. } => Wait::MicrocodeLoad,
+            StreamInstr::Rasterize(_) => Wait::Rasterizer,
             StreamInstr::Kernel { .. } => return None,
         })
     }
@@ -371,6 +375,8 @@ pub struct Attribution {
     pub waiting_scatter: u64,
     pub waiting_host_transfer: u64,
     pub waiting_microcode_load: u64,
+    /// Clusters idle while the hardware rasterizer runs (machines with one).
+    pub waiting_rasterizer: u64,
     pub issue: u64,
     pub host: u64,
     pub drain: u64,
@@ -396,6 +402,7 @@ impl Attribution {
             Category::Waiting(Wait::Scatter) => &mut self.waiting_scatter,
             Category::Waiting(Wait::HostTransfer) => &mut self.waiting_host_transfer,
             Category::Waiting(Wait::MicrocodeLoad) => &mut self.waiting_microcode_load,
+            Category::Waiting(Wait::Rasterizer) => &mut self.waiting_rasterizer,
             Category::Issue => &mut self.issue,
             Category::Host => &mut self.host,
             Category::Drain => &mut self.drain,
@@ -404,7 +411,7 @@ impl Attribution {
 
     /// Every category with its cycles, named as [`Category::name`] names them (kernels as
     /// `kernels running`), in a fixed order.
-    pub fn rows(&self) -> [(&'static str, u64); 11] {
+    pub fn rows(&self) -> [(&'static str, u64); 12] {
         [
             ("kernels running", self.kernel_running),
             ("kernel dispatch", self.kernel_dispatch),
@@ -414,6 +421,7 @@ impl Attribution {
             ("waiting: scatter", self.waiting_scatter),
             ("waiting: host transfer", self.waiting_host_transfer),
             ("waiting: microcode load", self.waiting_microcode_load),
+            ("waiting: hardware rasterizer", self.waiting_rasterizer),
             ("issue", self.issue),
             ("host", self.host),
             ("drain", self.drain),
@@ -428,6 +436,7 @@ impl Attribution {
             + self.waiting_scatter
             + self.waiting_host_transfer
             + self.waiting_microcode_load
+            + self.waiting_rasterizer
     }
 
     /// The cycles of every category together.

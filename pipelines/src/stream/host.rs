@@ -16,6 +16,7 @@ use std::fmt;
 
 use imagine_hdl::Sim;
 use imagine_units::desc::MachineDesc;
+use imagine_units::hwrast::{RasterJob, RasterResult};
 use imagine_units::machine::StreamBinding;
 use imagine_units::memory::{MemOp, MemOpKind, Pattern};
 use imagine_units::processor::{self, ProcessorOptions, StreamProgram};
@@ -43,6 +44,12 @@ impl std::error::Error for HostError {}
 pub struct Call {
     pub id: usize,
     pub kernel: KernelId,
+}
+
+/// A queued call of the hardware rasterizer (a hardware kernel).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RasterCall {
+    pub id: usize,
 }
 
 /// A deferred kernel call: its kernel and named bindings.
@@ -472,6 +479,29 @@ impl StreamHost {
     /// Waits until `call` has completed (later instructions may still be in flight).
     pub fn wait(&mut self, call: Call) -> Result<(), HostError> {
         self.wait_id(call.id)
+    }
+
+    /// Queues a call of the machine's hardware rasterizer: a hardware kernel, ordered
+    /// against the other instructions by the streams it reads and writes, as a kernel
+    /// call is (thesis §6.6).
+    pub fn rasterize(&mut self, job: RasterJob) -> Result<RasterCall, HostError> {
+        if self.desc.rasterizer.is_none() {
+            return Err(HostError(format!(
+                "machine `{}` has no hardware rasterizer ([rasterizer] in its description)",
+                self.desc.name
+            )));
+        }
+        let id = self.push(StreamInstr::Rasterize(Box::new(job)));
+        Ok(RasterCall { id })
+    }
+
+    /// Waits until the rasterizer call has completed, and says what it did.
+    pub fn raster_result(&mut self, call: RasterCall) -> Result<RasterResult, HostError> {
+        self.wait_id(call.id)?;
+        self.records()[call.id]
+            .raster
+            .clone()
+            .ok_or_else(|| HostError("a rasterizer call completed without a result".into()))
     }
 
     /// Words a completed call wrote to its output `stream`.

@@ -25,6 +25,6 @@ pub mod timeline;
 
 pub use batch::{Fit, pipelined, split_to_fit, strip_mine};
 pub use dram::{Buffer, DramMap};
-pub use host::{Call, HostError, StreamHost};
+pub use host::{Call, HostError, RasterCall, StreamHost};
 pub use kernels::{KernelId, KernelLibrary, PARAMS};
 pub use srf::{Layout, Lifetime, PlanError, SrfPlan, SrfPlanner, StreamId, live};

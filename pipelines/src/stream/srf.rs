@@ -187,7 +187,8 @@ impl SrfPlanner {
         std::array::from_fn(|i| self.stream(&format!("{name}[{i}]"), layout, records, live))
     }
 
-    /// An elastic stream: it gets an equal share of what the fixed streams leave.
+    /// An elastic stream: the elastic streams share what the fixed streams leave, each
+    /// room for as many records as the others.
     pub fn elastic(&mut self, name: &str, layout: Layout, live: Lifetime) -> StreamId {
         self.declare(name, layout, None, live)
     }
@@ -242,8 +243,8 @@ impl SrfPlanner {
             }
             placed[i] = Some((at, words));
         }
-        // Elastic streams: an equal share of the words above every fixed stream live with
-        // any of them, in whole blocks and whole cluster rows.
+        // Elastic streams: the words above every fixed stream live with any of them, shared
+        // for equal records, in whole blocks and whole cluster rows.
         let elastic: Vec<usize> = (0..self.decls.len())
             .filter(|&i| self.decls[i].records.is_none())
             .collect();
@@ -263,9 +264,16 @@ impl SrfPlanner {
                 .max()
                 .unwrap_or(0);
             let left = self.words.saturating_sub(floor);
-            let share = left / elastic.len() / self.block * self.block;
-            for (k, &i) in elastic.iter().enumerate() {
+            // Equal records: each stream's share in proportion to its record's words.
+            let record_words: usize = elastic
+                .iter()
+                .map(|&i| self.decls[i].layout.record_words)
+                .sum();
+            let per_word = left / record_words.max(1);
+            let mut at = floor;
+            for &i in &elastic {
                 let d = &self.decls[i];
+                let share = per_word * d.layout.record_words / self.block * self.block;
                 let row = d.layout.record_words * self.clusters;
                 let words = share / row * row;
                 if words == 0 {
@@ -277,7 +285,8 @@ impl SrfPlanner {
                         elastic.len()
                     )));
                 }
-                placed[i] = Some((floor + k * share, words));
+                placed[i] = Some((at, words));
+                at += share;
             }
         }
         let streams = self

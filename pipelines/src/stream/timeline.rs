@@ -69,6 +69,7 @@ const TID_CLUSTERS: u32 = 1;
 const TID_ATTRIBUTION: u32 = 2;
 const TID_HOST: u32 = 3;
 const TID_MICROCODE: u32 = 4;
+const TID_RASTERIZER: u32 = 5;
 const TID_AG0: u32 = 10;
 
 /// A slice before it is written.
@@ -140,6 +141,18 @@ pub fn timeline(input: &TimelineInput<'_>, max_events: usize) -> Value {
                 args.insert("kernel".into(), json!(input.programs[*program].name));
                 (TID_MICROCODE, "microcode load".into(), "microcode")
             }
+            (StreamInstr::Rasterize(job), _) => {
+                if let Some(res) = &r.raster {
+                    args.insert("fragments".into(), json!(res.fragments));
+                    args.insert("overflowed".into(), json!(res.overflowed));
+                }
+                args.insert("triangles".into(), json!(job.inputs[1].words));
+                (
+                    TID_RASTERIZER,
+                    imagine_units::stream_controller::RASTERIZER_KERNEL.into(),
+                    "kernel",
+                )
+            }
             (StreamInstr::Memory(_), _) => continue,
         };
         slices.push(Slice {
@@ -201,10 +214,11 @@ pub fn timeline(input: &TimelineInput<'_>, max_events: usize) -> Value {
     }
     events.push(thread(TID_HOST, "host interface"));
     events.push(thread(TID_MICROCODE, "microcode loader"));
+    events.push(thread(TID_RASTERIZER, "hardware rasterizer"));
     for (i, tid) in [TID_CLUSTERS, TID_ATTRIBUTION]
         .into_iter()
         .chain((0..input.address_generators as u32).map(|a| TID_AG0 + a))
-        .chain([TID_HOST, TID_MICROCODE])
+        .chain([TID_HOST, TID_MICROCODE, TID_RASTERIZER])
         .enumerate()
     {
         events.push(json!({"ph": "M", "pid": PID, "tid": tid, "name": "thread_sort_index", "args": {"sort_index": i}}));
@@ -306,6 +320,9 @@ fn counters(input: &TimelineInput<'_>, events: &mut Vec<Value>) {
             StreamInstr::WriteSrf { words, .. } => words.len(),
             StreamInstr::ReadSrf { len, .. } => *len,
             StreamInstr::LoadMicrocode { .. } => 0,
+            StreamInstr::Rasterize(job) => {
+                job.inputs.iter().chain(&job.outputs).map(|b| b.words).sum()
+            }
         };
         if let (Some(i), Some(c)) = (r.issued, r.completed) {
             count_over(&mut srf_bound, i, c, bound as i64);

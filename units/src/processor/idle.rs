@@ -112,6 +112,7 @@ impl Processor {
             || self.deferred.is_some()
             || self.issue.is_some()
             || self.ags.iter().any(|a| a.is_busy())
+            || self.rasterizer_busy()
             || !self.machine.idle_skippable()
         {
             return None;
@@ -136,6 +137,7 @@ impl Processor {
             self.kernel.is_none(),
             self.loader.is_none(),
             self.host_transfer.is_none(),
+            true,
         )?;
         Some((until, counts))
     }

@@ -212,6 +212,7 @@ pub fn run(desc: &MachineDesc, config: &Config) -> Outcome {
             true,
             true,
             host_busy.is_none(),
+            true,
         );
         // The reference's choice: the oldest entered, unissued instruction with no hazard
         // from an older one not yet completed, whose unit is free.
