@@ -70,8 +70,12 @@ fn the_hardware_rasterizer_draws_gold8s_frames_bit_for_bit() {
     let gold8 = MachineDesc::gold8();
     let hwrast = MachineDesc::resolve("gold8+hwrast").unwrap();
     // ADVS-8: a fragment program with a mipmapped texture (varyings and derivatives);
-    // the .tri scene: packed colour, blended (primitive order).
-    for scene in [builtin("ADVS-8", 48), blended()] {
+    // the .tri scene: packed colour, blended (primitive order), and again with each
+    // triangle's depth interpolated from its reference depth (`pipeline.reference_depth`).
+    let mut from_reference = blended();
+    from_reference.pipeline.reference_depth = true;
+    from_reference.name = "three, reference depth".into();
+    for scene in [builtin("ADVS-8", 48), blended(), from_reference] {
         let (a, b) = (render(&scene, &gold8), render(&scene, &hwrast));
         let what = &scene.name;
         assert!(b.stats.fragments > 0, "{what}: nothing drawn");

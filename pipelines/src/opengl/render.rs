@@ -2000,6 +2000,7 @@ impl FrameRun<'_> {
                 extras: v.extras,
                 derivatives: v.derivatives,
                 fragment_program: v.fragment_program(),
+                reference_depth: v.reference_depth,
             },
         };
         let call = h.rasterize(job)?;

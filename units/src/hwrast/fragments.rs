@@ -5,7 +5,8 @@
 //! functional units execute), so that a frame rasterized here is bit for bit the frame the
 //! kernels rasterize (`pipelines/src/opengl/kernels.rs`):
 //!
-//! * **setup** (`baryprep`): `q_k = z_k · (1 / |det|)`, the primitive number
+//! * **setup** (`baryprep`): `q_k = z_k · (1 / |det|)` (`z_k` is `z_k − ζ·w_k` when the
+//!   frame has reference depths), the primitive number
 //!   `prim_base + index + 1`, and, for mipmapped frames, the derivative sums `ΣA`, `ΣB`,
 //!   `Σs·A`, `Σs·B`, `Σt·A`, `Σt·B`;
 //! * **box** (`xyprep`): the triangle's bounding box clamped to the scissor tile; a
@@ -13,7 +14,8 @@
 //! * **coverage** (`xyrast`): at pixel centre `(x + ½, y + ½)` each edge's
 //!   `E = (A·X + B·Y) + C`; covered when every `E > 0`, or `E ≥ 0` on a top-left edge
 //!   (`E > −2⁻¹⁴⁹` without flushing, two compares with it);
-//! * **interpolation** (`irast`): `λ_k = E_k · (1 / ΣE)`, depth `(Σ E_k·q_k)·½ + ½`, the
+//! * **interpolation** (`irast`): `λ_k = E_k · (1 / ΣE)`, depth `(ζ + Σ E_k·q_k)·½ + ½`
+//!   (without ζ, `(Σ E_k·q_k)·½ + ½`), the
 //!   clamped colour (packed RGBA8) or, with a fragment program, the colour channels, the
 //!   extras and the texture-coordinate derivatives.
 //!
@@ -26,8 +28,9 @@ use crate::ops::Op;
 /// Words of a triangle's window record (`viewport_cull`): nine edge coefficients (A, B, C
 /// per edge), the box (x0, y0, x1, y1) and the flags (bit 0 kept, bits 29..31 top-left).
 pub const WINDOW_WORDS: usize = 14;
-/// Words of a triangle's attribute record (`assemble_clip`) before the extras: z per
-/// corner, then r, g, b per corner.
+/// Words of a triangle's attribute record (`assemble_clip`) before the extras, without a
+/// reference depth: z per corner, then r, g, b per corner. With one, the triangle's
+/// reference depth ζ comes first and the corners' words are `z − ζ·w`.
 pub const ATTRIB_WORDS: usize = 12;
 /// Bit of the flags word where the three top-left flags start.
 const TOP_LEFT_BIT: u32 = 29;
@@ -60,12 +63,16 @@ pub struct RasterState {
     /// Whether fragments go to a fragment program (the interpolated values) or straight
     /// to the composite (the packed colour).
     pub fragment_program: bool,
+    /// Whether each attribute record starts with its triangle's reference depth ζ, which
+    /// the depth is interpolated from (`z_ndc = ζ + Σ E_k·q_k`; the scene's
+    /// `pipeline.reference_depth`).
+    pub reference_depth: bool,
 }
 
 impl RasterState {
     /// Words of a triangle's attribute record.
     pub fn attrib_words(&self) -> usize {
-        ATTRIB_WORDS + 3 * self.extras
+        usize::from(self.reference_depth) + ATTRIB_WORDS + 3 * self.extras
     }
 
     /// Words of a fragment's last field: the packed colour, or r, g, b, the extras and the
@@ -100,7 +107,9 @@ pub struct Setup {
     edges: [[u32; 3]; 3],
     /// Whether each edge is top-left.
     top_left: [bool; 3],
-    /// `z_k / |det|` of each corner.
+    /// The reference depth ζ, when the frame has one.
+    zeta: Option<u32>,
+    /// `z_k / |det|` (or `(z_k − ζ·w_k) / |det|`) of each corner.
     q: [u32; 3],
     /// r, g, b of each corner (corner-major).
     colours: [u32; 9],
@@ -166,6 +175,11 @@ pub fn setup(
     });
     let kept = flags & 1 == 1 && b[0] <= b[2] && b[1] <= b[3];
     let inv_det = op(Op::FDiv, ONE, det, mode);
+    let (zeta, attribs) = if state.reference_depth {
+        (Some(attribs[0]), &attribs[1..])
+    } else {
+        (None, attribs)
+    };
     let q = std::array::from_fn(|k| op(Op::FMul, attribs[k], inv_det, mode));
     let colours = std::array::from_fn(|k| attribs[3 + k]);
     let extras = attribs[ATTRIB_WORDS..].to_vec();
@@ -194,6 +208,7 @@ pub fn setup(
         bounds: kept.then_some(b),
         edges,
         top_left: std::array::from_fn(|i| (flags >> (TOP_LEFT_BIT + i as u32)) & 1 == 1),
+        zeta,
         q,
         colours,
         extras,
@@ -252,7 +267,11 @@ fn interpolate(
     let sum = sum3(e, mode);
     let inv = op(Op::FDiv, ONE, sum, mode);
     let lambda = e.map(|x| op(Op::FMul, x, inv, mode));
-    let z_ndc = weighted(e, s.q, mode);
+    let from_zeta = weighted(e, s.q, mode);
+    let z_ndc = match s.zeta {
+        Some(zeta) => op(Op::FAdd, zeta, from_zeta, mode),
+        None => from_zeta,
+    };
     let z = op(Op::FAdd, op(Op::FMul, z_ndc, HALF, mode), HALF, mode);
     out.extend([addr, z, s.prim]);
     let channel = |ch: usize| {
