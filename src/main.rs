@@ -48,7 +48,8 @@ enum Command {
     /// cycles went, kernels, bandwidths and error, with ratios, largest differences first
     Compare(commands::compare::CompareArgs),
     /// Error against run time: render a scene at every combination of knob values
-    /// (machine, batch, filter, flush_to_zero, normalise_clip, reference_depth), each point's
+    /// (machine, batch, filter, flush_to_zero, normalise_clip, reference_depth,
+    /// newton_raphson), each point's
     /// cycles, frames/s and error
     /// against the reference as a CSV row, and PSNR against cycles as a plot
     Sweep(commands::sweep::SweepArgs),

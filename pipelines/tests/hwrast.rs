@@ -71,10 +71,12 @@ fn the_hardware_rasterizer_draws_gold8s_frames_bit_for_bit() {
     let hwrast = MachineDesc::resolve("gold8+hwrast").unwrap();
     // ADVS-8: a fragment program with a mipmapped texture (varyings and derivatives);
     // the .tri scene: packed colour, blended (primitive order), and again with each
-    // triangle's depth interpolated from its reference depth (`pipeline.reference_depth`).
+    // triangle's depth interpolated from its reference depth (`pipeline.reference_depth`)
+    // and 1/ΣE by a Newton–Raphson step (`pipeline.newton_raphson`).
     let mut from_reference = blended();
     from_reference.pipeline.reference_depth = true;
-    from_reference.name = "three, reference depth".into();
+    from_reference.pipeline.newton_raphson = 1;
+    from_reference.name = "three, reference depth, a Newton step".into();
     for scene in [builtin("ADVS-8", 48), blended(), from_reference] {
         let (a, b) = (render(&scene, &gold8), render(&scene, &hwrast));
         let what = &scene.name;

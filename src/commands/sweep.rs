@@ -48,7 +48,8 @@ pub struct SweepArgs {
     /// A knob and its values, NAME=V1,V2,…: machine (a built-in name or a TOML file),
     /// batch (triangles per batch), filter (nearest, bilinear, trilinear: every texture's),
     /// flush_to_zero, normalise_clip and reference_depth (true, false: the machine's
-    /// arithmetic and the scene's pipeline settings); repeat for a grid of every combination
+    /// arithmetic and the scene's pipeline settings), newton_raphson (0 to 3: irast's
+    /// reciprocal, 0 the divide unit); repeat for a grid of every combination
     #[arg(long = "knob", value_name = "NAME=V1,V2,…", required = true)]
     knobs: Vec<String>,
     /// The CSV to write, one row per point in grid order; finished points are kept in
@@ -205,8 +206,13 @@ fn point_key(scene_hash: &blake3::Hash, size: Option<u32>, setup: &Setup) -> Str
     h.update(scene_hash.as_bytes());
     h.update(
         format!(
-            "{size:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{:?}",
-            setup.machine, setup.batch, setup.filter, setup.normalise_clip, setup.reference_depth
+            "{size:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{:?}",
+            setup.machine,
+            setup.batch,
+            setup.filter,
+            setup.normalise_clip,
+            setup.reference_depth,
+            setup.newton_raphson
         )
         .as_bytes(),
     );
@@ -565,6 +571,9 @@ fn render_point(
     }
     if let Some(on) = point.setup.reference_depth {
         scene.pipeline.reference_depth = on;
+    }
+    if let Some(n) = point.setup.newton_raphson {
+        scene.pipeline.newton_raphson = n;
     }
     let options = RenderOptions {
         cache: CompileCache::from_env(),

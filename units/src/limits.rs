@@ -67,6 +67,9 @@ pub const MAX_TESSELLATE: u32 = 256;
 /// Most triangles a scene or `--batch` may ask of a batch (the machine's scratchpad and SRF
 /// then bound it further).
 pub const MAX_BATCH: u32 = 1 << 16;
+/// Most Newton–Raphson steps a scene may ask of `irast`'s reciprocal (three reach fp32's
+/// precision from the bit-level guess).
+pub const MAX_NEWTON_STEPS: u8 = 3;
 /// Most rings or segments of a `uv_sphere`.
 pub const MAX_SPHERE_DIVISIONS: u32 = 4096;
 /// Most triangles of a scene, all objects together: 16 times SPHERE's, 8 times RATE-1's in

@@ -836,6 +836,7 @@ mod tests {
                 batch: None,
                 normalise_clip: false,
                 reference_depth: false,
+                newton_raphson: 0,
             },
             lights: Vec::new(),
             textures: Vec::new(),

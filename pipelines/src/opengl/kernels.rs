@@ -62,6 +62,7 @@
 //! takes from `xyprep`'s count: the most runs any cluster has, exactly what the busiest
 //! cluster needs. The scratchpad bounds the batch: [`xyrast_rows`] triangles per cluster.
 
+use imagine_units::arith::fp32::RECIPROCAL_GUESS;
 use imagine_units::desc::MachineDesc;
 use imagine_units::ops::Op;
 
@@ -1088,10 +1089,34 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     Ok(finish(b))
 }
 
+/// `1/x` by `steps` Newton–Raphson steps on the multipliers and adders from the bit-level
+/// guess ([`RECIPROCAL_GUESS`]).
+fn newton_reciprocal(b: &mut KernelBuilder, x: Value, steps: u8) -> Value {
+    let magic = b.constant(RECIPROCAL_GUESS, Ty::I32);
+    let bits = b.cast(x, Ty::I32);
+    let guess = b.isub(magic, bits);
+    let mut y = b.cast(guess, Ty::F32);
+    let two = b.f32(2.0);
+    for _ in 0..steps {
+        let xy = b.fmul(x, y);
+        let t = b.fsub(two, xy);
+        y = b.fmul(y, t);
+    }
+    y
+}
+
 /// `irast`: a fragment's perspective-correct colour (packed RGBA8, alpha 255) and window
 /// depth from its edge values and its triangle's interpolation record (gathered from
-/// memory by triangle index), and the triangle's primitive number.
-pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineRequirementError> {
+/// memory by triangle index), and the triangle's primitive number. The barycentrics'
+/// `1/ΣE` is the divide unit's, or `newton_steps` Newton–Raphson steps' (the scene's
+/// `pipeline.newton_raphson`, at most [`imagine_units::limits::MAX_NEWTON_STEPS`]): fewer cycles where the
+/// divider bounds the loop, and colours and varyings a little off (the depth does not use
+/// it).
+pub fn irast(
+    _desc: &MachineDesc,
+    varyings: Varyings,
+    newton_steps: u8,
+) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("irast");
     let e_in: [StreamId; 3] = ["e0", "e1", "e2"].map(|n| b.input(n));
     let interp = b.input("interp");
@@ -1114,7 +1139,11 @@ pub fn irast(_desc: &MachineDesc, varyings: Varyings) -> Result<Kernel, MachineR
         .collect();
     let sum = b.fadd(e[0], e[1]);
     let sum = b.fadd(sum, e[2]);
-    let inv = b.fdiv(one_f, sum);
+    let inv = if newton_steps == 0 {
+        b.fdiv(one_f, sum)
+    } else {
+        newton_reciprocal(&mut b, sum, newton_steps)
+    };
     let lambda: Vec<Value> = e.iter().map(|&x| b.fmul(x, inv)).collect();
     let weighted = |b: &mut KernelBuilder, w: &[Value], v: [Value; 3]| {
         let a = b.fmul(w[0], v[0]);

@@ -661,7 +661,7 @@ fn register_kernels(
     let baryprep = lib.register("baryprep", kernels::baryprep(desc, varyings)?);
     let xyprep = lib.register("xyprep", kernels::xyprep(desc, shape)?);
     let xyrast = lib.register("xyrast", kernels::xyrast(desc, shape)?);
-    let irast = lib.register("irast", kernels::irast(desc, varyings)?);
+    let irast = lib.register("irast", kernels::irast(desc, varyings, pp.newton_steps)?);
     let mut per_object = per_object;
     // A vertex texture's address kernel per combined map.
     let mut vertex_textures: Vec<(bump_env::Maps, KernelId)> = Vec::new();
@@ -1019,6 +1019,9 @@ pub struct PipelinePlan {
     /// Whether `assemble_clip` normalises each triangle's clip corners
     /// (`pipeline.normalise_clip`).
     pub normalise_clip: bool,
+    /// Newton–Raphson steps for `irast`'s reciprocal, 0 for the divide unit
+    /// (`pipeline.newton_raphson`).
+    pub newton_steps: u8,
 }
 
 impl PipelinePlan {
@@ -1347,6 +1350,7 @@ pub fn plan_pipeline(
         fragment_programs,
         textures,
         normalise_clip: scene.pipeline.normalise_clip,
+        newton_steps: scene.pipeline.newton_raphson,
     })
 }
 
@@ -2001,6 +2005,7 @@ impl FrameRun<'_> {
                 derivatives: v.derivatives,
                 fragment_program: v.fragment_program(),
                 reference_depth: v.reference_depth,
+                newton_steps: self.scene.pipeline.newton_raphson,
             },
         };
         let call = h.rasterize(job)?;

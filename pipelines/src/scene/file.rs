@@ -11,7 +11,8 @@
 //!   `normalise_clip` (an addition: scale each triangle's clip corners by a power of two,
 //!   exactly, so that clip coordinates of any magnitude rasterize) to false, and
 //!   `reference_depth` (an addition: interpolate the depth from each triangle's own, for
-//!   precision at any depth range) to false.
+//!   precision at any depth range) to false, and `newton_raphson` (an addition: `irast`'s
+//!   reciprocal by 1 to 3 Newton–Raphson steps instead of the divide unit) to 0.
 //! * `[window] background` defaults to black; a material's `shader` is required.
 //! * A texture's `filter` defaults to `"nearest"` and `wrap` to `"repeat"`; a procedural
 //!   checker defaults to `size = 256`, `cells = 8`, `colours = [[1,1,1], [0,0,0]]`. A
@@ -53,7 +54,7 @@
 
 use std::path::{Path, PathBuf};
 
-use imagine_units::limits::{MAX_BATCH, read_file, read_text_file};
+use imagine_units::limits::{MAX_BATCH, MAX_NEWTON_STEPS, read_file, read_text_file};
 
 use glam::dcamera::rh::proj::opengl;
 use glam::{DMat4, DVec3};
@@ -208,6 +209,7 @@ pub fn window_scene(old: super::Scene) -> model::Scene {
             batch: None,
             normalise_clip: false,
             reference_depth: false,
+            newton_raphson: 0,
         },
         lights: Vec::new(),
         textures: Vec::new(),
@@ -305,6 +307,7 @@ struct PipelineFile {
     batch: Option<i64>,
     normalise_clip: Option<bool>,
     reference_depth: Option<bool>,
+    newton_raphson: Option<i64>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -878,6 +881,16 @@ impl Cx {
             stop_length: stop_length as f32,
             normalise_clip: p.normalise_clip.unwrap_or(false),
             reference_depth: p.reference_depth.unwrap_or(false),
+            newton_raphson: match p.newton_raphson {
+                None => 0,
+                Some(n) if (0..=i64::from(MAX_NEWTON_STEPS)).contains(&n) => n as u8,
+                Some(n) => {
+                    return Err(self.err(
+                        "pipeline.newton_raphson",
+                        format!("{n} is outside 0..={MAX_NEWTON_STEPS} steps (0: the divide unit)"),
+                    ));
+                }
+            },
             batch: match p.batch {
                 None => None,
                 Some(n) if (1..=i64::from(MAX_BATCH)).contains(&n) => Some(n as u32),
@@ -1705,6 +1718,10 @@ mod tests {
             (format!("{WINDOW}[pipeline]\nbatch = 0\n{BALL}"), vec!["`pipeline.batch`", "1..=65536"]),
             (format!("{WINDOW}[pipeline]\nbatch = 70000\n{BALL}"), vec!["`pipeline.batch`", "70000"]),
             (format!("{WINDOW}[pipeline]\nbatch = 6.5\n{BALL}"), vec!["pipeline.batch"]),
+            (
+                format!("{WINDOW}[pipeline]\nnewton_raphson = 4\n{BALL}"),
+                vec!["`pipeline.newton_raphson`", "0..=3"],
+            ),
             (format!("{WINDOW}[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 0]\n{BALL}"), vec!["`camera.fov_y`", "missing"]),
             (format!("{WINDOW}[camera]\nmodelview = [1, 2]\northo = [-1, 1, -1, 1, -1, 1]\n{BALL}"), vec!["camera.modelview", "16"]),
         ];

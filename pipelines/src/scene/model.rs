@@ -106,6 +106,10 @@ pub struct PipelineSettings {
     /// cycles (a word more per fragment), and depth ranges far beyond the published
     /// scenes' need it (near 1e-3 and far 1e6 lose silhouette pixels past depth 1).
     pub reference_depth: bool,
+    /// OpenGL: `irast` takes a fragment's `1/ΣE` by this many Newton–Raphson steps on the
+    /// multipliers and adders (1 to 3) instead of the divide unit (0, the default): fewer
+    /// cycles, colours and varyings off by the steps' error.
+    pub newton_raphson: u8,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -5,7 +5,7 @@
 use anyhow::{Context, Result, bail};
 use imagine_pipelines::scene::model::Filter;
 use imagine_units::desc::{BUILTIN, MachineDesc};
-use imagine_units::limits::MAX_BATCH;
+use imagine_units::limits::{MAX_BATCH, MAX_NEWTON_STEPS};
 
 /// A knob of the sweep.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -22,16 +22,19 @@ pub enum Knob {
     NormaliseClip,
     /// The scene's `pipeline.reference_depth` (depth interpolated from each triangle's own).
     ReferenceDepth,
+    /// The scene's `pipeline.newton_raphson` (`irast`'s reciprocal: 0 the divide unit).
+    NewtonRaphson,
 }
 
 impl Knob {
-    pub const ALL: [Knob; 6] = [
+    pub const ALL: [Knob; 7] = [
         Knob::Machine,
         Knob::Batch,
         Knob::Filter,
         Knob::FlushToZero,
         Knob::NormaliseClip,
         Knob::ReferenceDepth,
+        Knob::NewtonRaphson,
     ];
 
     pub fn name(self) -> &'static str {
@@ -42,6 +45,7 @@ impl Knob {
             Knob::FlushToZero => "flush_to_zero",
             Knob::NormaliseClip => "normalise_clip",
             Knob::ReferenceDepth => "reference_depth",
+            Knob::NewtonRaphson => "newton_raphson",
         }
     }
 
@@ -59,6 +63,9 @@ impl Knob {
             Knob::Batch => format!("triangles per batch, 1 to {MAX_BATCH}"),
             Knob::Filter => "nearest, bilinear (or linear), trilinear".into(),
             Knob::FlushToZero | Knob::NormaliseClip | Knob::ReferenceDepth => "true, false".into(),
+            Knob::NewtonRaphson => {
+                format!("Newton–Raphson steps, 0 (the divide unit) to {MAX_NEWTON_STEPS}")
+            }
         }
     }
 
@@ -82,6 +89,10 @@ impl Knob {
             Knob::FlushToZero => KnobValue::FlushToZero(boolean(text)?),
             Knob::NormaliseClip => KnobValue::NormaliseClip(boolean(text)?),
             Knob::ReferenceDepth => KnobValue::ReferenceDepth(boolean(text)?),
+            Knob::NewtonRaphson => match text.parse::<u8>() {
+                Ok(n) if n <= MAX_NEWTON_STEPS => KnobValue::NewtonRaphson(n),
+                _ => bail!("`{text}` is not a number of Newton–Raphson steps"),
+            },
         };
         Ok(value)
     }
@@ -104,6 +115,7 @@ pub enum KnobValue {
     FlushToZero(bool),
     NormaliseClip(bool),
     ReferenceDepth(bool),
+    NewtonRaphson(u8),
 }
 
 /// A knob and its values in the order given: one axis of the grid.
@@ -162,7 +174,7 @@ pub fn parse_axis(arg: &str) -> Result<Axis> {
 
 /// What a point's knob values make of the base machine and the render: the machine
 /// description, the batch limit, the texture filter override and the overrides of the
-/// scene's clip normalisation and reference depth.
+/// scene's clip normalisation, reference depth and Newton–Raphson steps.
 #[derive(Clone, Debug)]
 pub struct Setup {
     pub machine: MachineDesc,
@@ -170,6 +182,7 @@ pub struct Setup {
     pub filter: Option<Filter>,
     pub normalise_clip: Option<bool>,
     pub reference_depth: Option<bool>,
+    pub newton_raphson: Option<u8>,
 }
 
 impl Setup {
@@ -189,6 +202,7 @@ impl Setup {
             filter: None,
             normalise_clip: None,
             reference_depth: None,
+            newton_raphson: None,
         };
         for value in values {
             match value {
@@ -198,6 +212,7 @@ impl Setup {
                 KnobValue::FlushToZero(on) => setup.machine.arithmetic.flush_to_zero = *on,
                 KnobValue::NormaliseClip(on) => setup.normalise_clip = Some(*on),
                 KnobValue::ReferenceDepth(on) => setup.reference_depth = Some(*on),
+                KnobValue::NewtonRaphson(n) => setup.newton_raphson = Some(*n),
             }
         }
         Ok(setup)
@@ -225,6 +240,7 @@ mod tests {
             ("flush_to_zero=yes", "true, false"),
             ("normalise_clip=1", "true, false"),
             ("reference_depth=on", "true, false"),
+            ("newton_raphson=4", "0 (the divide unit) to 3"),
             ("machine=gold7", "gold8"),
         ] {
             let e = format!("{:#}", parse_axis(bad).unwrap_err());
@@ -249,9 +265,11 @@ mod tests {
         let on = [
             KnobValue::NormaliseClip(true),
             KnobValue::ReferenceDepth(false),
+            KnobValue::NewtonRaphson(2),
         ];
         let setup = Setup::of("gold8", &on.iter().collect::<Vec<_>>()).unwrap();
         assert_eq!(setup.normalise_clip, Some(true));
         assert_eq!(setup.reference_depth, Some(false));
+        assert_eq!(setup.newton_raphson, Some(2));
     }
 }

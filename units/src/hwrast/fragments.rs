@@ -22,7 +22,7 @@
 //! Fragments come out triangle by triangle in input order, each box row by row from the
 //! bottom, pixels left to right: primitive order, as a blending frame needs.
 
-use crate::arith::fp32::FpMode;
+use crate::arith::fp32::{FpMode, RECIPROCAL_GUESS};
 use crate::ops::Op;
 
 /// Words of a triangle's window record (`viewport_cull`): nine edge coefficients (A, B, C
@@ -38,6 +38,7 @@ const TOP_LEFT_BIT: u32 = 29;
 pub const NULL_DEPTH: u32 = 0x7FC0_0000;
 const ONE: u32 = 0x3F80_0000;
 const HALF: u32 = 0x3F00_0000;
+const TWO: u32 = 0x4000_0000;
 const ZERO: u32 = 0;
 const SCALE_255: u32 = 0x437F_0000;
 /// −2⁻¹⁴⁹, the negative subnormal next to −0: `E > −2⁻¹⁴⁹` is `E ≥ 0`.
@@ -67,6 +68,9 @@ pub struct RasterState {
     /// the depth is interpolated from (`z_ndc = ζ + Σ E_k·q_k`; the scene's
     /// `pipeline.reference_depth`).
     pub reference_depth: bool,
+    /// Newton–Raphson steps for `1/ΣE` from the bit-level guess, or 0 for a divide (the
+    /// scene's `pipeline.newton_raphson`, as `irast` takes it).
+    pub newton_steps: u8,
 }
 
 impl RasterState {
@@ -148,6 +152,21 @@ fn weighted(w: [u32; 3], v: [u32; 3], mode: FpMode) -> u32 {
 fn sum3(t: [u32; 3], mode: FpMode) -> u32 {
     let s = op(Op::FAdd, t[0], t[1], mode);
     op(Op::FAdd, s, t[2], mode)
+}
+
+/// `1/x` as `irast` takes it: a divide, or `steps` Newton–Raphson steps `y·(2 − x·y)` from
+/// the guess [`RECIPROCAL_GUESS`]` − bits(x)` (integer subtract).
+fn reciprocal_of(x: u32, steps: u8, mode: FpMode) -> u32 {
+    if steps == 0 {
+        return op(Op::FDiv, ONE, x, mode);
+    }
+    let mut y = op(Op::ISub, RECIPROCAL_GUESS, x, mode);
+    for _ in 0..steps {
+        let xy = op(Op::FMul, x, y, mode);
+        let t = op(Op::FSub, TWO, xy, mode);
+        y = op(Op::FMul, y, t, mode);
+    }
+    y
 }
 
 /// Sets up triangle `index` of the call from its window record, `|det|` and attribute
@@ -265,7 +284,7 @@ fn interpolate(
     out: &mut Vec<u32>,
 ) {
     let sum = sum3(e, mode);
-    let inv = op(Op::FDiv, ONE, sum, mode);
+    let inv = reciprocal_of(sum, state.newton_steps, mode);
     let lambda = e.map(|x| op(Op::FMul, x, inv, mode));
     let from_zeta = weighted(e, s.q, mode);
     let z_ndc = match s.zeta {

@@ -43,6 +43,7 @@ fn triangle(x: f32, y: f32, n: f32, kept: bool) -> ([u32; WINDOW_WORDS], usize) 
 fn state() -> RasterState {
     RasterState {
         reference_depth: false,
+        newton_steps: 0,
         width: 64,
         trash: 64 * 64,
         tile: [0, 0, 63, 63],
