@@ -273,6 +273,8 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "gold32combo",
         include_str!("../../machines/gold32combo.toml"),
     ),
+    ("reyes", include_str!("../../machines/reyes.toml")),
+    ("reyes400", include_str!("../../machines/reyes400.toml")),
 ];
 
 impl MachineDesc {

@@ -1,0 +1,221 @@
+//! The Reyes pipeline: its kernels on the clocked machine against their interpretation,
+//! its refusals, and small frames (coverage with no cracks, counts).
+
+use imagine_pipelines::compile::{CompileCache, Compiled};
+use imagine_pipelines::kernel::KernelInputs;
+use imagine_pipelines::kernels::records_to_stream;
+use imagine_pipelines::reyes::frame::{self, BezierPatch, ReyesOptions};
+use imagine_pipelines::reyes::kernels::{self, PATCH_WORDS, STATE_WORDS};
+use imagine_pipelines::run::check;
+use imagine_units::desc::MachineDesc;
+
+fn reyes() -> MachineDesc {
+    MachineDesc::resolve("reyes").expect("built-in machine")
+}
+
+fn cache() -> CompileCache {
+    CompileCache::at(concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache"))
+}
+
+fn compiled(k: &imagine_pipelines::kernel::Kernel, desc: &MachineDesc) -> Compiled {
+    cache().compile(k, desc).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A bilinear-ish Bezier patch: the grid `x0 + col·dx`, `y0 + row·dy`, with the inner
+/// points lifted in z by `bulge` (window space when the matrix is the identity).
+fn grid(x0: f32, y0: f32, dx: f32, dy: f32, bulge: f32) -> BezierPatch {
+    std::array::from_fn(|k| {
+        let (r, c) = ((k / 4) as f32, (k % 4) as f32);
+        let inner = (1.0..=2.0).contains(&r) && (1.0..=2.0).contains(&c);
+        [x0 + c * dx, y0 + r * dy, if inner { bulge } else { 0.0 }]
+    })
+}
+
+/// The matrix that takes window pixels (x, y) and depth z in [0, 1] to clip space, for a
+/// `w × h` window.
+fn window_to_clip(w: u32, h: u32) -> [f32; 16] {
+    imagine_pipelines::scene::window_to_clip(w, h)
+}
+
+fn patch_record(p: &BezierPatch, colour: u32) -> Vec<u32> {
+    let mut r: Vec<u32> = p.iter().flatten().map(|v| v.to_bits()).collect();
+    r.push(colour);
+    r.push(1);
+    r
+}
+
+#[test]
+fn subdiv_machine_equals_interpretation() {
+    let desc = reyes();
+    let c = desc.cluster.count;
+    let k = kernels::subdiv(&desc).unwrap();
+    let compiled = compiled(&k, &desc);
+    // Patches of different sizes, so the clusters' walks differ; one inactive.
+    let mut records: Vec<Vec<u32>> = (0..c - 1)
+        .map(|i| {
+            let s = 1.0 + i as f32;
+            patch_record(
+                &grid(3.0 * i as f32, 2.0, s, 0.7 * s, 0.3),
+                0xFF00_0000 + i as u32,
+            )
+        })
+        .collect();
+    records.push(vec![0; PATCH_WORDS]);
+    let inputs = KernelInputs {
+        streams: vec![
+            vec![0; STATE_WORDS * c],
+            records_to_stream(&records, c),
+            vec![0; 40 * c],
+            Vec::new(),
+            Vec::new(),
+        ],
+        params: vec![(1.5f32 * 1.5).to_bits()],
+    };
+    let r = check(&k, &compiled, &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "{}", r.mismatch.unwrap());
+    assert!(r.words > 40 * c * kernels::QUAD_WORDS);
+}
+
+#[test]
+fn project_and_sample_machine_equal_interpretation() {
+    let desc = reyes();
+    let c = desc.cluster.count;
+    let p = kernels::project(&desc).unwrap();
+    let records: Vec<Vec<u32>> = (0..2 * c)
+        .map(|i| patch_record(&grid(i as f32, 1.0, 0.5, 0.25, 0.1), i as u32))
+        .collect();
+    let mut params: Vec<u32> = window_to_clip(64, 48).iter().map(|v| v.to_bits()).collect();
+    params.extend([32.0f32.to_bits(), 24.0f32.to_bits()]);
+    let inputs = KernelInputs {
+        streams: vec![records_to_stream(&records, c), Vec::new()],
+        params,
+    };
+    let r = check(&p, &compiled(&p, &desc), &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "project: {}", r.mismatch.unwrap());
+    assert_eq!(r.words, 2 * c * PATCH_WORDS);
+
+    // Quads straight from subdiv's interpretation, so that the sampler sees real ones.
+    let s = kernels::subdiv(&desc).unwrap();
+    let patches: Vec<Vec<u32>> = (0..c)
+        .map(|i| patch_record(&grid(2.0 + 5.0 * i as f32, 3.0, 1.5, 2.0, 0.5), 7))
+        .collect();
+    let out = imagine_pipelines::kernel::interpret(
+        &s,
+        &KernelInputs {
+            streams: vec![
+                vec![0; STATE_WORDS * c],
+                records_to_stream(&patches, c),
+                vec![0; 24 * c],
+                Vec::new(),
+                Vec::new(),
+            ],
+            params: vec![(1.5f32 * 1.5).to_bits()],
+        },
+        &desc,
+    )
+    .unwrap();
+    let sampler = kernels::sample(&desc, 48, 32, 1.5).unwrap();
+    let inputs = KernelInputs {
+        streams: vec![out[3].clone(), vec![], vec![], vec![], vec![], vec![]],
+        params: vec![],
+    };
+    let r = check(&sampler, &compiled(&sampler, &desc), &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "sample: {}", r.mismatch.unwrap());
+    let golden = imagine_pipelines::kernel::interpret(&sampler, &inputs, &desc).unwrap();
+    assert!(golden[1].len() > c, "the quads cover pixels");
+}
+
+#[test]
+fn subdiv_needs_the_reyes_scratchpad_and_a_good_stop_length() {
+    let gold8 = MachineDesc::resolve("gold8").unwrap();
+    let e = kernels::subdiv(&gold8).unwrap_err().to_string();
+    assert!(e.contains("subdiv") && e.contains("scratchpad"), "{e}");
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY, 100.0] {
+        let e = frame::check_stop_length(bad).unwrap_err().to_string();
+        assert!(
+            e.contains("stop length") && e.contains("subdiv"),
+            "{bad}: {e}"
+        );
+    }
+}
+
+/// Two patches that share a curved edge, one five times wider than the other (so their
+/// quads along the edge come from different levels), whose union is the square
+/// [4, 40]²: every pixel centre inside it is covered, none outside.
+#[test]
+fn shared_edges_at_different_depths_leave_no_crack() {
+    let desc = reyes();
+    // Column 3 of `a` is column 0 of `b`: x = 34 at the corners, bowed to 37 inside.
+    let seam = |r: usize| if r == 1 || r == 2 { 37.0 } else { 34.0 };
+    let a: BezierPatch = std::array::from_fn(|k| {
+        let (r, c) = (k / 4, k % 4);
+        let y = 4.0 + 12.0 * r as f32;
+        let x = if c == 3 {
+            seam(r)
+        } else {
+            4.0 + 10.0 * c as f32
+        };
+        // A warp inside, so that the map is not affine.
+        let (x, y) = if (1..=2).contains(&r) && (1..=2).contains(&c) {
+            (x + 3.0, y - 2.0)
+        } else {
+            (x, y)
+        };
+        [x, y, 0.25 + 0.01 * c as f32]
+    });
+    let b: BezierPatch = std::array::from_fn(|k| {
+        let (r, c) = (k / 4, k % 4);
+        let y = 4.0 + 12.0 * r as f32;
+        let x = if c == 0 {
+            seam(r)
+        } else {
+            34.0 + 2.0 * c as f32
+                + if c < 3 && (r == 1 || r == 2) {
+                    1.0
+                } else {
+                    0.0
+                }
+        };
+        [x, y, 0.5]
+    });
+    let (w, h) = (44, 44);
+    let m = window_to_clip(w, h);
+    let options = ReyesOptions {
+        cache: cache(),
+        iterations: 64,
+        ..ReyesOptions::default()
+    };
+    let f = frame::render_patches(
+        &[(a, m, 0xFF00_00FF), (b, m, 0xFF00_FF00)],
+        w,
+        h,
+        0,
+        &desc,
+        &options,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let mut holes = Vec::new();
+    let mut spill = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let (cx, cy) = (x as f32 + 0.5, y as f32 + 0.5);
+            let drawn = f.colour[(y * w + x) as usize] != 0;
+            let inside = (4.05..=39.95).contains(&cx) && (4.05..=39.95).contains(&cy);
+            let outside = !((3.7..=40.3).contains(&cx) && (3.7..=40.3).contains(&cy));
+            if inside && !drawn {
+                holes.push((x, y));
+            }
+            if outside && drawn {
+                spill.push((x, y));
+            }
+        }
+    }
+    assert!(holes.is_empty(), "uncovered pixels inside: {holes:?}");
+    assert!(spill.is_empty(), "covered pixels outside: {spill:?}");
+    let s = &f.stats;
+    assert!(s.quads > 500, "{s:?}");
+    assert!(s.levels.len() >= 6, "levels {:?}", s.levels);
+    assert_eq!(s.visible_pixels, 36 * 36);
+    assert!(s.zero_pixel_quads > 0 && s.zero_pixel_quads < s.quads);
+    assert!(s.kernel_cycles("subdiv") > 0 && s.cycles > s.kernel_cycles("subdiv"));
+}
