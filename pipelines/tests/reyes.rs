@@ -182,7 +182,7 @@ fn shared_edges_at_different_depths_leave_no_crack() {
     let m = window_to_clip(w, h);
     let options = ReyesOptions {
         cache: cache(),
-        iterations: 64,
+        iterations: Some(64),
         ..ReyesOptions::default()
     };
     let f = frame::render_patches(
@@ -214,6 +214,47 @@ fn shared_edges_at_different_depths_leave_no_crack() {
     assert!(spill.is_empty(), "covered pixels outside: {spill:?}");
     let s = &f.stats;
     assert!(s.quads > 500, "{s:?}");
+    // Every quad once: a leaf of level l is one of the 4^l of its patch.
+    let bound: u64 = s
+        .levels
+        .iter()
+        .enumerate()
+        .map(|(l, _)| 2 * 4u64.pow(l as u32))
+        .max()
+        .unwrap();
+    assert!(
+        s.quads <= bound,
+        "{} quads from two patches of at most {} levels",
+        s.quads,
+        s.levels.len()
+    );
+    // Calls of a few iterations (each walk saved and resumed many times, one patch done
+    // long before the other) give the same quads and the same image.
+    let short = ReyesOptions {
+        iterations: Some(5),
+        ..options.clone()
+    };
+    let g = frame::render_patches(
+        &[(a, m, 0xFF00_00FF), (b, m, 0xFF00_FF00)],
+        w,
+        h,
+        0,
+        &desc,
+        &short,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(g.stats.quads, s.quads);
+    assert_eq!(g.stats.levels, s.levels);
+    assert_eq!(g.colour, f.colour);
+    assert!(
+        g.stats
+            .kernels
+            .iter()
+            .find(|k| k.name == "subdiv")
+            .unwrap()
+            .calls
+            > 10
+    );
     assert!(s.levels.len() >= 6, "levels {:?}", s.levels);
     assert_eq!(s.visible_pixels, 36 * 36);
     assert!(s.zero_pixel_quads > 0 && s.zero_pixel_quads < s.quads);

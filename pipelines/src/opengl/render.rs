@@ -921,7 +921,11 @@ fn merges(shape: FrameShape, options: &RenderOptions) -> bool {
 fn check_supported(scene: &Scene) -> Result<(), RenderError> {
     let bad = |m: String| Err(RenderError(format!("scene `{}`: {m}", scene.name)));
     if scene.pipeline.kind != PipelineKind::OpenGl {
-        return bad("the Reyes pipeline is not built yet; use kind = \"opengl\"".into());
+        return bad(
+            "its pipeline is Reyes (`crate::reyes`; `imagine render --pipeline reyes`), \
+             not OpenGL"
+                .into(),
+        );
     }
     if scene.width == 0
         || scene.height == 0

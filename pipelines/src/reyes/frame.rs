@@ -41,9 +41,10 @@ pub type BezierPatch = [[f32; 3]; 16];
 pub struct ReyesOptions {
     /// The largest quad side, in pixels.
     pub stop_length: f32,
-    /// Quads each cluster walks per `subdiv` call: bounds the SRF its quads and their
-    /// fragments take (`(iterations + 1) · C · 20` words of quads).
-    pub iterations: usize,
+    /// Quads each cluster walks per `subdiv` call (`None`: [`iterations_for`]): bounds
+    /// the SRF its quads and their fragments take (`(iterations + 1) · C · 20` words of
+    /// quads).
+    pub iterations: Option<usize>,
     /// Give up a kernel call after this many cycles.
     pub max_call_cycles: u64,
     pub cache: CompileCache,
@@ -53,7 +54,7 @@ impl Default for ReyesOptions {
     fn default() -> Self {
         ReyesOptions {
             stop_length: 1.5,
-            iterations: 128,
+            iterations: None,
             max_call_cycles: 50_000_000,
             cache: CompileCache::disabled(),
         }
@@ -202,6 +203,18 @@ impl Runner<'_> {
     }
 }
 
+/// Quads per cluster per `subdiv` call that keep a call's streams within the SRF space a
+/// kernel's output gets here (an eighth of the SRF): the quads (20 words each), and their
+/// fragments, at most about `(L + 1)²` per quad of side `L`. At most 64.
+pub fn iterations_for(desc: &MachineDesc, stop: f32) -> usize {
+    let c = desc.cluster.count.max(1);
+    let share = desc.srf.words / 8;
+    let per_quad = (f64::from(stop) + 1.0).powi(2).ceil() as usize;
+    let by_fragments = share / (c * per_quad);
+    let by_quads = share * 2 / (c * QUAD_WORDS);
+    by_fragments.min(by_quads).min(65).saturating_sub(1).max(1)
+}
+
 /// Checks a stop length: positive, finite, and within what `sample` is built for.
 pub fn check_stop_length(stop: f32) -> Result<(), ReyesError> {
     if !(stop.is_finite() && stop > 0.0 && stop <= MAX_STOP_LENGTH) {
@@ -241,12 +254,15 @@ pub fn render_patches(
     options: &ReyesOptions,
 ) -> Result<ReyesFrame, ReyesError> {
     check_stop_length(options.stop_length)?;
-    if options.iterations == 0 {
+    let c = desc.cluster.count;
+    let iterations = options
+        .iterations
+        .unwrap_or_else(|| iterations_for(desc, options.stop_length));
+    if iterations == 0 {
         return Err(ReyesError(
             "iterations per `subdiv` call must be at least 1".into(),
         ));
     }
-    let c = desc.cluster.count;
     let shape = FrameShape {
         width,
         height,
@@ -332,7 +348,7 @@ pub fn render_patches(
     }
 
     let stop2 = (options.stop_length * options.stop_length).to_bits();
-    let tickets = vec![0u32; options.iterations * c];
+    let tickets = vec![0u32; iterations * c];
     for (g, group) in window.chunks(c).enumerate() {
         let mut records: Vec<Vec<u32>> = group.to_vec();
         records.resize(c, inactive_patch());

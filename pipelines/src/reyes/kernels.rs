@@ -87,8 +87,14 @@ const F_LEVEL: usize = 62;
 pub const STACK_FRAMES: usize = 7;
 const SLOTS: usize = STACK_FRAMES + 1;
 
-/// Words of a cluster's saved walk: depth, overflow, colour, then the frames.
+/// Words of a cluster's saved walk: depth, flags (bit 0 the stack overflowed, bit 1
+/// [`STARTED`]), colour, then the frames. All zeros is a walk not started: the first call
+/// takes its patch.
 pub const STATE_WORDS: usize = STACK_FRAMES * FRAME_WORDS + 3;
+
+/// A saved walk's flag: its patch was taken (a walk whose stack is empty is done, not
+/// fresh).
+pub const STARTED: u32 = 2;
 
 /// The margin (pixels) around a quad's corner box in which [`sample`] tests pixel
 /// centres: a quad's region is bounded by its edge lines, which may come from coarser
@@ -376,9 +382,14 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     // scratchpad word by word (the root's frame over slot 0 where the walk is fresh).
     let patch: Vec<Value> = (0..PATCH_WORDS).map(|_| b.read(patches)).collect();
     let saved_depth = b.read_i32(resume);
-    let saved_overflow = b.read_i32(resume);
+    let saved_flags = b.read_i32(resume);
     let saved_colour = b.read(resume);
-    let fresh = b.ieq(saved_depth, zero);
+    // A walk never started (the first call) has flags 0; one started, even if done since,
+    // has `STARTED` set and keeps its (maybe empty) stack.
+    let started = b.i32(STARTED as i32);
+    let was_started = b.and(saved_flags, started);
+    let fresh = b.ieq(was_started, zero);
+    let saved_overflow = b.and(saved_flags, one);
     let active = b.cast(patch[ACTIVE_AT], Ty::I32);
     let active = b.ine(active, zero);
     let start = both(&mut b, fresh, active);
@@ -545,7 +556,8 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
 
     // ---- After the loop: the walk saved for the next call.
     b.write(state, depth);
-    b.write(state, overflow);
+    let flags = b.or(overflow, started);
+    b.write(state, flags);
     b.write(state, colour);
     for i in 0..STACK_FRAMES * FRAME_WORDS {
         let w = b.sp_read(i as u16, None);
