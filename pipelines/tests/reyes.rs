@@ -93,6 +93,18 @@ fn project_and_sample_machine_equal_interpretation() {
     let r = check(&p, &compiled(&p, &desc), &desc, &inputs).unwrap();
     assert!(r.mismatch.is_none(), "project: {}", r.mismatch.unwrap());
     assert_eq!(r.words, 2 * c * PATCH_WORDS);
+    let split = kernels::subdiv_split(&desc).unwrap();
+    let inputs = KernelInputs {
+        streams: vec![records_to_stream(&records, c), Vec::new()],
+        params: vec![],
+    };
+    let r = check(&split, &compiled(&split, &desc), &desc, &inputs).unwrap();
+    assert!(
+        r.mismatch.is_none(),
+        "subdiv_split: {}",
+        r.mismatch.unwrap()
+    );
+    assert_eq!(r.words, 2 * c * 4 * PATCH_WORDS);
 
     // Quads straight from subdiv's interpretation, so that the sampler sees real ones.
     let s = kernels::subdiv(&desc).unwrap();
@@ -259,4 +271,55 @@ fn shared_edges_at_different_depths_leave_no_crack() {
     assert_eq!(s.visible_pixels, 36 * 36);
     assert!(s.zero_pixel_quads > 0 && s.zero_pixel_quads < s.quads);
     assert!(s.kernel_cycles("subdiv") > 0 && s.cycles > s.kernel_cycles("subdiv"));
+    // A breadth-first level first: eight patches, still no crack.
+    let split = ReyesOptions {
+        split_levels: Some(1),
+        ..options.clone()
+    };
+    let g = frame::render_patches(
+        &[(a, m, 0xFF00_00FF), (b, m, 0xFF00_FF00)],
+        w,
+        h,
+        0,
+        &desc,
+        &split,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let holes = (0..w * h)
+        .filter(|&p| {
+            let (cx, cy) = ((p % w) as f32 + 0.5, (p / w) as f32 + 0.5);
+            (4.05..=39.95).contains(&cx)
+                && (4.05..=39.95).contains(&cy)
+                && g.colour[p as usize] == 0
+        })
+        .count();
+    assert_eq!(holes, 0);
+    assert!(g.stats.quads >= s.quads && g.stats.levels[0] == 0);
+}
+
+/// A patch 1,800 pixels across at stop length 1.5 needs 11 levels: more frames than the
+/// scratchpad holds. The frame stops with an error naming the kernel and the scratchpad.
+#[test]
+fn a_walk_deeper_than_the_stack_is_an_error() {
+    let desc = reyes();
+    let (w, h) = (16, 16);
+    let m = window_to_clip(w, h);
+    let options = ReyesOptions {
+        cache: cache(),
+        ..ReyesOptions::default()
+    };
+    let e = frame::render_patches(
+        &[(grid(0.0, 0.0, 600.0, 600.0, 0.0), m, 1)],
+        w,
+        h,
+        0,
+        &desc,
+        &options,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("`subdiv`") && e.contains("scratchpad.words") && e.contains("7 frames"),
+        "{e}"
+    );
 }

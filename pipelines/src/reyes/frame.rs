@@ -45,6 +45,9 @@ pub struct ReyesOptions {
     /// the SRF its quads and their fragments take (`(iterations + 1) · C · 20` words of
     /// quads).
     pub iterations: Option<usize>,
+    /// Breadth-first levels (`subdiv_split` calls) before the depth-first walks (`None`:
+    /// [`split_levels_for`]).
+    pub split_levels: Option<u32>,
     /// Give up a kernel call after this many cycles.
     pub max_call_cycles: u64,
     pub cache: CompileCache,
@@ -55,6 +58,7 @@ impl Default for ReyesOptions {
         ReyesOptions {
             stop_length: 1.5,
             iterations: None,
+            split_levels: None,
             max_call_cycles: 50_000_000,
             cache: CompileCache::disabled(),
         }
@@ -92,7 +96,8 @@ pub struct ReyesStats {
     pub fragments: u64,
     /// Pixels drawn in the final image.
     pub visible_pixels: u64,
-    /// Quads per subdivision level (index = level; the patch is level 0).
+    /// Quads per subdivision level (index = level; the patch is level 0, the
+    /// breadth-first levels counted).
     pub levels: Vec<u64>,
     /// Per kernel, in first-call order.
     pub kernels: Vec<KernelShare>,
@@ -215,6 +220,17 @@ pub fn iterations_for(desc: &MachineDesc, stop: f32) -> usize {
     by_fragments.min(by_quads).min(65).saturating_sub(1).max(1)
 }
 
+/// Breadth-first levels for a window: each spares the walk a stack frame. The teapot's
+/// largest patches need 9 or 10 levels at 720×720 and the stack holds 7 frames, so
+/// windows over 256 pixels a side get two, over 128 one.
+pub fn split_levels_for(width: u32, height: u32) -> u32 {
+    match width.max(height) {
+        0..=128 => 0,
+        129..=256 => 1,
+        _ => 2,
+    }
+}
+
 /// Checks a stop length: positive, finite, and within what `sample` is built for.
 pub fn check_stop_length(stop: f32) -> Result<(), ReyesError> {
     if !(stop.is_finite() && stop > 0.0 && stop <= MAX_STOP_LENGTH) {
@@ -275,6 +291,7 @@ pub fn render_patches(
     let trash = shape.trash();
     let built: Vec<Kernel> = vec![
         kernels::project(desc),
+        kernels::subdiv_split(desc),
         kernels::subdiv(desc),
         kernels::sample(desc, width, height, options.stop_length),
         gl::hash(desc, shape),
@@ -347,6 +364,31 @@ pub fn render_patches(
         at = end;
     }
 
+    // Breadth-first levels: every patch into four, the children in place of their parent.
+    let levels = options
+        .split_levels
+        .unwrap_or_else(|| split_levels_for(width, height));
+    for _ in 0..levels {
+        let real = window.len();
+        let mut records = window.clone();
+        records.resize(real.div_ceil(c) * c, inactive_patch());
+        let out = run.call(
+            "subdiv_split",
+            vec![records_to_stream(&records, c), Vec::new()],
+            vec![],
+        )?;
+        window = stream_to_records(&out[1], 4 * PATCH_WORDS, c)
+            .into_iter()
+            .take(real)
+            .flat_map(|four| {
+                four.chunks(PATCH_WORDS)
+                    .map(<[u32]>::to_vec)
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+    }
+    let split_levels = levels as usize;
+
     let stop2 = (options.stop_length * options.stop_length).to_bits();
     let tickets = vec![0u32; iterations * c];
     for (g, group) in window.chunks(c).enumerate() {
@@ -385,7 +427,7 @@ pub fn render_patches(
                 }
                 if flags & FLAG_QUAD != 0 {
                     run.stats.quads += 1;
-                    let level = r[Q_LEVEL] as usize;
+                    let level = r[Q_LEVEL] as usize + split_levels;
                     if run.stats.levels.len() <= level {
                         run.stats.levels.resize(level + 1, 0);
                     }

@@ -4,6 +4,7 @@
 //! | kernel | per element | streams |
 //! |---|---|---|
 //! | [`project`] | patch: its 16 control points to window space | patches ([`PATCH_WORDS`]) → patches |
+//! | [`subdiv_split`] | patch: its four children (a breadth-first level) | patches → 4 patches |
 //! | [`subdiv`] | iteration: one quad of a depth-first walk of each cluster's patch | resume ([`STATE_WORDS`]), patches, tickets → quads ([`QUAD_WORDS`]), state |
 //! | [`sample`] | quad: the pixel centres of its box against its four edges | quads → addr, z, colour (conditional), covered |
 //!
@@ -179,6 +180,39 @@ pub fn project(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     }
     b.write(output, words[COLOUR_AT]);
     b.write(output, words[ACTIVE_AT]);
+    b.end_loop();
+    Ok(finish(b))
+}
+
+/// `subdiv_split`: every patch split into its four children (de Casteljau halving in u
+/// and v), children in the order (row half, column half) = (0,0), (0,1), (1,0), (1,1): a
+/// breadth-first level before `subdiv`'s depth-first walk, so that a walk needs fewer
+/// stack frames (and the clusters get more, smaller patches to share). Edges are not
+/// frozen here: a patch side already shorter than the stop length is split too (both
+/// patches that share it split it the same way, so no crack opens; only quads are spent).
+pub fn subdiv_split(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+    let mut b = KernelBuilder::new("subdiv_split");
+    let input = b.input("patches");
+    let output = b.output("children");
+    let half = b.f32(0.5);
+    let (zero, one) = (b.i32(0), b.i32(1));
+    let halves = [b.ine(zero, zero), b.ieq(one, one)];
+    b.begin_loop(LoopSpec::OverStream(input));
+    let words: Vec<Value> = (0..PATCH_WORDS).map(|_| b.read(input)).collect();
+    let net: [P3; 16] =
+        std::array::from_fn(|k| std::array::from_fn(|c| b.cast(words[3 * k + c], Ty::F32)));
+    for row in 0..2 {
+        for col in 0..2 {
+            let child = quadrant(&mut b, half, &net, halves[row], halves[col]);
+            for p in &child {
+                for &v in p {
+                    b.write(output, v);
+                }
+            }
+            b.write(output, words[COLOUR_AT]);
+            b.write(output, words[ACTIVE_AT]);
+        }
+    }
     b.end_loop();
     Ok(finish(b))
 }
