@@ -177,6 +177,8 @@ fn machine_list_and_show_describe_every_builtin() {
         "gold8+F+C",
         "gold8+srf4x",
         "gold32combo",
+        "reyes",
+        "reyes400",
     ] {
         assert!(
             list.lines()
