@@ -51,6 +51,13 @@ enum Command {
     /// (machine, batch, filter, flush_to_zero), each point's cycles, frames/s and error
     /// against the reference as a CSV row, and PSNR against cycles as a plot
     Sweep(commands::sweep::SweepArgs),
+    /// Run a triangle trace through the S3 superscalar out-of-order rasterizer (Wolfe &
+    /// Noonburg): triangle-level parallelism, cycles, stalls, speedup over one accelerator
+    S3(commands::s3::S3Args),
+    /// The extreme suite: subnormals, cancellation, slivers, huge triangles, the eye plane,
+    /// extreme depth ranges, degenerate faces and patches, meshes that must tile, invalid
+    /// files; each case's property checked, `N passed, M failed`, non-zero exit on failure
+    Stress(commands::stress::StressArgs),
 }
 
 /// Output into a closed pipe (`imagine kernel show vertex --microcode | head -1`) ends the
@@ -78,6 +85,8 @@ fn main() -> ExitCode {
         Command::Bench(a) => commands::bench::frames(a),
         Command::Compare(a) => commands::compare::run(a),
         Command::Sweep(a) => commands::sweep::run(a),
+        Command::S3(a) => commands::s3::run_cmd(a),
+        Command::Stress(a) => commands::stress::run(a),
     };
     match result {
         Ok(code) => code,

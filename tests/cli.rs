@@ -37,7 +37,7 @@ fn help_lists_every_subcommand() {
     assert!(o.status.success());
     let out = stdout(&o);
     for sub in [
-        "render", "verify", "kernel", "machine", "scene", "dram", "demo",
+        "render", "verify", "kernel", "machine", "scene", "dram", "demo", "s3",
     ] {
         assert!(out.contains(sub), "`{sub}` missing from help:\n{out}");
     }
@@ -177,6 +177,9 @@ fn machine_list_and_show_describe_every_builtin() {
         "gold8+F+C",
         "gold8+srf4x",
         "gold32combo",
+        "gold32combo+tc1",
+        "gold32combo+tc4",
+        "gold32combo+tc32",
         "reyes",
         "reyes400",
     ] {
@@ -196,6 +199,11 @@ fn machine_list_and_show_describe_every_builtin() {
     }
     let show = stdout(&imagine(&["machine", "show", "gold8+F"]));
     assert!(show.contains("6 adders, 4 multipliers"), "{show}");
+    let show = stdout(&imagine(&["machine", "show", "gold32combo+tc4"]));
+    assert!(
+        show.contains("texture cache") && show.contains("hit_words_per_cycle 4"),
+        "{show}"
+    );
 }
 
 /// `machine show` prints every section of the description, and every key of the sections
@@ -255,6 +263,7 @@ fn machine_show_prints_every_section_of_the_description() {
             "dram",
             "memory",
             "stream controller",
+            "s3",
         ] {
             assert!(
                 out.lines().any(|l| l.starts_with(&format!("{section}  "))),
@@ -274,7 +283,8 @@ fn machine_show_prints_every_section_of_the_description() {
             if let Some(name) = line.strip_prefix('[') {
                 section = name.trim_end_matches(']').to_string();
             } else if let Some((key, value)) = line.split_once('=')
-                && ["latency", "dram", "memory", "stream_controller"].contains(&section.as_str())
+                && ["latency", "dram", "memory", "stream_controller", "s3"]
+                    .contains(&section.as_str())
                 && !["channels", "banks", "rows", "columns"].contains(&key.trim())
             {
                 let want = format!("{} {}", key.trim(), value.trim().trim_matches('"'));
@@ -997,6 +1007,51 @@ fn render_rejects_bad_scenes_with_a_clear_error() {
     }
 }
 
+/// `render --dram-trace` writes the frame's DRAM requests, which `dram --untimed` replays
+/// with no computation: the trace moves the frame's DRAM bytes, and faster than the frame
+/// did with its computation in between (Table 5.6's trace bandwidth).
+#[test]
+fn a_frames_dram_trace_replays_faster_untimed() {
+    let dir = std::env::temp_dir().join(format!("imagine-dram-trace-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (trace, stats) = (dir.join("f.trace"), dir.join("f.json"));
+    let (trace_s, stats_s) = (trace.to_str().unwrap(), stats.to_str().unwrap());
+    let o = imagine(&[
+        "render",
+        "RATE-8",
+        "--size",
+        "32",
+        "--dram-trace",
+        trace_s,
+        "--stats",
+        stats_s,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let frame: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let frame_gbs = frame["frame"]["dram_gbs"].as_f64().unwrap();
+    let replay = |extra: &[&str]| {
+        let mut args = vec!["dram", "--trace", trace_s, "--json"];
+        args.extend(extra);
+        let o = imagine(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        json["runs"][0].clone()
+    };
+    let untimed = replay(&["--untimed"]);
+    let requests = std::fs::read_to_string(&trace).unwrap().lines().count() as u64;
+    assert!(requests > 0);
+    assert_eq!(untimed["requests"].as_u64(), Some(requests));
+    assert_eq!(
+        untimed["bytes"].as_u64(),
+        frame["frame"]["dram_bytes"].as_u64(),
+        "the trace holds the frame's DRAM words, one request each"
+    );
+    let untimed_gbs = untimed["bandwidth_gbs"].as_f64().unwrap();
+    assert!(untimed_gbs > frame_gbs, "{untimed_gbs} against {frame_gbs}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn render_writes_png_and_stats() {
     let dir = std::env::temp_dir().join(format!("imagine-render-ok-{}", std::process::id()));
@@ -1556,5 +1611,113 @@ fn kernel_and_machine_options_all_have_help() {
             arguments >= 1,
             "{command} {sub}: no arguments found:\n{out}"
         );
+    }
+}
+
+/// A small `.tri` trace: a big triangle under a fan of small ones, with equal depths.
+fn s3_trace() -> std::path::PathBuf {
+    let mut text = String::from("# S3 test trace\n96 80\n");
+    text += "0 0 0.5 1 0 0  95 0 0.5 0 1 0  48 79 0.5 0 0 1\n";
+    for i in 0..24 {
+        let x = 4.0 + 3.5 * i as f32;
+        let z = if i % 3 == 0 { 0.5 } else { 0.25 };
+        text += &format!(
+            "{x} 10 {z} 0 1 1  {} 10 {z} 1 1 0  {} 30 {z} 1 0 1\n",
+            x + 9.0,
+            x + 4.0
+        );
+    }
+    temp_file("s3.tri", text)
+}
+
+#[test]
+fn s3_runs_a_trace_with_json_csv_png_and_speedup() {
+    let trace = s3_trace();
+    let (json, csv, png) = (temp("s3.json"), temp("s3.csv"), temp("s3.png"));
+    let o = imagine(&[
+        "s3",
+        "--trace",
+        trace.to_str().unwrap(),
+        "--accelerators",
+        "4",
+        "--speedup",
+        "--json",
+        json.to_str().unwrap(),
+        "--csv",
+        csv.to_str().unwrap(),
+        "--png",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("identical to in-order drawing"), "{out}");
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let tlp = j["mean_parallelism"].as_f64().unwrap();
+    assert!(tlp > 1.0 && tlp <= 4.0, "{j}");
+    assert!(j["speedup_over_k1"].as_f64().unwrap() > 1.0, "{j}");
+    assert_eq!(j["triangles"], 25);
+    assert_eq!(j["accelerators"], 4);
+    for key in ["cycles", "issue_cycles", "busy_histogram", "k1_cycles"] {
+        assert!(!j[key].is_null(), "{key} missing: {j}");
+    }
+    let csv = std::fs::read_to_string(&csv).unwrap();
+    assert!(csv.starts_with("cycle,mean_busy_accelerators\n0,"), "{csv}");
+    assert!(std::fs::metadata(&png).unwrap().len() > 100);
+}
+
+#[test]
+fn s3_sweeps_k_and_dumps_every_block_to_vcd() {
+    let trace = s3_trace();
+    let t = trace.to_str().unwrap();
+    let o = imagine(&["s3", "--trace", t, "--sweep", "1,2,4", "--no-split"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert_eq!(
+        out.lines()
+            .filter(|l| l.trim_start().starts_with(['1', '2', '4']))
+            .count(),
+        3,
+        "{out}"
+    );
+    let vcd = temp("s3.vcd");
+    let o = imagine(&[
+        "s3",
+        "--trace",
+        t,
+        "--accelerators",
+        "2",
+        "--vcd",
+        vcd.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&vcd).unwrap();
+    for scope in [
+        "host", "fetch", "issue", "accel0", "accel1", "fbmem", "cand0", "pipe",
+    ] {
+        assert!(
+            text.contains(&format!("$scope module {scope} $end")),
+            "{scope} missing"
+        );
+    }
+}
+
+#[test]
+fn s3_bad_input_is_a_clear_error() {
+    let trace = s3_trace();
+    let t = trace.to_str().unwrap();
+    let bad = temp_file("s3-bad.tri", "10 10\n1 2 3\n");
+    for args in [
+        &["s3", "--trace", "no-such-trace"][..],
+        &["s3", "--trace", "/nonexistent/x.tri"],
+        &["s3", "--trace", bad.to_str().unwrap()],
+        &["s3", "--trace", t, "--accelerators", "0"],
+        &["s3", "--trace", t, "--accelerators", "65"],
+        &["s3", "--trace", t, "--window", "0"],
+        &["s3", "--trace", t, "--sweep", "1,0"],
+        &["s3", "--trace", t, "--csv-window", "0"],
+        &["s3", "--trace", t, "--machine", "gold9"],
+    ] {
+        assert_clear_error(args);
     }
 }

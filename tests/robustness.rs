@@ -202,6 +202,16 @@ fn machine_descriptions() {
         &["base"],
     );
     show(
+        "s3-zero-accelerators.toml",
+        gold8_with("accelerators", "accelerators = 0").as_bytes(),
+        &["s3.accelerators", "is 0"],
+    );
+    show(
+        "s3-dram.toml",
+        gold8_with("memory", "memory = \"dram\"").as_bytes(),
+        &["s3.memory", "ideal"],
+    );
+    show(
         "min-kernel.toml",
         gold8_with("min_kernel_cycles", "min_kernel_cycles = 100000000000").as_bytes(),
         &["min_kernel_cycles"],
@@ -226,6 +236,7 @@ fn machine_descriptions() {
         refused(&["kernel", "asm", fifo], b"", &["named pipe"]);
         refused(&["render", "--machine", fifo], b"", &["named pipe"]);
         refused(&["dram", "--trace", fifo], b"", &["named pipe"]);
+        refused(&["s3", "--trace", fifo], b"", &["named pipe"]);
     }
 }
 
@@ -421,6 +432,7 @@ fn triangle_files() {
         let mut want = want.to_vec();
         want.push(name);
         refused(&["render", &f], b"", &want);
+        refused(&["s3", "--trace", &f], b"", &want);
     };
     let tri = "0 0 0.5 1 0 0  8 0 0.5 0 1 0  0 8 0.5 0 0 1\n";
     check("empty.tri", b"", &[]);

@@ -113,6 +113,7 @@ fn a_batch_sweep_measures_each_point_once_and_keeps_grid_order() {
         "wrongly_covered_share",
         "missed_share",
         "visibility_differing_share",
+        "texture_cache_hit_rate",
     ] {
         assert!(
             header.iter().any(|h| h == name),
@@ -158,6 +159,8 @@ fn a_batch_sweep_measures_each_point_once_and_keeps_grid_order() {
     }
     // The image does not depend on the batch.
     assert_eq!(cell(&rows[0], "psnr_db"), cell(&rows[1], "psnr_db"));
+    // gold8 has no texture cache.
+    assert_eq!(cell(&rows[0], "texture_cache_hit_rate"), "");
     assert_eq!(&std::fs::read(&plot).unwrap()[..8], b"\x89PNG\r\n\x1a\n");
     assert_eq!(lines(&points), 2);
 

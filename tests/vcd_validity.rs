@@ -280,3 +280,46 @@ fn a_kernel_call_is_dumped_by_name_and_a_waveform_over_its_limit_stops_the_run()
         "{err}"
     );
 }
+
+#[test]
+fn an_s3_waveform_shows_every_block_and_reads_back_whole() {
+    let vcd = run_with_vcd(
+        "s3",
+        &[
+            "s3",
+            "--trace",
+            "game-sky",
+            "--accelerators",
+            "4",
+            "--vcd-window",
+            "0:3000",
+        ],
+    );
+    let paths = var_paths(&vcd);
+    for want in [
+        "top.s3.host.sent",
+        "top.s3.fetch.order",
+        "top.s3.command_queue.level",
+        "top.s3.issue.rs_valid",
+        "top.s3.issue.cause",
+        "top.s3.issue.cand31.dep",
+        "top.s3.issue.cand31.conflict",
+        "top.s3.accel3.phase",
+        "top.s3.accel3.pipe.s2_zcompare_blend",
+        "top.s3.accel3.mem_req.valid",
+        "top.s3.fbmem.writes",
+    ] {
+        assert!(paths.contains(want), "`{want}` missing");
+    }
+    // Every value change parses, with the declared widths.
+    let mut parser = vcd::Parser::new(BufReader::new(File::open(&vcd).unwrap()));
+    parser.parse_header().unwrap();
+    let mut changes = 0;
+    for command in parser {
+        command.unwrap();
+        changes += 1;
+    }
+    assert!(changes > 10_000, "{changes}");
+    #[cfg(feature = "gtkwave")]
+    assert_gtkwave_accepts(&vcd);
+}

@@ -70,7 +70,8 @@ fn pipeline_kernels_compile_on(name: &str) {
         }
         .build(&desc),
         kernels::clear(&desc).unwrap(),
-        kernels::assemble_clip(&desc, Varyings::default()).unwrap(),
+        kernels::assemble_clip(&desc, Varyings::default(), false).unwrap(),
+        kernels::assemble_clip(&desc, Varyings::default(), true).unwrap(),
         kernels::viewport_cull(&desc, shape).unwrap(),
         kernels::xyprep(&desc, shape).unwrap(),
         kernels::baryprep(&desc, Varyings::default()).unwrap(),
@@ -303,13 +304,16 @@ fn run_checked(
 }
 
 /// The setup kernels in a chain, on the shaded vertices of SPHERE triangles (about half
-/// face away): `assemble_clip` gathers each triangle's corners into one cluster, `viewport_cull` and `xyprep` count the boxes as
+/// face away): `assemble_clip` gathers each triangle's corners into one cluster (scaled by
+/// a power of two that brings the largest x, y or w near 1), `viewport_cull` and `xyprep` count the boxes as
 /// `xyrast` walks them, `baryprep` numbers the primitives; the machine matches the
 /// interpreter at every step.
 #[test]
 fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
     use imagine_pipelines::kernel::KernelInputs;
-    for name in ["gold1", "gold8", "gold32"] {
+    // gold8's frame normalises its clip corners (`pipeline.normalise_clip`), the others'
+    // pass them on as they are.
+    for (name, normalise) in [("gold1", false), ("gold8", true), ("gold32", false)] {
         let desc = MachineDesc::resolve(name).unwrap();
         let c = desc.cluster.count;
         let scene = imagine_pipelines::scene::sphere(3, 128);
@@ -340,7 +344,7 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
             })
             .collect();
         let assembled = run_checked(
-            &kernels::assemble_clip(&desc, Varyings::default()).unwrap(),
+            &kernels::assemble_clip(&desc, Varyings::default(), normalise).unwrap(),
             &desc,
             &KernelInputs {
                 streams: vec![records_to_stream(&vertices, c), vec![], vec![]],
@@ -352,11 +356,31 @@ fn setup_kernels_assemble_and_count_sphere_triangles_as_the_interpreter_does() {
         assert_eq!((clipped.len(), attribs.len()), (tris, tris), "{name}");
         for t in 0..tris {
             let corner = |k: usize| &vertices[3 * t + k];
+            // Normalised, the corners come out scaled by 2^-k, k half the exponent of the
+            // largest square of an x, y or w (exact).
+            let largest = (0..3)
+                .flat_map(|k| [0, 1, 3].map(|i| f32::from_bits(corner(k)[i])))
+                .map(|x| x * x)
+                .fold(0f32, f32::max);
+            let scale = if normalise {
+                f32::from_bits(((382 - (largest.to_bits() >> 23)) >> 1) << 23)
+            } else {
+                1.0
+            };
+            let scaled = |w: u32| (f32::from_bits(w) * scale).to_bits();
             let xyw: Vec<u32> = (0..3)
-                .flat_map(|k| [corner(k)[0], corner(k)[1], corner(k)[3]])
+                .flat_map(|k| [corner(k)[0], corner(k)[1], corner(k)[3]].map(scaled))
                 .collect();
             assert_eq!(clipped[t][..9], xyw[..], "{name}: triangle {t}'s corners");
-            let z: Vec<u32> = (0..3).map(|k| corner(k)[2]).collect();
+            let biggest = xyw
+                .iter()
+                .map(|&w| f32::from_bits(w).abs())
+                .fold(0f32, f32::max);
+            assert!(
+                !normalise || (0.99..2.0).contains(&biggest),
+                "{name}: {biggest}"
+            );
+            let z: Vec<u32> = (0..3).map(|k| scaled(corner(k)[2])).collect();
             let colours: Vec<u32> = (0..3).flat_map(|k| corner(k)[4..7].to_vec()).collect();
             assert_eq!(attribs[t][..3], z[..], "{name}: triangle {t}'s depths");
             assert_eq!(

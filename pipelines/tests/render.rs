@@ -442,11 +442,11 @@ fn advs1_24x24() -> Scene {
 /// textured scene, on two cluster counts.
 #[test]
 fn frames_are_the_same_cycle_for_cycle_in_either_evaluation_order() {
-    let advs = advs1_24x24();
     let cases = [
         (rate1_16x16(), MachineDesc::gold8()),
         (rate1_16x16(), MachineDesc::resolve("gold16").unwrap()),
-        (advs, MachineDesc::gold8()),
+        (advs1_24x24(), MachineDesc::gold8()),
+        (advs1_24x24(), gold8_with_texture_cache(1)),
     ];
     for (scene, desc) in cases {
         let render = |reverse| {
@@ -468,6 +468,50 @@ fn frames_are_the_same_cycle_for_cycle_in_either_evaluation_order() {
         assert!(
             forward.stats.cycles > 0 && reversed.stats.skipped_cycles == 0,
             "{what}"
+        );
+    }
+}
+
+/// gold8 with the thesis's texture cache (16K words, 2-word lines), hits at
+/// `hit_words_per_cycle`.
+fn gold8_with_texture_cache(hit_words_per_cycle: usize) -> MachineDesc {
+    MachineDesc::parse(
+        &format!(
+            "name = \"gold8+tc\"\nbase = \"gold8\"\n[texture_cache]\nwords = 16384\n\
+             line_words = 2\nhit_words_per_cycle = {hit_words_per_cycle}\n"
+        ),
+        "gold8+tc",
+    )
+    .unwrap()
+}
+
+/// The texture cache serves every texel gather and changes no pixel: each texel word is a
+/// hit or a miss, most are hits (neighbouring texels share lines, and fragments texels),
+/// and with hits faster than DRAM the gathers wait less than without it.
+#[test]
+fn a_texture_cache_serves_the_texels_and_changes_no_pixel() {
+    let scene = advs1_24x24();
+    let render = |desc: &MachineDesc| render_with(&scene, desc, cached(), None, |_, _| {}).unwrap();
+    let plain = render(&MachineDesc::gold8());
+    assert!(plain.stats.texture_cache.is_none());
+    for n in [1, 4] {
+        let f = render(&gold8_with_texture_cache(n));
+        assert_eq!(f.pixels, plain.pixels, "hits at {n} words per cycle");
+        let tc = f
+            .stats
+            .texture_cache
+            .as_ref()
+            .expect("the cache's counters");
+        let c = &tc.counts;
+        assert_eq!(c.hits + c.misses, f.stats.texel_words, "{c:?}");
+        assert!(tc.hit_rate > 0.5, "{tc:?}");
+        // At ×1 hits come no faster than DRAM words (the generator issues 2 a cycle), so
+        // only the wider cache is sure to shorten this small frame's gathers.
+        assert!(
+            n == 1 || f.stats.attribution.waiting_gather < plain.stats.attribution.waiting_gather,
+            "{n}: {} against {}",
+            f.stats.attribution.waiting_gather,
+            plain.stats.attribution.waiting_gather
         );
     }
 }

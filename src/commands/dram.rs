@@ -49,6 +49,11 @@ pub struct DramArgs {
     /// Requests a generated microbenchmark makes
     #[arg(long, default_value_t = 8192, requires = "bench")]
     requests: usize,
+    /// Present every request at cycle 0, in the trace's order, as fast as the channels
+    /// take them: the bandwidth the address stream sustains with no computation (the
+    /// thesis's trace bandwidth, Table 5.6)
+    #[arg(long)]
+    untimed: bool,
     /// Scheduling policy (default: the machine's), or `all`
     #[arg(long, value_name = "P")]
     policy: Option<String>,
@@ -71,7 +76,10 @@ pub fn run(a: DramArgs) -> Result<ExitCode> {
     outputs.add_opt("--dram-trace", a.dram_trace.as_ref())?;
     a.waves.check_outputs(&mut outputs)?;
     let p = DramParams::of(&desc);
-    let (source, reqs) = load_requests(&a, &p)?;
+    let (source, mut reqs) = load_requests(&a, &p)?;
+    if a.untimed {
+        reqs.iter_mut().for_each(|r| r.cycle = 0);
+    }
     let policies: Vec<Policy> = match a.policy.as_deref() {
         None => vec![Policy::parse(&desc.memory.policy).expect("validated")],
         Some("all") => Policy::ALL.to_vec(),

@@ -208,6 +208,19 @@ pub fn describe(m: &MachineDesc) -> String {
             mem.sync_stages
         ),
     );
+    if let Some(t) = &m.texture_cache {
+        line(
+            "texture cache",
+            format!(
+                "words {} ({} KB), line_words {}, direct-mapped, read-only, \
+                 hit_words_per_cycle {} words/cycle",
+                t.words,
+                t.words * 4 / 1024,
+                t.line_words,
+                t.hit_words_per_cycle
+            ),
+        );
+    }
     let sc = &m.stream_controller;
     line(
         "stream controller",
@@ -215,6 +228,30 @@ pub fn describe(m: &MachineDesc) -> String {
             "queue_entries {} instructions, scoreboard_entries {} instructions, \
              min_kernel_cycles {} core cycles, host_words_per_cycle {} (host interface)",
             sc.queue_entries, sc.scoreboard_entries, sc.min_kernel_cycles, sc.host_words_per_cycle
+        ),
+    );
+    let s3 = &m.s3;
+    line(
+        "s3",
+        format!(
+            "accelerators {}, window_per_accelerator {} ({} candidate buffers, {} destination \
+             RS), source_slots {}, split {}, split_height {} rows, chain_break {}, select {} \
+             (select_seed {}), queue_entries {}, setup_cycles {}, memory {}, memory_latency {} \
+             (superscalar rasterizer, `imagine s3`)",
+            s3.accelerators,
+            s3.window_per_accelerator,
+            s3.accelerators * s3.window_per_accelerator,
+            s3.accelerators * (s3.window_per_accelerator + 1),
+            s3.source_slots,
+            s3.split,
+            s3.split_height,
+            s3.chain_break,
+            s3.select,
+            s3.select_seed,
+            s3.queue_entries,
+            s3.setup_cycles,
+            s3.memory,
+            s3.memory_latency
         ),
     );
     s

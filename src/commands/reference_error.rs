@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use imagine_pipelines::opengl::render::Frame;
-use imagine_pipelines::scene::model::Scene;
+use imagine_pipelines::scene::model::{Scene, TriangleId};
 use imagine_verif::image::{Image, Metrics, compare_frames};
 use imagine_verif::reference_model as reference;
 
@@ -14,6 +14,8 @@ use imagine_verif::reference_model as reference;
 pub struct ReferenceError {
     /// The reference renderer's frame.
     pub reference: Image,
+    /// For every pixel of it, the triangle it shows (`None`: background).
+    pub triangles: Vec<Option<TriangleId>>,
     pub metrics: Metrics,
     /// Host seconds the reference renderer and the comparison took.
     pub seconds: f64,
@@ -38,6 +40,7 @@ pub fn measure(scene: &Scene, frame: &Frame) -> Result<ReferenceError> {
     .map_err(anyhow::Error::msg)?;
     Ok(ReferenceError {
         reference,
+        triangles: reference_triangles,
         metrics,
         seconds: start.elapsed().as_secs_f64(),
     })

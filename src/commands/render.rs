@@ -12,6 +12,7 @@ use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
 use imagine_pipelines::scene::model::{PipelineKind, Scene};
 use imagine_pipelines::scene::{self, LoadOptions};
 use imagine_units::desc::MachineDesc;
+use imagine_units::dram::trace::write_trace;
 use imagine_units::limits::{MAX_BATCH, MAX_RUN_CYCLES};
 use imagine_verif::image::Metrics;
 
@@ -61,6 +62,10 @@ pub struct RenderArgs {
     /// cycles for --vcd-window
     #[arg(long, value_name = "F.json")]
     timeline: Option<PathBuf>,
+    /// Write the frame's DRAM requests as the channels received them (DRAMsim3 text
+    /// format; `imagine dram --trace F --untimed` replays them with no computation)
+    #[arg(long, value_name = "FILE")]
+    dram_trace: Option<PathBuf>,
     /// Compile every kernel afresh: neither read nor write the compile cache
     /// ($IMAGINE_CACHE_DIR, else the platform's cache directory)
     #[arg(long)]
@@ -169,6 +174,7 @@ fn render_options(a: &RenderArgs) -> RenderOptions {
         max_cycles: a.max_cycles,
         batch: a.batch.map(|b| b as usize),
         timeline: a.timeline.is_some(),
+        record_dram: a.dram_trace.is_some(),
         ..RenderOptions::default()
     }
 }
@@ -180,6 +186,7 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     outputs.add_opt("--stats", a.stats.as_ref())?;
     outputs.add_opt("--stats-csv", a.stats_csv.as_ref())?;
     outputs.add_opt("--timeline", a.timeline.as_ref())?;
+    outputs.add_opt("--dram-trace", a.dram_trace.as_ref())?;
     a.waves.check_outputs(&mut outputs)?;
     let desc = MachineDesc::resolve(&a.machine)?;
     let mut scene = load_scene(&a)?;
@@ -258,6 +265,14 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     if let (Some(p), Some(timeline)) = (&a.timeline, &frame.timeline) {
         std::fs::write(p, serde_json::to_string(timeline)? + "\n")
             .with_context(|| format!("cannot write `{}`", p.display()))?;
+    }
+    if let Some(p) = &a.dram_trace {
+        let write = || -> std::io::Result<()> {
+            let mut w = std::io::BufWriter::new(std::fs::File::create(p)?);
+            write_trace(&mut w, &frame.dram_requests)?;
+            w.flush()
+        };
+        write().with_context(|| format!("cannot write `{}`", p.display()))?;
     }
     if let Some(p) = &a.stats_csv {
         std::fs::write(p, frame.stats.batches_csv())
@@ -343,6 +358,15 @@ fn print_stats(f: &Frame, m: &Metrics, desc: &MachineDesc, host: &HostTimes) {
         dram_peak,
         100.0 * s.dram_row_hit_rate
     );
+    if let Some(tc) = &s.texture_cache {
+        println!(
+            "texture cache      {:.1} % hits ({} hits, {} misses, {} words of line fills)",
+            100.0 * tc.hit_rate,
+            tc.counts.hits,
+            tc.counts.misses,
+            tc.counts.fill_words
+        );
+    }
     println!(
         "traffic            {:.0} B per vertex, {:.1} B per fragment ({:.1} B of texels)",
         s.bytes_per_vertex, s.bytes_per_fragment, s.texel_bytes_per_fragment

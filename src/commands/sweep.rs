@@ -98,6 +98,8 @@ struct PointResult {
     wrongly_covered_share: f64,
     missed_share: f64,
     visibility_differing_share: Option<f64>,
+    /// The texture cache's hits over texel references, on a machine that has one.
+    texture_cache_hit_rate: Option<f64>,
 }
 
 /// A line of the JSON-lines file.
@@ -117,7 +119,7 @@ struct Point {
     key: String,
 }
 
-const CSV_METRICS: [&str; 17] = [
+const CSV_METRICS: [&str; 18] = [
     "cycles",
     "frames_per_second",
     "host_seconds",
@@ -135,12 +137,13 @@ const CSV_METRICS: [&str; 17] = [
     "wrongly_covered_share",
     "missed_share",
     "visibility_differing_share",
+    "texture_cache_hit_rate",
 ];
 
 impl PointResult {
     /// The CSV fields, in the order of [`CSV_METRICS`]; an infinite PSNR is `inf`, an
     /// unknown share is empty.
-    fn csv_fields(&self) -> [String; 17] {
+    fn csv_fields(&self) -> [String; 18] {
         let psnr = |p: Option<f64>| p.map_or("inf".to_string(), |v| format!("{v:.4}"));
         [
             self.cycles.to_string(),
@@ -161,6 +164,8 @@ impl PointResult {
             format!("{:.6}", self.missed_share),
             self.visibility_differing_share
                 .map_or(String::new(), |v| format!("{v:.6}")),
+            self.texture_cache_hit_rate
+                .map_or(String::new(), |v| format!("{v:.4}")),
         ]
     }
 }
@@ -195,12 +200,12 @@ fn scene_content_hash(name_or_path: &str) -> Result<blake3::Hash> {
 /// A point's key: every input that decides its frame and cycles.
 fn point_key(scene_hash: &blake3::Hash, size: Option<u32>, setup: &Setup) -> String {
     let mut h = blake3::Hasher::new();
-    h.update(b"imagine sweep point 2\n");
+    h.update(b"imagine sweep point 3\n");
     h.update(scene_hash.as_bytes());
     h.update(
         format!(
-            "{size:?}\n{:?}\n{:?}\n{:?}",
-            setup.machine, setup.batch, setup.filter
+            "{size:?}\n{:?}\n{:?}\n{:?}\n{:?}",
+            setup.machine, setup.batch, setup.filter, setup.normalise_clip
         )
         .as_bytes(),
     );
@@ -553,7 +558,10 @@ fn render_point(
     load_options: &(dyn Fn(Option<Filter>) -> LoadOptions + Sync),
 ) -> Result<PointResult> {
     let start = Instant::now();
-    let scene = scene::load(&a.scene, &load_options(point.setup.filter))?;
+    let mut scene = scene::load(&a.scene, &load_options(point.setup.filter))?;
+    if let Some(on) = point.setup.normalise_clip {
+        scene.pipeline.normalise_clip = on;
+    }
     let options = RenderOptions {
         cache: CompileCache::from_env(),
         batch: point.setup.batch,
@@ -581,6 +589,7 @@ fn render_point(
         wrongly_covered_share: m.wrongly_covered_share,
         missed_share: m.missed_share,
         visibility_differing_share: m.visibility_differing_share,
+        texture_cache_hit_rate: frame.stats.texture_cache.as_ref().map(|t| t.hit_rate),
     })
 }
 

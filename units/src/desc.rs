@@ -28,7 +28,72 @@ pub struct MachineDesc {
     pub dram: Dram,
     pub memory: Memory,
     pub stream_controller: StreamController,
+    /// A texture cache between memory and the SRF (thesis §6.5); none when absent.
+    #[serde(default)]
+    pub texture_cache: Option<TextureCacheDesc>,
+    /// The S3 superscalar rasterizer (Wolfe & Noonburg); absent means the paper's defaults.
+    #[serde(default)]
+    pub s3: S3,
 }
+
+/// The S3 superscalar out-of-order rasterizer (`units::s3`): Wolfe & Noonburg, "A
+/// Superscalar 3D Graphics Engine" (spec `s3-ellsworth-piko.md` §1.2). Every key has the
+/// paper's value as its default; where the paper gives none the default is ours, marked (A).
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields, default)]
+pub struct S3 {
+    /// Rasterizing accelerators K; the paper quotes its results at 16.
+    pub accelerators: usize,
+    /// Candidate buffers per accelerator (the issue window is this × K): 8 in Fig. 12,
+    /// swept 1, 2, 4, 8 in Fig. 13. Destination reservation stations are candidates + K
+    /// (the paper's sizing rule).
+    pub window_per_accelerator: usize,
+    /// Source-region slots per primitive (each a source reservation-station file): 0 to 2.
+    pub source_slots: usize,
+    /// Cut triangles taller than `split_height` rows into slices at fetch (§4.5).
+    pub split: bool,
+    /// Rows per slice when splitting: 32.
+    pub split_height: usize,
+    /// Dependence-chain breaking for opaque Z-buffered triangles (§4.6).
+    pub chain_break: bool,
+    /// Which ready candidate issues: `random` (l.175, from a 32-bit LFSR seeded with
+    /// `select_seed`) or `oldest` (l.128).
+    pub select: String,
+    /// Seed of the random select policy's LFSR (non-zero).
+    pub select_seed: u32,
+    /// Entries of the command queue between the host and fetch (A).
+    pub queue_entries: usize,
+    /// Cycles of triangle setup in an accelerator (A: the paper calls setup negligible
+    /// and gives no figure).
+    pub setup_cycles: u32,
+    /// Frame-buffer memory: `ideal` (multi-ported, fixed latency, 128 bits per clock per
+    /// accelerator, as simulated in the paper).
+    pub memory: String,
+    /// Cycles from an accelerator's request to the memory and from the memory back (A).
+    pub memory_latency: u32,
+}
+
+impl Default for S3 {
+    fn default() -> Self {
+        S3 {
+            accelerators: 16,
+            window_per_accelerator: 8,
+            source_slots: 1,
+            split: true,
+            split_height: 32,
+            chain_break: true,
+            select: "random".into(),
+            select_seed: 1,
+            queue_entries: 16,
+            setup_cycles: 8,
+            memory: "ideal".into(),
+            memory_latency: 1,
+        }
+    }
+}
+
+/// The select policies of [`S3::select`].
+pub const S3_SELECT: &[&str] = &["random", "oldest"];
 
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
@@ -160,6 +225,20 @@ pub struct Memory {
     pub sync_stages: usize,
 }
 
+/// The texture cache (thesis §6.5, [`crate::memory::TextureCache`]): read-only,
+/// direct-mapped, serving the streams the stream program marks cacheable.
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct TextureCacheDesc {
+    /// Data words (a power of two; 16 K in the thesis).
+    pub words: usize,
+    /// Words per line (a power of two; 2 in the thesis).
+    pub line_words: usize,
+    /// Words of hits handed to the address generators per core cycle, all together (the
+    /// thesis's memory-to-SRF bandwidth ×n).
+    pub hit_words_per_cycle: usize,
+}
+
 /// The stream controller (ARCHITECTURE §4).
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
@@ -272,6 +351,18 @@ pub const BUILTIN: &[(&str, &str)] = &[
     (
         "gold32combo",
         include_str!("../../machines/gold32combo.toml"),
+    ),
+    (
+        "gold32combo+tc1",
+        include_str!("../../machines/gold32combo+tc1.toml"),
+    ),
+    (
+        "gold32combo+tc4",
+        include_str!("../../machines/gold32combo+tc4.toml"),
+    ),
+    (
+        "gold32combo+tc32",
+        include_str!("../../machines/gold32combo+tc32.toml"),
     ),
     ("reyes", include_str!("../../machines/reyes.toml")),
     ("reyes400", include_str!("../../machines/reyes400.toml")),
@@ -509,6 +600,7 @@ impl MachineDesc {
             }
         }
         self.validate_memory()?;
+        self.validate_s3()?;
         let shortest = l.div.min(l.sqrt);
         if l.divsqrt_issue_interval > shortest {
             return bad(
@@ -632,6 +724,41 @@ impl MachineDesc {
                 return bad(key, format!("is {v}, must be {lo}..={hi}"));
             }
         }
+        if let Some(t) = &self.texture_cache {
+            let pow2 = |v: usize, hi: usize| v.is_power_of_two() && v <= hi;
+            if !pow2(t.words, 1 << 20) {
+                return bad(
+                    "texture_cache.words",
+                    format!("is {}, must be a power of two up to {}", t.words, 1 << 20),
+                );
+            }
+            if !pow2(t.line_words, 64.min(t.words)) {
+                return bad(
+                    "texture_cache.line_words",
+                    format!(
+                        "is {}, must be a power of two up to {} (and at most 64)",
+                        t.line_words, t.words
+                    ),
+                );
+            }
+            if !(1..=64).contains(&t.hit_words_per_cycle) {
+                return bad(
+                    "texture_cache.hit_words_per_cycle",
+                    format!("is {}, must be 1..=64", t.hit_words_per_cycle),
+                );
+            }
+            // A line fill's reply carries its word address in the reference tag.
+            let words = crate::dram::DramParams::of(self).capacity_bytes() / 4;
+            if words > crate::memory::address_gen::FILL_ADDRESS_LIMIT {
+                return bad(
+                    "texture_cache",
+                    format!(
+                        "needs DRAM of at most {} words; this machine has {words}",
+                        crate::memory::address_gen::FILL_ADDRESS_LIMIT
+                    ),
+                );
+            }
+        }
         if m.ag_reorder_words < m.ag_words_per_cycle {
             return bad(
                 "memory.ag_reorder_words",
@@ -658,6 +785,76 @@ impl MachineDesc {
                 format!(
                     "is {}, must be at most {MAX_MIN_KERNEL_CYCLES}",
                     self.stream_controller.min_kernel_cycles,
+                ),
+            );
+        }
+        Ok(())
+    }
+}
+
+impl MachineDesc {
+    fn validate_s3(&self) -> Result<(), DescError> {
+        let bad = |key, problem: String| {
+            Err(DescError::Invalid {
+                machine: self.name.clone(),
+                source: None,
+                key,
+                problem,
+            })
+        };
+        let s = &self.s3;
+        for (key, v, lo, hi) in [
+            (
+                "s3.accelerators",
+                s.accelerators,
+                1,
+                crate::limits::MAX_S3_ACCELERATORS,
+            ),
+            ("s3.window_per_accelerator", s.window_per_accelerator, 1, 64),
+            ("s3.source_slots", s.source_slots, 0, 2),
+            (
+                "s3.split_height",
+                s.split_height,
+                1,
+                crate::limits::MAX_WINDOW as usize,
+            ),
+            ("s3.queue_entries", s.queue_entries, 1, 1 << 16),
+            (
+                "s3.setup_cycles",
+                s.setup_cycles as usize,
+                1,
+                MAX_LATENCY as usize,
+            ),
+            (
+                "s3.memory_latency",
+                s.memory_latency as usize,
+                1,
+                MAX_LATENCY as usize,
+            ),
+        ] {
+            if !(lo..=hi).contains(&v) {
+                return bad(key, format!("is {v}, must be {lo}..={hi}"));
+            }
+        }
+        if !S3_SELECT.contains(&s.select.as_str()) {
+            return bad(
+                "s3.select",
+                format!("is `{}`, must be one of {}", s.select, S3_SELECT.join(", ")),
+            );
+        }
+        if s.select_seed == 0 {
+            return bad(
+                "s3.select_seed",
+                "is 0, must be non-zero (an LFSR seed)".into(),
+            );
+        }
+        if s.memory != "ideal" {
+            return bad(
+                "s3.memory",
+                format!(
+                    "is `{}`: only `ideal` is modelled (the paper's memory); the DRAM mode is \
+                     not built yet",
+                    s.memory
                 ),
             );
         }
@@ -814,6 +1011,19 @@ mod tests {
             ),
             (32, 6, 3)
         );
+        // The texture-cache machines: the thesis's cache, at ×1, ×4 and ×32.
+        for (name, n) in [
+            ("gold32combo+tc1", 1),
+            ("gold32combo+tc4", 4),
+            ("gold32combo+tc32", 32),
+        ] {
+            let tc = get(name);
+            let cache = tc.texture_cache.as_ref().expect("a texture cache");
+            assert_eq!((cache.words, cache.line_words), (16384, 2));
+            assert_eq!(cache.hit_words_per_cycle, n);
+            assert_eq!(tc.cluster, combo.cluster);
+        }
+        assert!(combo.texture_cache.is_none());
         // Inherited keys stay as the base has them.
         assert_eq!(get("gold16").latency, get("gold8").latency);
     }
@@ -924,5 +1134,31 @@ mod tests {
         assert_eq!(m.stream_controller.min_kernel_cycles, 300);
         let e = MachineDesc::load(Path::new("/nonexistent/m.toml")).unwrap_err();
         assert!(e.to_string().contains("/nonexistent/m.toml"), "{e}");
+    }
+
+    #[test]
+    fn an_impossible_texture_cache_is_refused_naming_its_key() {
+        for (keys, key) in [
+            (
+                "words = 1000\nline_words = 2\nhit_words_per_cycle = 1",
+                "texture_cache.words",
+            ),
+            (
+                "words = 16\nline_words = 3\nhit_words_per_cycle = 1",
+                "texture_cache.line_words",
+            ),
+            (
+                "words = 16\nline_words = 32\nhit_words_per_cycle = 1",
+                "texture_cache.line_words",
+            ),
+            (
+                "words = 16\nline_words = 2\nhit_words_per_cycle = 0",
+                "texture_cache.hit_words_per_cycle",
+            ),
+        ] {
+            let text = format!("name = \"x\"\nbase = \"gold8\"\n[texture_cache]\n{keys}");
+            let e = MachineDesc::parse(&text, "x.toml").unwrap_err();
+            assert!(e.to_string().contains(key), "{keys}: {e}");
+        }
     }
 }

@@ -21,6 +21,8 @@
 //! * [`stream_controller`] — the stream instruction queue and scoreboard; [`processor`] —
 //!   the whole stream processor (stream controller, address generators, clusters, SRF and
 //!   SDRAM channels) running stream programs.
+//! * [`s3`] — the S3 superscalar out-of-order rasterizer (Wolfe & Noonburg): fetch, issue
+//!   unit, K rasterizing accelerators and their frame-buffer memory, with a trace driver.
 //! * [`srf`] — the stream register file: block-interleaved storage, stream buffers and the
 //!   arbiter that grants the SRF port to them.
 
@@ -41,6 +43,7 @@ pub mod microcontroller;
 pub mod ops;
 pub mod processor;
 pub mod runner;
+pub mod s3;
 pub mod scratchpad;
 pub mod srf;
 pub mod stream_controller;

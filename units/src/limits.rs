@@ -52,6 +52,13 @@ pub const MAX_TRACE_LINE: usize = 4096;
 /// Largest window side the pipeline accepts (pixel addresses stay well inside 32 bits and
 /// window coordinates stay exact in fp32).
 pub const MAX_WINDOW: u32 = 4096;
+
+/// Rasterizing accelerators an S3 machine may have (`s3.accelerators`).
+pub const MAX_S3_ACCELERATORS: usize = 64;
+
+/// Primitives an S3 trace may hold: each needs a distinct 24-bit order tag in the depth
+/// buffer (0 is the clear value's).
+pub const MAX_S3_PRIMITIVES: usize = (1 << 24) - 1;
 /// Largest `|x|` or `|y|` of a `.tri` vertex, in pixels: beyond it fp32 edge functions
 /// lose every bit of sub-pixel precision.
 pub const MAX_TRI_COORDINATE: f32 = 1.0e6;

@@ -33,7 +33,8 @@ use crate::desc::MachineDesc;
 use crate::dram::replay::report_of;
 use crate::dram::{DramChannel, DramParams, Policy, ReplayReport, Reply};
 use crate::machine::Machine;
-use crate::memory::{AddressGenerator, MemPorts, MemoryConfig, build_memory};
+use crate::memory::texture_cache::Waiter;
+use crate::memory::{AddressGenerator, MemPorts, MemoryConfig, TextureCache, build_memory};
 use crate::microcode::Program;
 use crate::runner::{OnStart, RunError};
 use crate::stream_controller::{InstrRecord, Issue, StreamController, StreamInstr, Unit};
@@ -94,6 +95,9 @@ pub struct Processor {
     machine: Machine,
     ags: Vec<AddressGenerator>,
     ports: MemPorts,
+    texture_cache: Option<TextureCache>,
+    /// Words the texture cache hands to waiting references this cycle.
+    deliveries: Vec<(Waiter, u32)>,
     sc: StreamController,
     cycle: u64,
     issue: Option<Issue>,
@@ -134,6 +138,10 @@ impl Processor {
     /// (the microcontroller's scalar registers, which the host sets over its interface).
     pub fn machine_mut(&mut self) -> &mut Machine {
         &mut self.machine
+    }
+
+    pub fn texture_cache(&self) -> Option<&TextureCache> {
+        self.texture_cache.as_ref()
     }
 
     pub fn address_generators(&self) -> &[AddressGenerator] {
@@ -234,6 +242,9 @@ impl Processor {
             ag.commit(self.machine.srf_mut())?;
         }
         self.ports.commit();
+        if let Some(c) = &mut self.texture_cache {
+            c.commit();
+        }
         for a in 0..self.ags.len() {
             if self.ags[a].just_finished()
                 && let Some(id) = self.ag_ops[a].take()
@@ -313,13 +324,24 @@ impl Module for Processor {
                     format!("a reply for address generator {}", r.tag.source),
                 ));
             };
-            ag.accept(r)?;
+            if let Some((word, value)) = ag.accept(r)?
+                && let Some(c) = &mut self.texture_cache
+            {
+                c.fill(word, value, &mut self.deliveries);
+            }
+        }
+        for (w, value) in self.deliveries.drain(..) {
+            self.ags[w.ag].deliver(w.slot, value)?;
         }
         // The address generators take turns at offering references first (round robin).
         let n = self.ags.len();
         for k in 0..n {
             let a = (self.cycle as usize + k) % n;
-            self.ags[a].eval(self.machine.srf_mut(), &mut self.ports)?;
+            self.ags[a].eval(
+                self.machine.srf_mut(),
+                &mut self.ports,
+                self.texture_cache.as_mut(),
+            )?;
         }
         self.machine.eval()
     }
@@ -337,6 +359,9 @@ impl Module for Processor {
     fn trace(&self, t: &mut Trace) {
         self.machine.trace(t);
         self.ags.iter().for_each(|a| a.trace(t));
+        if let Some(c) = &self.texture_cache {
+            c.trace(t);
+        }
         t.value(self.ids[0], self.sc.occupancy() as u64);
         t.value(self.ids[1], self.kernel.is_some() as u64);
         t.value(self.ids[2], self.loader.is_some() as u64);
@@ -432,6 +457,10 @@ pub fn build(
             )
         })
         .collect::<Vec<_>>();
+    let texture_cache = desc
+        .texture_cache
+        .as_ref()
+        .map(|d| TextureCache::new(&mut top.child("texture_cache"), d));
     let mut s = top.child("sc");
     let ids = [
         s.signal(
@@ -459,6 +488,8 @@ pub fn build(
         machine,
         ags,
         ports,
+        texture_cache,
+        deliveries: Vec::new(),
         sc: StreamController::new(desc, program.kernels, program.instrs),
         cycle: 0,
         issue: None,

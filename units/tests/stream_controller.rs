@@ -40,6 +40,7 @@ fn strided(kind: MemOpKind, base: u64, srf_start: usize) -> StreamInstr {
         records: N,
         srf_start,
         row_records: 1,
+        cacheable: false,
     })
 }
 
@@ -272,6 +273,7 @@ fn gather_record_and_scatter(row_records: usize) {
             records: k,
             srf_start,
             row_records,
+            cacheable: false,
         })
     };
     let indexed = Pattern::Indexed {
@@ -345,6 +347,7 @@ fn a_bounded_gather_overlaps_a_store_elsewhere() {
                 records,
                 srf_start,
                 row_records: 1,
+                cacheable: false,
             })
         };
         let gather = Pattern::Indexed {

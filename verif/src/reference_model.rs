@@ -834,6 +834,7 @@ mod tests {
                 blend: Blend::None,
                 stop_length: 1.5,
                 batch: None,
+                normalise_clip: false,
             },
             lights: Vec::new(),
             textures: Vec::new(),

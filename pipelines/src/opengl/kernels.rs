@@ -264,7 +264,11 @@ pub const WINDOW_WORDS: usize = 14;
 /// `(3c + k) mod C`; since 3 is invertible modulo `C`, the map from `c` to that cluster is
 /// a permutation, so each corner word is one comm (the sender picks the row its receiver
 /// needs). Trivial reject: all three corners outside one of the six clip planes (what is
-/// left is rasterized homogeneously, with no clipping).
+/// left is rasterized homogeneously, with no clipping). With `normalise_clip` (the scene's
+/// `pipeline.normalise_clip`) the corners then go out scaled by a power of two for the
+/// triangle that brings the largest x, y or w near 1 (exact; it keeps the rasterizer's
+/// products within fp32's range at any scale of clip space, for about 1 % of SPHERE's
+/// cycles, so it is the scene's choice).
 ///
 /// Outputs per triangle: `clipped` ([`CLIPPED_WORDS`]) and `attribs` ([`ATTRIB_WORDS`]).
 ///
@@ -273,6 +277,7 @@ pub const WINDOW_WORDS: usize = 14;
 pub fn assemble_clip(
     desc: &MachineDesc,
     varyings: Varyings,
+    normalise_clip: bool,
 ) -> Result<Kernel, MachineRequirementError> {
     Needs::new("assemble_clip", desc).power_of_two_clusters(None)?;
     let clusters = desc.cluster.count;
@@ -351,6 +356,50 @@ pub fn assemble_clip(
     let not_rejected = {
         let f = flag(&mut b, outside);
         b.xor(f, one)
+    };
+    // The corners' x, y, z, w scaled by one power of two for the triangle, 2^-k with k
+    // half the exponent of the largest square of an x, y or w: their largest magnitude
+    // then lies in [1, 2) (up to the square's rounding). Exact, and the same triangle (clip space is
+    // homogeneous; `irast`'s depth Σ E·(z/det) has z scaling once, the edge functions E
+    // twice and the determinant three times), but `viewport_cull`'s edge functions
+    // (products of two coordinates) and determinant (of three) then neither underflow
+    // nor overflow at any scale of clip space, which the divide by w of other OpenGLs
+    // removes and a homogeneous rasterizer otherwise keeps: clip coordinates of 1e-17
+    // had a determinant of 1e-46, zero, and the triangle was dropped as degenerate. The
+    // squares go to the multipliers, which this kernel leaves idle; a square that
+    // overflows or underflows still gives a scale within [2^-64, 2^64].
+    let v: Vec<Vec<Value>> = if !normalise_clip {
+        v
+    } else {
+        let largest = v
+            .iter()
+            .flat_map(|c| [c[0], c[1], c[3]])
+            .collect::<Vec<_>>()
+            .into_iter()
+            .map(|x| b.fmul(x, x))
+            .collect::<Vec<_>>()
+            .into_iter()
+            .reduce(|m, q| b.fmax(m, q))
+            .expect("nine coordinates");
+        // With e the square's biased exponent, 2^-k has the exponent field
+        // 127 - ⌊(e - 127) / 2⌋ = ⌊(382 - e) / 2⌋.
+        let bits = b.cast(largest, Ty::Word);
+        let field = b.i32(23);
+        let e = b.shr(bits, field);
+        let c382 = b.i32(382);
+        let down = b.isub(c382, e);
+        let down = b.shr(down, one);
+        let down = b.shl(down, field);
+        let scale = b.cast(down, Ty::F32);
+        v.iter()
+            .map(|c| {
+                let mut c = c.clone();
+                for x in &mut c[..4] {
+                    *x = b.fmul(*x, scale);
+                }
+                c
+            })
+            .collect()
     };
     for c in &v {
         for w in [c[0], c[1], c[3]] {

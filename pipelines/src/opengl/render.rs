@@ -56,6 +56,7 @@ use std::time::Instant;
 
 use imagine_hdl::Sim;
 use imagine_units::desc::MachineDesc;
+use imagine_units::dram::trace::TraceRequest;
 use imagine_units::dram::{DramChannel, ReplayReport};
 use imagine_units::machine::{KernelStats, StreamBinding};
 use imagine_units::processor;
@@ -66,7 +67,7 @@ use super::kernels::{
     self, CLIPPED_WORDS, FrameShape, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS, Varyings, WINDOW_WORDS,
 };
 use super::mergefrag::{self, GROUP};
-use super::stats::{BatchRow, Phases, Specialisation};
+use super::stats::{BatchRow, Phases, Specialisation, TextureCacheReport};
 use super::vertex_program::{self, VertexProgram};
 use crate::compile::CompileCache;
 use crate::kernel::MachineRequirementError;
@@ -126,9 +127,16 @@ pub struct Frame {
     /// For every pixel (row 0 at the bottom), the triangle it shows, `None` where no
     /// fragment was drawn: the framebuffer's primitive words, read after the frame.
     pub triangles: Vec<Option<TriangleId>>,
+    /// For every pixel (row 0 at the bottom), the depth word of its framebuffer record
+    /// (fp32 bits; 1.0 where nothing was drawn), read with [`Frame::triangles`]: what the
+    /// stress suite checks for NaN and infinities, which the RGBA8 colour cannot show.
+    pub depths: Vec<u32>,
     /// The frame as a timeline in the Trace Event format (see [`timeline`]), when
     /// [`RenderOptions::timeline`] asks for it.
     pub timeline: Option<serde_json::Value>,
+    /// The DRAM requests of the frame (the clear and read-back apart) as the channels
+    /// received them, when [`RenderOptions::record_dram`] asks for them.
+    pub dram_requests: Vec<TraceRequest>,
 }
 
 /// A frame that could not be rendered.
@@ -179,6 +187,8 @@ pub struct RenderOptions {
     pub batch: Option<usize>,
     /// Build the frame's timeline ([`Frame::timeline`]).
     pub timeline: bool,
+    /// Keep the frame's DRAM requests ([`Frame::dram_requests`], `--dram-trace`).
+    pub record_dram: bool,
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
@@ -200,6 +210,7 @@ impl Default for RenderOptions {
             reverse_eval_order: false,
             batch: None,
             timeline: false,
+            record_dram: false,
         }
     }
 }
@@ -596,7 +607,10 @@ fn register_kernels(
         .collect();
     // Built in pipeline order, so that a machine shape none of them can serve is named by
     // the first kernel a frame needs.
-    let assemble_clip = lib.register("assemble_clip", kernels::assemble_clip(desc, varyings)?);
+    let assemble_clip = lib.register(
+        "assemble_clip",
+        kernels::assemble_clip(desc, varyings, pp.normalise_clip)?,
+    );
     let viewport_cull = lib.register("viewport_cull", kernels::viewport_cull(desc, shape)?);
     let baryprep = lib.register("baryprep", kernels::baryprep(desc, varyings)?);
     let xyprep = lib.register("xyprep", kernels::xyprep(desc, shape)?);
@@ -960,6 +974,9 @@ pub struct PipelinePlan {
     pub fragment_programs: Vec<Option<FragmentProgram>>,
     /// Where the textures lie in DRAM.
     pub textures: TextureMemory,
+    /// Whether `assemble_clip` normalises each triangle's clip corners
+    /// (`pipeline.normalise_clip`).
+    pub normalise_clip: bool,
 }
 
 impl PipelinePlan {
@@ -1286,6 +1303,7 @@ pub fn plan_pipeline(
         varyings,
         fragment_programs,
         textures,
+        normalise_clip: scene.pipeline.normalise_clip,
     })
 }
 
@@ -1361,7 +1379,7 @@ pub fn render_with(
     let perm_words =
         turbulence::perm_stream(turbulence::PERLIN_PERMUTATION.map(u32::from), clusters);
     let m = Memory {
-        textures: dram.buffer("textures", pp.textures.words.len().max(1) as u64)?,
+        textures: dram.read_only_buffer("textures", pp.textures.words.len().max(1) as u64)?,
         perm: dram.buffer("perm", perm_words.len() as u64)?,
         texture_words: pp.textures.words.len().max(1) as u64,
         vertices: dram.buffer("vertices", input.vertex_words.len() as u64)?,
@@ -1382,6 +1400,11 @@ pub fn render_with(
     };
     let mut host = StreamHost::new(desc, lib, dram, on_start, options.max_cycles)?;
     processor::processor_mut(host.sim_mut()).set_skip_idle(!options.step_idle);
+    if options.record_dram {
+        for c in host.sim_mut().modules_of_mut::<DramChannel>() {
+            c.start_recording();
+        }
+    }
     if options.reverse_eval_order {
         host.sim_mut().reverse_eval_order();
     }
@@ -1494,7 +1517,14 @@ pub fn render_with(
     let read = host.cycles();
     host.finish()?;
     let simulate_seconds = sim_start.elapsed().as_secs_f64();
-    let triangles = visible_triangles(&host, desc, m.framebuffer, pixels - 1, &input, batch);
+    let records = processor::read_dram(
+        host.sim(),
+        desc,
+        host.dram.base(m.framebuffer),
+        (pixels - 1) * PIXEL_WORDS,
+    );
+    let triangles = visible_triangles(&records, &input, batch);
+    let depths = records.chunks(PIXEL_WORDS).map(|r| r[1]).collect();
 
     stats.phases = Phases {
         load_cycles: loaded,
@@ -1541,29 +1571,32 @@ pub fn render_with(
     stats.host_seconds = host_start.elapsed().as_secs_f64();
     stats.simulated_cycles_per_second = read as f64 / stats.simulate_seconds.max(1e-9);
     stats.skipped_cycles = processor::processor(host.sim()).skipped_cycles();
+    // The frame's requests: those the channels received between its first and last core
+    // cycles, in DRAM cycles.
+    let dram_per_core = desc.clocks.dram_mhz as f64 / desc.clocks.core_mhz as f64;
+    let window = (cleared as f64 * dram_per_core) as u64..(rendered as f64 * dram_per_core) as u64;
+    let dram_requests = imagine_units::dram::replay::recorded(host.sim())
+        .into_iter()
+        .filter(|r| window.contains(&r.cycle))
+        .collect();
     Ok(Frame {
         width: scene.width,
         height: scene.height,
         pixels: pixels_out,
         stats,
         triangles,
+        depths,
         timeline,
+        dram_requests,
     })
 }
 
-/// Which triangle each of the window's `pixels` shows: the primitive word of its
-/// framebuffer record (`baryprep` numbers primitives `first_prim + index + 1`, 0 for a
-/// pixel never drawn, and every batch spans `batch` numbers, padding included) read
-/// through the DRAM's backdoor after the frame, so that it costs no simulated cycle and
-/// leaves the read-back phase as it is.
-fn visible_triangles(
-    host: &StreamHost,
-    desc: &MachineDesc,
-    framebuffer: Buffer,
-    pixels: usize,
-    input: &Inputs,
-    batch: usize,
-) -> Vec<Option<TriangleId>> {
+/// Which triangle each pixel shows: the primitive word of its framebuffer `records`
+/// (`baryprep` numbers primitives `first_prim + index + 1`, 0 for a pixel never drawn, and
+/// every batch spans `batch` numbers, padding included), read through the DRAM's backdoor
+/// after the frame, so that it costs no simulated cycle and leaves the read-back phase as
+/// it is.
+fn visible_triangles(records: &[u32], input: &Inputs, batch: usize) -> Vec<Option<TriangleId>> {
     // Each batch's first triangle within its object.
     let mut first_triangle = Vec::with_capacity(input.batches.len());
     let mut object_triangles = vec![
@@ -1579,13 +1612,7 @@ fn visible_triangles(
         first_triangle.push(object_triangles[b.object]);
         object_triangles[b.object] += b.triangles;
     }
-    let words = processor::read_dram(
-        host.sim(),
-        desc,
-        host.dram.base(framebuffer),
-        pixels * PIXEL_WORDS,
-    );
-    words
+    records
         .chunks(PIXEL_WORDS)
         .map(|record| {
             let primitive = (record[2] as usize).checked_sub(1)?;
@@ -2398,7 +2425,17 @@ fn finish_stats(
             .unwrap_or(imagine_units::dram::Policy::FirstReady),
         &imagine_units::dram::DramParams::of(desc),
     );
-    s.dram_bytes = 4 * dram_words;
+    s.texture_cache = p.texture_cache().map(|c| TextureCacheReport {
+        counts: c.stats().clone(),
+        hit_rate: c.stats().hit_rate(),
+    });
+    // Words the texture cache served never reached DRAM; its line fills did. (Texture
+    // gathers run only inside the frame, so the run's counts are the frame's.)
+    let (served, filled) = s
+        .texture_cache
+        .as_ref()
+        .map_or((0, 0), |t| (t.counts.hits, t.counts.fill_words));
+    s.dram_bytes = 4 * (dram_words - served + filled);
     s.dram_gbs = s.dram_bytes as f64 / seconds.max(1e-12) / 1e9;
     s.dram_row_hit_rate = dram.row_hit_rate;
     let srf = p.machine().srf().stats();

@@ -1,6 +1,7 @@
 //! What a frame reports (ARCHITECTURE §7): cycles by phase, rates, kernels, the memory
 //! system, the pipeline the scene was given and the SRF plan, per frame and per batch.
 
+use imagine_units::memory::TextureCacheStats;
 use serde::Serialize;
 
 use crate::stream::attribution::{Attribution, WaitingOn};
@@ -79,6 +80,14 @@ pub struct BatchRow {
     pub waiting_on: WaitingOn,
 }
 
+/// What the texture cache did (thesis §6.5): its counters and hit rate.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct TextureCacheReport {
+    #[serde(flatten)]
+    pub counts: TextureCacheStats,
+    pub hit_rate: f64,
+}
+
 /// Statistics of a frame.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct FrameStats {
@@ -141,11 +150,15 @@ pub struct FrameStats {
     pub merge_rounds: u64,
     /// Conflicting fragments `mergefrag` dropped.
     pub merged_fragments: u64,
-    /// DRAM bytes the frame's memory operations moved, and per second of the frame.
+    /// DRAM bytes the frame's memory operations moved (less the words the texture cache
+    /// served, plus its line fills), and per second of the frame.
     pub dram_bytes: u64,
     pub dram_gbs: f64,
     /// Row hits over every DRAM access of the run (load and read-back included).
     pub dram_row_hit_rate: f64,
+    /// The texture cache's counters over the run, on a machine that has one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture_cache: Option<TextureCacheReport>,
     pub srf_words_per_cycle: f64,
     pub lrf_reads_per_cycle: f64,
     pub lrf_writes_per_cycle: f64,

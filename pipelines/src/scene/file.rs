@@ -7,7 +7,9 @@
 //!   projection from `fov_y`/`near`/`far`, `ortho` or `projection`, one of each.
 //! * `[pipeline]`: `kind = "opengl"`, `depth_test = "less"`, `cull = "none"` (OpenGL's
 //!   initial state), `blend = "none"`, `stop_length = 1.5`; `batch` (the most triangles per
-//!   batch, an addition to the format) defaults to the pipeline's choice.
+//!   batch, an addition to the format) defaults to the pipeline's choice, and
+//!   `normalise_clip` (an addition: scale each triangle's clip corners by a power of two,
+//!   exactly, so that clip coordinates of any magnitude rasterize) to false.
 //! * `[window] background` defaults to black; a material's `shader` is required.
 //! * A texture's `filter` defaults to `"nearest"` and `wrap` to `"repeat"`; a procedural
 //!   checker defaults to `size = 256`, `cells = 8`, `colours = [[1,1,1], [0,0,0]]`. A
@@ -202,6 +204,7 @@ pub fn window_scene(old: super::Scene) -> model::Scene {
             blend: model::Blend::None,
             stop_length: 1.5,
             batch: None,
+            normalise_clip: false,
         },
         lights: Vec::new(),
         textures: Vec::new(),
@@ -298,6 +301,7 @@ struct PipelineFile {
     blend: Option<BlendFile>,
     stop_length: Option<f64>,
     batch: Option<i64>,
+    normalise_clip: Option<bool>,
 }
 
 #[derive(Deserialize, Clone, Copy)]
@@ -869,6 +873,7 @@ impl Cx {
                 BlendFile::Add => model::Blend::Add,
             },
             stop_length: stop_length as f32,
+            normalise_clip: p.normalise_clip.unwrap_or(false),
             batch: match p.batch {
                 None => None,
                 Some(n) if (1..=i64::from(MAX_BATCH)).contains(&n) => Some(n as u32),

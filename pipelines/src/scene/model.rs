@@ -82,6 +82,11 @@ pub struct PipelineSettings {
     /// OpenGL: the most triangles per batch (the pipeline takes the largest batch up to
     /// this that the machine holds), or the pipeline's default.
     pub batch: Option<u32>,
+    /// OpenGL: scale each triangle's clip corners by a power of two in `assemble_clip`
+    /// (exact), so that the rasterizer's edge functions and determinant stay within fp32's
+    /// range at any scale of clip space. Off by default: it costs about 1 % of SPHERE's
+    /// cycles, and only clip coordinates beyond about 2^±40 need it.
+    pub normalise_clip: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]

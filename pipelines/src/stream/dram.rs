@@ -17,6 +17,8 @@ pub struct BufferInfo {
     /// First word address.
     pub base: u64,
     pub words: u64,
+    /// Written only before it is first read, so the texture cache may serve its loads.
+    pub cacheable: bool,
 }
 
 /// The memory map.
@@ -42,6 +44,17 @@ impl DramMap {
 
     /// A buffer of `words` words; errors naming it when the DRAM is full.
     pub fn buffer(&mut self, name: &str, words: u64) -> Result<Buffer, PlanError> {
+        self.add(name, words, false)
+    }
+
+    /// A buffer written only before it is first read (uploaded once, like the textures),
+    /// whose loads are marked cacheable for a texture cache. The cache drops a line a store
+    /// touches, so the upload itself needs no care.
+    pub fn read_only_buffer(&mut self, name: &str, words: u64) -> Result<Buffer, PlanError> {
+        self.add(name, words, true)
+    }
+
+    fn add(&mut self, name: &str, words: u64, cacheable: bool) -> Result<Buffer, PlanError> {
         let base = self.next;
         let end = base.checked_add(words).filter(|&e| e <= self.capacity);
         let Some(end) = end else {
@@ -55,6 +68,7 @@ impl DramMap {
             name: name.into(),
             base,
             words,
+            cacheable,
         });
         self.next = end.div_ceil(ALIGN) * ALIGN;
         Ok(Buffer(self.buffers.len() - 1))
@@ -62,6 +76,10 @@ impl DramMap {
 
     pub fn info(&self, b: Buffer) -> &BufferInfo {
         &self.buffers[b.0]
+    }
+
+    pub fn is_cacheable(&self, b: Buffer) -> bool {
+        self.buffers[b.0].cacheable
     }
 
     pub fn base(&self, b: Buffer) -> u64 {

@@ -306,10 +306,13 @@ impl StreamHost {
         Ok(())
     }
 
+    /// A memory operation on DRAM buffer `buffer` from word `offset`.
+    #[allow(clippy::too_many_arguments)]
     fn mem(
         &mut self,
         kind: MemOpKind,
-        base: u64,
+        buffer: Buffer,
+        offset: u64,
         pattern: Pattern,
         layout: Layout,
         records: usize,
@@ -323,12 +326,13 @@ impl StreamHost {
         debug_assert!(records * layout.record_words <= srf.words);
         self.push(StreamInstr::Memory(MemOp {
             kind,
-            base,
+            base: self.dram.base(buffer) + offset,
             pattern,
             record_words: layout.record_words,
             records,
             srf_start: srf.start,
             row_records,
+            cacheable: kind == MemOpKind::Load && self.dram.is_cacheable(buffer),
         }));
     }
 
@@ -342,10 +346,10 @@ impl StreamHost {
         to: StreamBinding,
     ) {
         let w = layout.record_words as u64;
-        let base = self.dram.base(from) + first * w;
         self.mem(
             MemOpKind::Load,
-            base,
+            from,
+            first * w,
             Pattern::Strided { stride: w },
             layout,
             records,
@@ -362,10 +366,10 @@ impl StreamHost {
         words: usize,
         to: StreamBinding,
     ) {
-        let base = self.dram.base(from) + first;
         self.mem(
             MemOpKind::Load,
-            base,
+            from,
+            first,
             Pattern::Strided { stride },
             Layout::words(),
             words,
@@ -383,10 +387,10 @@ impl StreamHost {
         first: u64,
     ) {
         let w = layout.record_words as u64;
-        let base = self.dram.base(to) + first * w;
         self.mem(
             MemOpKind::Store,
-            base,
+            to,
+            first * w,
             Pattern::Strided { stride: w },
             layout,
             records,
@@ -410,8 +414,7 @@ impl StreamHost {
             scale: layout.record_words as u64,
             bound: Some(bound),
         };
-        let base = self.dram.base(from);
-        self.mem(MemOpKind::Load, base, pattern, layout, records, to);
+        self.mem(MemOpKind::Load, from, 0, pattern, layout, records, to);
     }
 
     /// Scatters `records` records of `from` to the record numbers in `index` of `to`.
@@ -429,8 +432,7 @@ impl StreamHost {
             scale: layout.record_words as u64,
             bound: Some(bound),
         };
-        let base = self.dram.base(to);
-        self.mem(MemOpKind::Store, base, pattern, layout, records, from);
+        self.mem(MemOpKind::Store, to, 0, pattern, layout, records, from);
     }
 
     /// Writes `words` into the SRF at `to` over the host interface.

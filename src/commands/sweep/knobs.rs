@@ -18,10 +18,18 @@ pub enum Knob {
     Filter,
     /// The machine's `arithmetic.flush_to_zero`.
     FlushToZero,
+    /// The scene's `pipeline.normalise_clip` (exact clip-corner scaling in `assemble_clip`).
+    NormaliseClip,
 }
 
 impl Knob {
-    pub const ALL: [Knob; 4] = [Knob::Machine, Knob::Batch, Knob::Filter, Knob::FlushToZero];
+    pub const ALL: [Knob; 5] = [
+        Knob::Machine,
+        Knob::Batch,
+        Knob::Filter,
+        Knob::FlushToZero,
+        Knob::NormaliseClip,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -29,6 +37,7 @@ impl Knob {
             Knob::Batch => "batch",
             Knob::Filter => "filter",
             Knob::FlushToZero => "flush_to_zero",
+            Knob::NormaliseClip => "normalise_clip",
         }
     }
 
@@ -45,7 +54,7 @@ impl Knob {
             ),
             Knob::Batch => format!("triangles per batch, 1 to {MAX_BATCH}"),
             Knob::Filter => "nearest, bilinear (or linear), trilinear".into(),
-            Knob::FlushToZero => "true, false".into(),
+            Knob::FlushToZero | Knob::NormaliseClip => "true, false".into(),
         }
     }
 
@@ -66,13 +75,18 @@ impl Knob {
                 "trilinear" => Filter::Trilinear,
                 _ => bail!("`{text}` is not a filter"),
             }),
-            Knob::FlushToZero => KnobValue::FlushToZero(match text {
-                "true" => true,
-                "false" => false,
-                _ => bail!("`{text}` is not true or false"),
-            }),
+            Knob::FlushToZero => KnobValue::FlushToZero(boolean(text)?),
+            Knob::NormaliseClip => KnobValue::NormaliseClip(boolean(text)?),
         };
         Ok(value)
+    }
+}
+
+fn boolean(text: &str) -> Result<bool> {
+    match text {
+        "true" => Ok(true),
+        "false" => Ok(false),
+        _ => bail!("`{text}` is not true or false"),
     }
 }
 
@@ -83,6 +97,7 @@ pub enum KnobValue {
     Batch(usize),
     Filter(Filter),
     FlushToZero(bool),
+    NormaliseClip(bool),
 }
 
 /// A knob and its values in the order given: one axis of the grid.
@@ -140,12 +155,14 @@ pub fn parse_axis(arg: &str) -> Result<Axis> {
 }
 
 /// What a point's knob values make of the base machine and the render: the machine
-/// description, the batch limit and the texture filter override.
+/// description, the batch limit, the texture filter override and the clip normalisation
+/// override.
 #[derive(Clone, Debug)]
 pub struct Setup {
     pub machine: MachineDesc,
     pub batch: Option<usize>,
     pub filter: Option<Filter>,
+    pub normalise_clip: Option<bool>,
 }
 
 impl Setup {
@@ -163,6 +180,7 @@ impl Setup {
             machine: MachineDesc::resolve(machine_name).map_err(|e| anyhow::anyhow!("{e}"))?,
             batch: None,
             filter: None,
+            normalise_clip: None,
         };
         for value in values {
             match value {
@@ -170,6 +188,7 @@ impl Setup {
                 KnobValue::Batch(n) => setup.batch = Some(*n),
                 KnobValue::Filter(f) => setup.filter = Some(*f),
                 KnobValue::FlushToZero(on) => setup.machine.arithmetic.flush_to_zero = *on,
+                KnobValue::NormaliseClip(on) => setup.normalise_clip = Some(*on),
             }
         }
         Ok(setup)
@@ -195,6 +214,7 @@ mod tests {
             ("batch=8,8", "given twice"),
             ("filter=cubic", "nearest, bilinear"),
             ("flush_to_zero=yes", "true, false"),
+            ("normalise_clip=1", "true, false"),
             ("machine=gold7", "gold8"),
         ] {
             let e = format!("{:#}", parse_axis(bad).unwrap_err());
@@ -214,5 +234,9 @@ mod tests {
         assert!(setup.machine.arithmetic.flush_to_zero);
         assert_eq!(setup.batch, Some(32));
         assert_eq!(setup.filter, None);
+        assert_eq!(setup.normalise_clip, None);
+        let on = [KnobValue::NormaliseClip(true)];
+        let setup = Setup::of("gold8", &on.iter().collect::<Vec<_>>()).unwrap();
+        assert_eq!(setup.normalise_clip, Some(true));
     }
 }

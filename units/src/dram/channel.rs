@@ -340,6 +340,11 @@ impl DramChannel {
         )
     }
 
+    /// Starts keeping the requests that enter this channel (between cycles).
+    pub fn start_recording(&mut self) {
+        self.record.get_or_insert_with(Vec::new);
+    }
+
     /// The requests that entered this channel (when recording), in order.
     pub fn recorded(&self) -> &[TraceRequest] {
         self.record.as_deref().unwrap_or(&[])

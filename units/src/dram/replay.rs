@@ -416,18 +416,24 @@ fn skip_idle_time(sim: &mut Sim) -> u64 {
 /// The report of the channels of a finished design.
 pub fn report_of(sim: &Sim, policy: Policy, p: &DramParams) -> ReplayReport {
     let chans: Vec<&DramChannel> = sim.modules_of::<DramChannel>().collect();
-    let mut recorded: Vec<(u64, usize, TraceRequest)> = chans
-        .iter()
-        .flat_map(|c| c.recorded().iter().map(move |r| (r.cycle, c.index(), *r)))
-        .collect();
-    recorded.sort_by_key(|&(cy, ch, _)| (cy, ch));
     ReplayReport::from_channels(
         policy,
         p,
         chans.iter().map(|c| c.stats().clone()).collect(),
         chans.iter().flat_map(|c| c.violations().to_vec()).collect(),
-        recorded.into_iter().map(|(_, _, r)| r).collect(),
+        recorded(sim),
     )
+}
+
+/// The requests every recording channel of `sim` received, in DRAM-cycle order (channel
+/// order within a cycle).
+pub fn recorded(sim: &Sim) -> Vec<TraceRequest> {
+    let mut recorded: Vec<(u64, usize, TraceRequest)> = sim
+        .modules_of::<DramChannel>()
+        .flat_map(|c| c.recorded().iter().map(move |r| (r.cycle, c.index(), *r)))
+        .collect();
+    recorded.sort_by_key(|&(cy, ch, _)| (cy, ch));
+    recorded.into_iter().map(|(_, _, r)| r).collect()
 }
 
 #[cfg(test)]

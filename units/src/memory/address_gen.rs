@@ -20,14 +20,30 @@
 //! Stream buffers: address generator `k` uses SB `n − 1 − 2k` for data and `n − 2 − 2k` for
 //! indices (`n` = `srf.stream_buffers`), clear of the kernel's SBs `0..kernel_streams`.
 //!
+//! * **Cacheable loads** (with a [`TextureCache`]): each reference first looks in the
+//!   cache. A hit (or a word already on its way) takes none of the generator's
+//!   `ag_words_per_cycle` DRAM references, only the cache's hit bandwidth, and enters the
+//!   reorder buffer at once; a miss is a DRAM reference and queues the rest of its line as
+//!   fills, which issue ahead of the next references. Retiring into the stream buffer may
+//!   then run at the cache's hit rate. Fills still queued when the operation ends keep the
+//!   generator busy until they have issued (another generator may be waiting for them).
+//!
 //! The address path assumes a one-word burst (`dram.burst_words = 1`, the default): each
 //! reference is one column access. Probes: `busy`, `issued`, `retired`, `outstanding`.
+
+use std::collections::VecDeque;
 
 use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
 
 use super::MemPorts;
+use super::texture_cache::{Probe, TextureCache, Waiter};
 use crate::dram::{Reply, Request, Tag};
 use crate::srf::Srf;
+
+/// A line fill's reference tag: this bit set, the word address in the bits below.
+const FILL_BIT: u32 = 1 << 31;
+/// DRAM words a line fill's tag can address.
+pub const FILL_ADDRESS_LIMIT: u64 = FILL_BIT as u64;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MemOpKind {
@@ -72,6 +88,8 @@ pub struct MemOp {
     /// record), so that each cluster receives whole records. `records` must then be a
     /// multiple of `C`. The generator simply issues its references in that order.
     pub row_records: usize,
+    /// A load the texture cache may serve (the stream program marks read-only data only).
+    pub cacheable: bool,
 }
 
 impl MemOp {
@@ -138,6 +156,11 @@ pub struct AddressGenerator {
     issued: usize,
     retired: usize,
     rob: Vec<Option<u32>>,
+    /// The DRAM word each reorder slot waits for (cacheable loads: its reply fills the
+    /// cache).
+    rob_words: Vec<u64>,
+    /// Line fills waiting for a DRAM port (word addresses).
+    fills: VecDeque<u64>,
     /// The index of the record being issued (indexed streams), once read.
     /// Indices of the current row's records (indexed streams).
     indices: Vec<u64>,
@@ -171,6 +194,8 @@ impl AddressGenerator {
             issued: 0,
             retired: 0,
             rob: vec![None; window],
+            rob_words: vec![0; window],
+            fills: VecDeque::new(),
             indices: Vec::new(),
             indices_row: None,
             flushing: false,
@@ -186,14 +211,15 @@ impl AddressGenerator {
         }
     }
 
+    /// Running an operation, or still issuing the line fills of one.
     pub fn is_busy(&self) -> bool {
-        self.op.is_some()
+        self.op.is_some() || !self.fills.is_empty()
     }
 
     /// Brings an idle generator over `n ≥ 1` cycles with no operation started, as their
     /// edges would: only the end-of-operation flag clears.
     pub fn skip_idle(&mut self, n: u64) {
-        debug_assert!(self.op.is_none() && n > 0);
+        debug_assert!(!self.is_busy() && n > 0);
         self.finished = false;
     }
 
@@ -237,21 +263,36 @@ impl AddressGenerator {
         Ok(())
     }
 
-    /// A reply for this generator (read data or a write acknowledgement).
-    pub fn accept(&mut self, r: &Reply) -> Result<(), ContractError> {
-        let Some(op) = &self.op else {
+    /// A reply for this generator (read data or a write acknowledgement). Returns the DRAM
+    /// word and its value when the word belongs in the texture cache (a cacheable load's
+    /// word or a line fill, which may arrive after its operation ended).
+    pub fn accept(&mut self, r: &Reply) -> Result<Option<(u64, u32)>, ContractError> {
+        if r.tag.seq & FILL_BIT != 0 {
+            return Ok(Some(((r.tag.seq & !FILL_BIT) as u64, r.data[0])));
+        }
+        let Some(op) = self.op else {
             return Err(self.error("reply", "a reply arrived with no operation running".into()));
         };
         match op.kind {
             MemOpKind::Load => {
                 let slot = r.tag.seq as usize % self.window;
-                if self.rob[slot].is_some() {
-                    return Err(self.error("reply", format!("reorder slot {slot} taken twice")));
-                }
-                self.rob[slot] = Some(r.data[0]);
+                self.deliver(slot, r.data[0])?;
+                Ok(op.cacheable.then_some((self.rob_words[slot], r.data[0])))
             }
-            MemOpKind::Store => self.retired += 1,
+            MemOpKind::Store => {
+                self.retired += 1;
+                Ok(None)
+            }
         }
+    }
+
+    /// Puts a loaded word into reorder slot `slot` (from DRAM, or from the texture cache
+    /// for a reference that waited for a line on its way).
+    pub fn deliver(&mut self, slot: usize, word: u32) -> Result<(), ContractError> {
+        if self.rob[slot].is_some() {
+            return Err(self.error("reply", format!("reorder slot {slot} taken twice")));
+        }
+        self.rob[slot] = Some(word);
         Ok(())
     }
 
@@ -259,14 +300,27 @@ impl AddressGenerator {
         ContractError::at(&format!("{}.{what}", self.path), Violation::Other(msg))
     }
 
-    /// One core cycle: retire load data into the stream buffer, issue references.
-    pub fn eval(&mut self, srf: &mut Srf, ports: &mut MemPorts) -> Result<(), ContractError> {
+    /// One core cycle: retire load data into the stream buffer, issue line fills, then
+    /// references (looking cacheable loads up in `cache` first).
+    pub fn eval(
+        &mut self,
+        srf: &mut Srf,
+        ports: &mut MemPorts,
+        mut cache: Option<&mut TextureCache>,
+    ) -> Result<(), ContractError> {
+        let mut port_slots = self.width;
+        self.issue_fills(ports, &mut port_slots)?;
         let Some(op) = self.op else { return Ok(()) };
         self.stats.busy_cycles += 1;
         let words = op.words();
+        let cached = op.cacheable && op.kind == MemOpKind::Load && cache.is_some();
         if op.kind == MemOpKind::Load {
+            let width = match &cache {
+                Some(c) if cached => self.width.max(c.hit_words_per_cycle()),
+                _ => self.width,
+            };
             self.buf.clear();
-            let room = srf.space(self.sb).min(self.width);
+            let room = srf.space(self.sb).min(width);
             while self.buf.len() < room && self.retired + self.buf.len() < words {
                 let slot = (self.retired + self.buf.len()) % self.window;
                 match self.rob[slot].take() {
@@ -284,7 +338,9 @@ impl AddressGenerator {
                 self.flushing = true;
             }
         }
-        for _ in 0..self.width {
+        // Each pass issues one reference or stops: DRAM references are bounded by the
+        // generator's width, cache hits by the cache's bandwidth.
+        loop {
             if self.issued == words || self.issued - self.retired >= self.window {
                 break;
             }
@@ -328,7 +384,8 @@ impl AddressGenerator {
                 } else {
                     j
                 };
-            let byte = (start + j) * 4;
+            let word = start + j;
+            let byte = word * 4;
             let Some(loc) = ports.params().map(byte) else {
                 return Err(self.error(
                     "address",
@@ -339,7 +396,28 @@ impl AddressGenerator {
                     ),
                 ));
             };
-            if !ports.can_push(loc.channel) {
+            let slot = self.issued % self.window;
+            if let Some(c) = cache.as_deref_mut().filter(|_| cached) {
+                match c.probe(word) {
+                    Probe::Miss => {}
+                    probe => {
+                        if !c.claim_hit() {
+                            break;
+                        }
+                        match probe {
+                            Probe::Hit(v) => self.rob[slot] = Some(v),
+                            _ => c.wait(Waiter {
+                                ag: self.id as usize,
+                                slot,
+                                word,
+                            }),
+                        }
+                        self.issued += 1;
+                        continue;
+                    }
+                }
+            }
+            if port_slots == 0 || !ports.can_push(loc.channel) {
                 break;
             }
             let mut data = [0u32; 8];
@@ -349,6 +427,9 @@ impl AddressGenerator {
                 }
                 data[0] = srf.memory_read(self.sb, 1)?[0];
                 self.stats.words += 1;
+                if let Some(c) = cache.as_deref_mut() {
+                    c.invalidate(word);
+                }
             }
             ports.push(
                 loc.channel,
@@ -362,7 +443,52 @@ impl AddressGenerator {
                     },
                 },
             )?;
+            if let Some(c) = cache.as_deref_mut().filter(|_| cached) {
+                self.rob_words[slot] = word;
+                // The rest of the line, as far as the stream may touch and memory goes.
+                let (lo, hi) = op.mem_range().unwrap_or((0, u64::MAX));
+                let first = word - word % c.line_words();
+                let line = (first..first + c.line_words())
+                    .filter(|&w| (lo..hi).contains(&w) && ports.params().map(w * 4).is_some());
+                c.miss(word, line.clone());
+                self.fills.extend(line.filter(|&w| w != word));
+            }
+            port_slots -= 1;
             self.issued += 1;
+        }
+        Ok(())
+    }
+
+    /// Issues queued line fills, each taking one of this cycle's DRAM references.
+    fn issue_fills(
+        &mut self,
+        ports: &mut MemPorts,
+        port_slots: &mut usize,
+    ) -> Result<(), ContractError> {
+        while *port_slots > 0
+            && let Some(&word) = self.fills.front()
+        {
+            let loc = ports
+                .params()
+                .map(word * 4)
+                .expect("fills are queued in memory");
+            if !ports.can_push(loc.channel) {
+                break;
+            }
+            ports.push(
+                loc.channel,
+                Request {
+                    write: false,
+                    byte_addr: word * 4,
+                    data: [0; 8],
+                    tag: Tag {
+                        source: self.id,
+                        seq: FILL_BIT | word as u32,
+                    },
+                },
+            )?;
+            self.fills.pop_front();
+            *port_slots -= 1;
         }
         Ok(())
     }

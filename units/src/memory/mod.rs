@@ -16,8 +16,10 @@
 //! tag names.
 
 pub mod address_gen;
+pub mod texture_cache;
 
 pub use address_gen::{AddressGenerator, MemOp, MemOpKind, Pattern};
+pub use texture_cache::{TextureCache, TextureCacheStats};
 
 use imagine_hdl::{AsyncFifoRx, AsyncFifoTx, ContractError, Design, DesignError};
 

@@ -178,6 +178,7 @@ mod tests {
             records: N,
             srf_start,
             row_records: 1,
+            cacheable: false,
         })
     }
 

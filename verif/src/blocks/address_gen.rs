@@ -78,7 +78,7 @@ impl Module for Harness {
             }
             self.ag.accept(r)?;
         }
-        self.ag.eval(&mut self.srf, &mut self.ports)?;
+        self.ag.eval(&mut self.srf, &mut self.ports, None)?;
         self.srf.eval();
         Ok(())
     }
@@ -156,6 +156,7 @@ fn plan(rng: &mut Rng, desc: &MachineDesc) -> (Planned, Vec<u64>) {
         records,
         srf_start: block * rng.index(4),
         row_records: rows,
+        cacheable: false,
     };
     let mut addresses = vec![0; records * k];
     for i in 0..records {

@@ -149,6 +149,7 @@ fn program(rng: &mut Rng, desc: &MachineDesc, n: usize) -> Vec<StreamInstr> {
                         records,
                         srf_start: start,
                         row_records: 1,
+                        cacheable: false,
                     })
                 }
             }
