@@ -106,6 +106,9 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
             "machine": desc.name,
             "stop_length": stop,
             "cycles": s.cycles,
+            "load_cycles": s.load_cycles,
+            "clear_cycles": s.clear_cycles,
+            "readback_cycles": s.readback_cycles,
             "fps": fps,
             "patches": s.patches,
             "quads": s.quads,
@@ -134,8 +137,9 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
         scene.name, desc.name, f.width, f.height
     );
     println!(
-        "  cycles      {} (the kernels' alone: no dispatch or memory time), {fps:.2} fps at {} MHz",
-        s.cycles, desc.clocks.core_mhz
+        "  cycles      {} (the frame: kernels, dispatch, memory), {fps:.2} fps at {} MHz; \
+         load {}, clear {}, read-back {}",
+        s.cycles, desc.clocks.core_mhz, s.load_cycles, s.clear_cycles, s.readback_cycles
     );
     println!("  patches     {}", s.patches);
     println!(
@@ -157,10 +161,10 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
         .map(|(l, n)| format!("{l}: {n}"))
         .collect();
     println!("  levels      {}", levels.join(", "));
-    println!("  kernel          calls        cycles   share");
+    println!("  kernel                      calls        cycles   share");
     for k in &s.kernels {
         println!(
-            "    {:<14}{:>7}{:>14}{:>7.1}%",
+            "    {:<26}{:>7}{:>14}{:>7.1}%",
             k.name,
             k.calls,
             k.cycles,
