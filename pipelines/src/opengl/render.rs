@@ -320,7 +320,12 @@ pub(crate) fn plan_composite(
             .map(|n| p.stream(n, words, groups, live("composite", "composite"))),
         // The framebuffer's gathers and scatters: a batch's last scatter is still running
         // when the next batch is set up, so these words are not shared with anything.
-        pixel: p.stream("pixel", Layout::records(PIXEL_WORDS), chunk, Lifetime::Always),
+        pixel: p.stream(
+            "pixel",
+            Layout::records(PIXEL_WORDS),
+            chunk,
+            Lifetime::Always,
+        ),
         new_pixel: p.stream(
             "new_pixel",
             Layout::records(PIXEL_WORDS),
@@ -2362,7 +2367,14 @@ impl Composite<'_> {
                     ("newaddr", newaddr),
                 ],
             )?;
-            h.scatter(new_pixel, newaddr, self.pixels, by_pixel, len, self.framebuffer);
+            h.scatter(
+                new_pixel,
+                newaddr,
+                self.pixels,
+                by_pixel,
+                len,
+                self.framebuffer,
+            );
             // The zcompare and the scatter are queued; the host needs only the count.
             let held = h.read_back(p.first(s.conflicts, 1))?[0] as usize;
             if held == 0 {
@@ -2447,7 +2459,7 @@ impl Composite<'_> {
             current = next.map(|id| (id, 0));
             set = if set == 1 { 2 } else { 1 };
         }
-        }
+    }
 }
 
 /// What the DRAM channels did over the run, channel 0 first (whatever order the design

@@ -56,8 +56,8 @@ use crate::opengl::render::{
 use crate::scene::mat_mul;
 use crate::scene::model::{Blend, Cull, DepthTest, Scene};
 use crate::stream::{
-    DramMap, HostError, KernelLibrary, Layout, Lifetime, PARAMS, PlanError, SrfPlanner,
-    StreamHost, live,
+    DramMap, HostError, KernelLibrary, Layout, Lifetime, PARAMS, PlanError, SrfPlanner, StreamHost,
+    live,
 };
 
 /// Patch rows (of `C` patches) per `project` and `subdiv_split` call: the split's children
@@ -350,18 +350,28 @@ pub fn render_patches(
         live("project", "project"),
     );
     let project_params = pl.stream("project_params", words, 18 * c, live("project", "project"));
-    let index = pl.stream("patch_index", words, chunk_records, live("project", "project"));
+    let index = pl.stream(
+        "patch_index",
+        words,
+        chunk_records,
+        live("project", "project"),
+    );
     let walk_live = live("subdiv", "composite");
     let walk = pl.stream("walk", Layout::records(PATCH_WORDS), c, walk_live);
     let state = pl.buffers::<2>("state", Layout::records(STATE_WORDS), c, walk_live);
     let tickets = pl.stream("tickets", words, iterations * c, walk_live);
     let stop_params = pl.stream("stop2", words, c, Lifetime::Always);
     let quad_records = (iterations + 1) * c;
-    let quads = pl.stream("quads", Layout::records(QUAD_WORDS), quad_records, walk_live);
+    let quads = pl.stream(
+        "quads",
+        Layout::records(QUAD_WORDS),
+        quad_records,
+        walk_live,
+    );
     let covered = pl.stream("covered", words, quad_records, walk_live);
     let frag_live = live("sample", "composite");
-    let [f_addr, f_z, f_colour, f_prim] =
-        ["frag_addr", "frag_z", "frag_colour", "frag_prim"].map(|n| pl.elastic(n, words, frag_live));
+    let [f_addr, f_z, f_colour, f_prim] = ["frag_addr", "frag_z", "frag_colour", "frag_prim"]
+        .map(|n| pl.elastic(n, words, frag_live));
     let cs = plan_composite(&mut pl, desc, composite_chunk(desc));
     let plan = pl.place()?;
     // `sample` writes at most `stamp²` fragments per quad record, then a row of nulls.
@@ -559,13 +569,7 @@ pub fn render_patches(
             plan.first(state[0], c),
         );
         let walk_b = plan.first(walk, c);
-        h.load(
-            top,
-            (g * c) as u64,
-            Layout::records(PATCH_WORDS),
-            c,
-            walk_b,
-        );
+        h.load(top, (g * c) as u64, Layout::records(PATCH_WORDS), c, walk_b);
         let mut cur = 0;
         let mut calls = 0u64;
         loop {
@@ -627,7 +631,12 @@ pub fn render_patches(
                 for start in (0..len).step_by(chunk) {
                     composite.run(
                         &mut h,
-                        [(f_z, start), (f_colour, start), (f_addr, start), (f_prim, start)],
+                        [
+                            (f_z, start),
+                            (f_colour, start),
+                            (f_addr, start),
+                            (f_prim, start),
+                        ],
                         chunk.min(len - start),
                         &mut counts,
                     )?;
@@ -636,7 +645,10 @@ pub fn render_patches(
             }
             let quad_words = peek(&h, quad_stream);
             let quad_recs = stream_to_records(&quad_words, QUAD_WORDS, c);
-            for (r, &n) in quad_recs.iter().zip(&peek(&h, plan.first(covered, quad_records))) {
+            for (r, &n) in quad_recs
+                .iter()
+                .zip(&peek(&h, plan.first(covered, quad_records)))
+            {
                 if r[Q_FLAGS] & FLAG_QUAD != 0 && n == 0 {
                     stats.zero_pixel_quads += 1;
                 }

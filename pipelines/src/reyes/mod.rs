@@ -6,7 +6,8 @@
 //!
 //! * [`kernels`]: `project`, `subdiv`, `sample` — built with the kernel builder, compiled
 //!   to microcode, checked against their interpretation.
-//! * [`frame`]: a frame: the kernels run one call after another on the clocked machine.
+//! * [`frame`]: a frame as a stream program on the whole machine (stream controller, SRF
+//!   streams by name, DRAM), composited by the OpenGL pipeline's composite.
 
 pub mod frame;
 pub mod kernels;
