@@ -2,8 +2,11 @@
 //! its refusals, and small frames (coverage with no cracks, counts).
 //!
 //! Every frame here is [`W`]×[`W`] pixels, so that the frames' kernels are the same
-//! microcode; the kernels are compiled once per test process into the compile cache (cold,
-//! `subdiv` alone takes most of this file's time), before any test uses them.
+//! microcode. The tests that need `subdiv` compiled are `#[ignore]`d: cold, compiling it
+//! takes minutes (warm, from the compile cache under `target/`, the whole file takes about
+//! 2 s). Run them with `cargo test -p imagine-pipelines --test reyes -- --include-ignored`;
+//! they compile every frame kernel once per test process ([`frame_cache`]) before any of
+//! them runs.
 
 use imagine_pipelines::compile::{CompileCache, Compiled};
 use imagine_pipelines::kernel::KernelInputs;
@@ -20,11 +23,15 @@ fn reyes() -> MachineDesc {
 /// The window of every frame and of `sample`'s check.
 const W: u32 = 44;
 
-/// The compile cache, with every kernel of this file compiled into it once (two at a time),
-/// so that tests running at once do not each compile `subdiv`.
 fn cache() -> CompileCache {
+    CompileCache::at(concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache"))
+}
+
+/// The compile cache, with every kernel of a frame compiled into it once (two at a time),
+/// so that tests running at once do not each compile `subdiv`.
+fn frame_cache() -> CompileCache {
     static WARM: std::sync::OnceLock<()> = std::sync::OnceLock::new();
-    let cache = CompileCache::at(concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache"));
+    let cache = cache();
     WARM.get_or_init(|| {
         let desc = reyes();
         let shape = imagine_pipelines::opengl::kernels::FrameShape {
@@ -90,10 +97,35 @@ fn patch_record(p: &BezierPatch, colour: u32) -> Vec<u32> {
 }
 
 #[test]
+#[ignore = "compiles `subdiv_split`: minutes cold"]
+fn subdiv_split_machine_equals_interpretation() {
+    let desc = reyes();
+    let c = desc.cluster.count;
+    let records: Vec<Vec<u32>> = (0..2 * c)
+        .map(|i| patch_record(&grid(i as f32, 1.0, 0.5, 0.25, 0.1), i as u32))
+        .collect();
+    let split = kernels::subdiv_split(&desc).unwrap();
+    let inputs = KernelInputs {
+        streams: vec![records_to_stream(&records, c), Vec::new()],
+        params: vec![],
+    };
+    let _ = frame_cache();
+    let r = check(&split, &compiled(&split, &desc), &desc, &inputs).unwrap();
+    assert!(
+        r.mismatch.is_none(),
+        "subdiv_split: {}",
+        r.mismatch.unwrap()
+    );
+    assert_eq!(r.words, 2 * c * 4 * PATCH_WORDS);
+}
+
+#[test]
+#[ignore = "compiles `subdiv`: minutes cold"]
 fn subdiv_machine_equals_interpretation() {
     let desc = reyes();
     let c = desc.cluster.count;
     let k = kernels::subdiv(&desc).unwrap();
+    let _ = frame_cache();
     let compiled = compiled(&k, &desc);
     // Patches of different sizes, so the clusters' walks differ; one inactive.
     let mut records: Vec<Vec<u32>> = (0..c - 1)
@@ -138,20 +170,11 @@ fn project_and_sample_machine_equal_interpretation() {
     let r = check(&p, &compiled(&p, &desc), &desc, &inputs).unwrap();
     assert!(r.mismatch.is_none(), "project: {}", r.mismatch.unwrap());
     assert_eq!(r.words, 2 * c * PATCH_WORDS);
-    let split = kernels::subdiv_split(&desc).unwrap();
-    let inputs = KernelInputs {
-        streams: vec![records_to_stream(&records, c), Vec::new()],
-        params: vec![],
-    };
-    let r = check(&split, &compiled(&split, &desc), &desc, &inputs).unwrap();
-    assert!(
-        r.mismatch.is_none(),
-        "subdiv_split: {}",
-        r.mismatch.unwrap()
-    );
-    assert_eq!(r.words, 2 * c * 4 * PATCH_WORDS);
 
-    // Quads straight from subdiv's interpretation, so that the sampler sees real ones.
+    // Quads straight from subdiv's interpretation, so that the sampler sees real ones; at
+    // stop length 0.5, whose sampler (2×2 centres a quad) compiles in about a second (that
+    // of 1.5, 4×4, in minutes: the frames' tests, ignored, run it).
+    let stop = 0.5f32;
     let s = kernels::subdiv(&desc).unwrap();
     let patches: Vec<Vec<u32>> = (0..c)
         .map(|i| patch_record(&grid(2.0 + 5.0 * i as f32, 3.0, 1.5, 2.0, 0.5), 7))
@@ -166,12 +189,12 @@ fn project_and_sample_machine_equal_interpretation() {
                 Vec::new(),
                 Vec::new(),
             ],
-            params: vec![(1.5f32 * 1.5).to_bits()],
+            params: vec![(stop * stop).to_bits()],
         },
         &desc,
     )
     .unwrap();
-    let sampler = kernels::sample(&desc, W, W, 1.5).unwrap();
+    let sampler = kernels::sample(&desc, W, W, stop).unwrap();
     let inputs = KernelInputs {
         streams: vec![out[3].clone(), vec![], vec![], vec![], vec![], vec![]],
         params: vec![],
@@ -200,6 +223,7 @@ fn subdiv_needs_the_reyes_scratchpad_and_a_good_stop_length() {
 /// quads along the edge come from different levels), whose union is the square
 /// [4, 40]²: every pixel centre inside it is covered, none outside.
 #[test]
+#[ignore = "compiles `subdiv`: minutes cold"]
 fn shared_edges_at_different_depths_leave_no_crack() {
     let desc = reyes();
     // Column 3 of `a` is column 0 of `b`: x = 34 at the corners, bowed to 37 inside.
@@ -238,7 +262,7 @@ fn shared_edges_at_different_depths_leave_no_crack() {
     let (w, h) = (W, W);
     let m = window_to_clip(w, h);
     let options = ReyesOptions {
-        cache: cache(),
+        cache: frame_cache(),
         iterations: Some(64),
         ..ReyesOptions::default()
     };
@@ -345,12 +369,13 @@ fn shared_edges_at_different_depths_leave_no_crack() {
 /// A patch 1,800 pixels across at stop length 1.5 needs 11 levels: more frames than the
 /// scratchpad holds. The frame stops with an error naming the kernel and the scratchpad.
 #[test]
+#[ignore = "compiles `subdiv`: minutes cold"]
 fn a_walk_deeper_than_the_stack_is_an_error() {
     let desc = reyes();
     let (w, h) = (W, W);
     let m = window_to_clip(w, h);
     let options = ReyesOptions {
-        cache: cache(),
+        cache: frame_cache(),
         ..ReyesOptions::default()
     };
     let e = frame::render_patches(
