@@ -181,6 +181,8 @@ fn machine_list_and_show_describe_every_builtin() {
         "gold32combo+tc4",
         "gold32combo+tc32",
         "gold8+hwrast",
+        "reyes",
+        "reyes400",
     ] {
         assert!(
             list.lines()

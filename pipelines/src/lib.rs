@@ -5,6 +5,7 @@ pub mod compile;
 pub mod kernel;
 pub mod kernels;
 pub mod opengl;
+pub mod reyes;
 pub mod run;
 pub mod scene;
 pub mod stream;

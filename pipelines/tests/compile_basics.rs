@@ -1,7 +1,7 @@
 //! The compiler on small kernels: machine output equals the interpreter's, bit for bit.
 
 use imagine_pipelines::compile::compile;
-use imagine_pipelines::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, Perm};
+use imagine_pipelines::kernel::{Kernel, KernelBuilder, KernelInputs, LoopSpec, Perm, Ty};
 use imagine_pipelines::run::check;
 use imagine_units::desc::MachineDesc;
 
@@ -84,6 +84,34 @@ fn a_carried_running_sum_matches() {
     let inputs = KernelInputs {
         streams: vec![(0..64u32).map(|i| i * 3 + 1).collect(), vec![], vec![]],
         params: vec![],
+    };
+    assert_matches(&k, "gold8", &inputs);
+    assert_matches(&k, "gold1", &inputs);
+}
+
+/// A value carried unchanged (`set_next(x, x)`) becomes a loop `mov` that reads its own
+/// previous result: no distance-0 dependence on itself (a cycle that tripped the
+/// scheduler's debug assertion), and it still holds its initial value after the loop.
+#[test]
+fn a_value_carried_unchanged_matches() {
+    let mut b = KernelBuilder::new("unchanged");
+    let (input, output, total) = (b.input("in"), b.output("out"), b.output("total"));
+    let k = b.param("k", Ty::I32);
+    let seven = b.i32(7);
+    let init = b.iadd(k, seven);
+    b.begin_loop(LoopSpec::OverStream(input));
+    let kept = b.carried(init);
+    b.set_next(kept, kept);
+    let x = b.read_i32(input);
+    let s = b.iadd(kept, x);
+    b.write(output, s);
+    b.end_loop();
+    let t = b.mov(kept);
+    b.write(total, t);
+    let k = b.finish().unwrap();
+    let inputs = KernelInputs {
+        streams: vec![(0..64u32).map(|i| i * 5 + 2).collect(), vec![], vec![]],
+        params: vec![1000],
     };
     assert_matches(&k, "gold8", &inputs);
     assert_matches(&k, "gold1", &inputs);

@@ -9,6 +9,7 @@ pub mod machine;
 pub mod outputs;
 pub mod reference_error;
 pub mod render;
+pub mod render_reyes;
 pub mod s3;
 pub mod scene;
 pub mod stress;

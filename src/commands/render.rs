@@ -9,7 +9,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
-use imagine_pipelines::scene::model::Scene;
+use imagine_pipelines::scene::model::{PipelineKind, Scene};
 use imagine_pipelines::scene::{self, LoadOptions};
 use imagine_units::desc::MachineDesc;
 use imagine_units::dram::trace::write_trace;
@@ -26,13 +26,13 @@ pub struct RenderArgs {
     /// RATE-128, ADVS-1, ADVS-8, PIN, PIN-8, MARBLE, VERONA) or a `.toml` scene file or
     /// `.tri` triangle file
     /// [default: SPHERE]
-    scene: Option<String>,
+    pub(super) scene: Option<String>,
     /// Machine description name or file
     #[arg(long, default_value = "gold8")]
     machine: String,
     /// Window side in pixels: overrides the scene's window with a square one
     #[arg(long)]
-    size: Option<u32>,
+    pub(super) size: Option<u32>,
     /// Icosphere subdivisions: overrides every icosphere's (SPHERE has 6: 81,920 triangles)
     #[arg(long)]
     subdivisions: Option<u32>,
@@ -45,16 +45,16 @@ pub struct RenderArgs {
     batch: Option<u32>,
     /// Write the frame as PNG
     #[arg(long)]
-    png: Option<PathBuf>,
+    pub(super) png: Option<PathBuf>,
     /// Write statistics as JSON
     #[arg(long)]
-    stats: Option<PathBuf>,
+    pub(super) stats: Option<PathBuf>,
     /// Write one CSV row per batch (cycles, kernel cycles, fragments, DRAM words, SRF use)
     #[arg(long)]
     stats_csv: Option<PathBuf>,
     /// Also write the reference renderer's frame as PNG
     #[arg(long)]
-    reference_png: Option<PathBuf>,
+    pub(super) reference_png: Option<PathBuf>,
     /// Write the frame as a timeline (Trace Event JSON, opened by ui.perfetto.dev and
     /// chrome://tracing): kernel calls, memory operations, host transfers, waits (with
     /// what they waited on), and counters of DRAM bandwidth, DRAM row hits and misses,
@@ -69,10 +69,18 @@ pub struct RenderArgs {
     /// Compile every kernel afresh: neither read nor write the compile cache
     /// ($IMAGINE_CACHE_DIR, else the platform's cache directory)
     #[arg(long)]
-    no_cache: bool,
+    pub(super) no_cache: bool,
     /// Give up on a frame that takes longer, in core cycles
     #[arg(long, default_value_t = MAX_RUN_CYCLES, value_parser = clap::value_parser!(u64).range(1..))]
     max_cycles: u64,
+    /// The pipeline: `opengl` or `reyes` (default: the scene's `pipeline.kind`). Reyes
+    /// draws the scene's patch objects from their Bezier nets (run it on `--machine reyes`)
+    #[arg(long, value_parser = ["opengl", "reyes"])]
+    pipeline: Option<String>,
+    /// Reyes: the largest quad side in pixels (default: the scene's
+    /// `pipeline.stop_length`, 1.5)
+    #[arg(long, value_name = "L")]
+    pub(super) stop_length: Option<f32>,
     #[command(flatten)]
     waves: WaveArgs,
     /// Dump the cycles of a call of kernel NAME (the render runs once to find it on the
@@ -204,7 +212,25 @@ pub fn run(a: RenderArgs) -> Result<ExitCode> {
     outputs.add_opt("--dram-trace", a.dram_trace.as_ref())?;
     a.waves.check_outputs(&mut outputs)?;
     let desc = MachineDesc::resolve(&a.machine)?;
-    let scene = load_scene(&a)?;
+    let mut scene = load_scene(&a)?;
+    let reyes = match a.pipeline.as_deref() {
+        Some(p) => p == "reyes",
+        None => scene.pipeline.kind == PipelineKind::Reyes,
+    };
+    if a.stop_length.is_some() && !reyes {
+        bail!("--stop-length is for the Reyes pipeline (`--pipeline reyes`)");
+    }
+    if reyes {
+        if a.stats_csv.is_some() || a.timeline.is_some() || a.waves.wants_vcd() {
+            bail!(
+                "the Reyes pipeline writes --png, --reference-png and --stats; \
+                 --stats-csv, --timeline and waveforms are the OpenGL pipeline's"
+            );
+        }
+        return super::render_reyes::run(&a, &desc, &scene);
+    }
+    // A scene that asks for Reyes, drawn by OpenGL on request.
+    scene.pipeline.kind = PipelineKind::OpenGl;
     warn_of_depth_range(&scene);
     let waves = match &a.vcd_kernel {
         Some(name) => a.waves.with_window(kernel_window(&a, &scene, &desc, name)?),

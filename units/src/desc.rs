@@ -399,6 +399,8 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "gold8+hwrast",
         include_str!("../../machines/gold8+hwrast.toml"),
     ),
+    ("reyes", include_str!("../../machines/reyes.toml")),
+    ("reyes400", include_str!("../../machines/reyes400.toml")),
 ];
 
 impl MachineDesc {

@@ -853,6 +853,7 @@ mod tests {
             model: IDENTITY,
             colour,
             space: Space::Window,
+            patches: Vec::new(),
             mesh: Mesh {
                 positions: triangles.iter().flatten().copied().collect(),
                 triangles: (0..triangles.len() as u32)
@@ -926,6 +927,7 @@ mod tests {
             model: scale(1.0, 1.0, 3.0),
             colour: [1.0; 3],
             space: Space::World,
+            patches: Vec::new(),
             mesh: Mesh {
                 positions: vec![[0.0; 3], [0.0; 3], [1.0, 0.0, 0.0]],
                 normals: vec![[0.0, 0.0, 7.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
@@ -978,6 +980,7 @@ mod tests {
             model: IDENTITY,
             colour: [1.0; 3],
             space: Space::World,
+            patches: Vec::new(),
             mesh: Mesh {
                 positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
                 triangles: vec![[0, 1, 2]],

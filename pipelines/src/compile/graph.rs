@@ -370,12 +370,17 @@ impl Graph {
                             latency: lm + 1,
                             distance: 1,
                         });
-                        edges.push(Edge {
-                            from: u,
-                            to: m,
-                            latency: -lm,
-                            distance: 0,
-                        });
+                        // (Not when `u` is `m` itself, a value carried unchanged: an op
+                        // reads its operands before its result lands, and a distance-0
+                        // self-edge would be a cycle no schedule can order.)
+                        if u != m {
+                            edges.push(Edge {
+                                from: u,
+                                to: m,
+                                latency: -lm,
+                                distance: 0,
+                            });
+                        }
                     }
                     _ => {}
                 }

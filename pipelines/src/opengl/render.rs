@@ -260,17 +260,92 @@ struct Streams {
     /// The hardware rasterizer's other outputs, on machines with one.
     unit: Option<UnitFragments>,
     gathered: [StreamId; 2],
-    /// irast's outputs, then two recycle sets: z, colour, addr, prim.
-    zcap: [[StreamId; 4]; 3],
-    sorted: [StreamId; 3],
-    pixel: StreamId,
-    new_pixel: StreamId,
-    newaddr: StreamId,
-    conflict: StreamId,
-    conflicts: StreamId,
+    /// irast's outputs (`zcap[0]`) and the composite's streams.
+    composite: CompositeStreams,
     /// The fragment program's streams (frames with textures or marble).
     texturing: Option<TexturingStreams>,
+}
+
+/// The composite's streams: the fragments of a chunk's rounds (the first set, or the
+/// rasterizer's outputs, then two recycle sets that alternate: z, colour, addr, prim), the
+/// merge's sorted streams, the pixels gathered and scattered by address, and `hash`'s
+/// flags and count. The Reyes pipeline composites through them too.
+pub(crate) struct CompositeStreams {
+    pub zcap: [[StreamId; 4]; 3],
+    pub sorted: [StreamId; 3],
+    pub pixel: StreamId,
+    pub new_pixel: StreamId,
+    pub newaddr: StreamId,
+    pub conflict: StreamId,
+    pub conflicts: StreamId,
+    /// Fragments per chunk (see [`composite_chunk`]).
+    pub chunk: usize,
+}
+
+/// Fragments per composite chunk on `desc`: [`CHUNK`] in whole rows of clusters and whole
+/// SRF blocks, so that a chunk's slices of the fragment streams start on block boundaries.
+pub(crate) fn composite_chunk(desc: &MachineDesc) -> usize {
+    let c = desc.cluster.count;
+    let gcd = |mut a: usize, mut b: usize| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let block = desc.srf.block_words.max(1);
+    let unit = c / gcd(c, block) * block;
+    CHUNK.div_ceil(unit) * unit
+}
+
+/// Declares the composite's streams for chunks of `chunk` fragments, live in phase
+/// `composite` (the framebuffer's pixels for the whole program: a last scatter may still
+/// run when the next work is set up).
+pub(crate) fn plan_composite(
+    p: &mut SrfPlanner,
+    desc: &MachineDesc,
     chunk: usize,
+) -> CompositeStreams {
+    let c = desc.cluster.count;
+    let words = Layout::words();
+    let groups = chunk.next_multiple_of(GROUP);
+    CompositeStreams {
+        zcap: [0, 1, 2].map(|set| {
+            ["z", "colour", "addr", "prim"].map(|n| {
+                p.stream(
+                    &format!("{n}[{set}]"),
+                    words,
+                    groups + c,
+                    live("composite", "composite"),
+                )
+            })
+        }),
+        sorted: ["key", "z_sorted", "prim_sorted"]
+            .map(|n| p.stream(n, words, groups, live("composite", "composite"))),
+        // The framebuffer's gathers and scatters: a batch's last scatter is still running
+        // when the next batch is set up, so these words are not shared with anything.
+        pixel: p.stream(
+            "pixel",
+            Layout::records(PIXEL_WORDS),
+            chunk,
+            Lifetime::Always,
+        ),
+        new_pixel: p.stream(
+            "new_pixel",
+            Layout::records(PIXEL_WORDS),
+            chunk,
+            Lifetime::Always,
+        ),
+        newaddr: p.stream("newaddr", words, chunk, Lifetime::Always),
+        // `hash`'s flags and the rows of zeros after them.
+        conflict: p.stream(
+            "conflict",
+            words,
+            chunk + GROUP,
+            live("composite", "composite"),
+        ),
+        conflicts: p.stream("conflicts", words, c, live("composite", "composite")),
+        chunk,
+    }
 }
 
 /// `xyrast`'s fragments beside their addresses: the triangle index and the edge values.
@@ -355,18 +430,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
     let hardware = desc.rasterizer.is_some();
     let kernels_only = |records: usize| if hardware { 0 } else { records };
     let words = Layout::words();
-    // A chunk is whole rows of clusters and whole SRF blocks: its slices of the fragment
-    // streams start on block boundaries.
-    let gcd = |mut a: usize, mut b: usize| {
-        while b != 0 {
-            (a, b) = (b, a % b);
-        }
-        a
-    };
-    let block = desc.srf.block_words.max(1);
-    let unit = c / gcd(c, block) * block;
-    let chunk = CHUNK.div_ceil(unit) * unit;
-    let groups = chunk.next_multiple_of(GROUP);
+    let chunk = composite_chunk(desc);
     let streams = Streams {
         state: p.stream("state", Layout::packed(1), s.state_words, always),
         vertex_params: p.stream("vertex_params", words, s.params * c, always),
@@ -481,31 +545,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
             kernels_only(chunk),
             live("composite", "composite"),
         ),
-        zcap: [0, 1, 2].map(|set| {
-            ["z", "colour", "addr", "prim"].map(|n| {
-                p.stream(
-                    &format!("{n}[{set}]"),
-                    words,
-                    groups + c,
-                    live("composite", "composite"),
-                )
-            })
-        }),
-        sorted: ["key", "z_sorted", "prim_sorted"]
-            .map(|n| p.stream(n, words, groups, live("composite", "composite"))),
-        // The framebuffer's gathers and scatters: a batch's last scatter is still running
-        // when the next batch is set up, so these words are not shared with anything.
-        pixel: p.stream("pixel", Layout::records(PIXEL_WORDS), chunk, always),
-        new_pixel: p.stream("new_pixel", Layout::records(PIXEL_WORDS), chunk, always),
-        newaddr: p.stream("newaddr", words, chunk, always),
-        // `hash`'s flags and the rows of zeros after them.
-        conflict: p.stream(
-            "conflict",
-            words,
-            chunk + GROUP,
-            live("composite", "composite"),
-        ),
-        conflicts: p.stream("conflicts", words, c, live("composite", "composite")),
+        composite: plan_composite(&mut p, desc, chunk),
         texturing: s.varyings.fragment_program().then(|| {
             let mut per_fragment = |name: &str, words: usize| {
                 (words > 0).then(|| {
@@ -539,7 +579,6 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
                 }),
             }
         }),
-        chunk,
     };
     let plan = p.place()?;
     if plan.capacity(streams.addr) < 4 * c {
@@ -552,14 +591,14 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
 }
 
 /// The streams of the host phases (load, clear, read-back), placed before the frame's.
-struct PhaseStreams {
-    staging: StreamId,
+pub(crate) struct PhaseStreams {
+    pub staging: StreamId,
     clear_tickets: StreamId,
     clear_pixels: StreamId,
     clear_params: StreamId,
 }
 
-fn plan_phases(desc: &MachineDesc) -> Result<(SrfPlan, PhaseStreams), PlanError> {
+pub(crate) fn plan_phases(desc: &MachineDesc) -> Result<(SrfPlan, PhaseStreams), PlanError> {
     let c = desc.cluster.count;
     let mut p = SrfPlanner::new(desc, &["load", "clear", "readback"]);
     let pixels = CLEAR_PIXELS.div_ceil(c) * c;
@@ -591,6 +630,18 @@ fn plan_phases(desc: &MachineDesc) -> Result<(SrfPlan, PhaseStreams), PlanError>
         ),
     };
     Ok((p.place()?, s))
+}
+
+impl Kernels {
+    fn composite(&self) -> CompositeKernels {
+        CompositeKernels {
+            hash: self.hash,
+            zcompare: self.zcompare,
+            recycle_zc: self.recycle_zc,
+            recycle_ap: self.recycle_ap,
+            merge: self.merge,
+        }
+    }
 }
 
 /// The kernels a frame may call.
@@ -981,7 +1032,11 @@ fn merges(shape: FrameShape, options: &RenderOptions) -> bool {
 fn check_supported(scene: &Scene) -> Result<(), RenderError> {
     let bad = |m: String| Err(RenderError(format!("scene `{}`: {m}", scene.name)));
     if scene.pipeline.kind != PipelineKind::OpenGl {
-        return bad("the Reyes pipeline is not built yet; use kind = \"opengl\"".into());
+        return bad(
+            "its pipeline is Reyes (`crate::reyes`; `imagine render --pipeline reyes`), \
+             not OpenGL"
+                .into(),
+        );
     }
     if scene.width == 0
         || scene.height == 0
@@ -1486,31 +1541,14 @@ pub fn render_with(
 
     // Clear: the machine writes the clear pixel and stores it over the framebuffer.
     let background = pack_rgb(scene.background);
-    host.write_params(
-        phase_plan.whole(ps.clear_params),
-        &[background, 1.0f32.to_bits()],
-    );
-    let clear_rows = phase_plan.capacity(ps.clear_pixels);
-    host.call(
+    clear_framebuffer(
+        &mut host,
         k.clear,
-        &[
-            ("tickets", phase_plan.first(ps.clear_tickets, clear_rows)),
-            ("pixels", phase_plan.first(ps.clear_pixels, clear_rows)),
-            (PARAMS, phase_plan.whole(ps.clear_params)),
-        ],
+        (&phase_plan, &ps),
+        m.framebuffer,
+        fb_pixels,
+        background,
     )?;
-    let mut at = 0;
-    while at < fb_pixels {
-        let n = clear_rows.min(fb_pixels - at);
-        host.store(
-            phase_plan.first(ps.clear_pixels, n),
-            Layout::records(PIXEL_WORDS),
-            n,
-            m.framebuffer,
-            at as u64,
-        );
-        at += n;
-    }
     host.drain()?;
     let cleared = host.cycles();
 
@@ -1630,6 +1668,45 @@ pub fn render_with(
         timeline,
         dram_requests,
     })
+}
+
+/// Queues the clear of `pixels` framebuffer pixels (whole rows) to `background` and depth
+/// 1.0: `clear` writes the clear pixel records into the SRF and they are stored over the
+/// framebuffer again and again.
+pub(crate) fn clear_framebuffer(
+    host: &mut StreamHost,
+    clear: KernelId,
+    (phase_plan, ps): (&SrfPlan, &PhaseStreams),
+    framebuffer: Buffer,
+    pixels: usize,
+    background: u32,
+) -> Result<(), HostError> {
+    host.write_params(
+        phase_plan.whole(ps.clear_params),
+        &[background, 1.0f32.to_bits()],
+    );
+    let clear_rows = phase_plan.capacity(ps.clear_pixels);
+    host.call(
+        clear,
+        &[
+            ("tickets", phase_plan.first(ps.clear_tickets, clear_rows)),
+            ("pixels", phase_plan.first(ps.clear_pixels, clear_rows)),
+            (PARAMS, phase_plan.whole(ps.clear_params)),
+        ],
+    )?;
+    let mut at = 0;
+    while at < pixels {
+        let n = clear_rows.min(pixels - at);
+        host.store(
+            phase_plan.first(ps.clear_pixels, n),
+            Layout::records(PIXEL_WORDS),
+            n,
+            framebuffer,
+            at as u64,
+        );
+        at += n;
+    }
+    Ok(())
 }
 
 /// Which triangle each pixel shows: the primitive word of its framebuffer `records`
@@ -2021,12 +2098,12 @@ impl FrameRun<'_> {
         self.max_fragment_words = self.max_fragment_words.max(words * (real + c));
         self.count_fragments(real);
         let total = real.div_ceil(c) * c;
-        for start in (0..total).step_by(s.chunk) {
-            let len = s.chunk.min(total - start);
+        for start in (0..total).step_by(s.composite.chunk) {
+            let len = s.composite.chunk.min(total - start);
             let values = p.slice(u.values, start, len);
             let colour = match &s.texturing {
                 Some(t) => {
-                    let [_, colour, _, _] = s.zcap[0];
+                    let [_, colour, _, _] = s.composite.zcap[0];
                     self.fragment_program(h, t, len, values, p.first(colour, len))?;
                     (colour, 0)
                 }
@@ -2084,7 +2161,7 @@ impl FrameRun<'_> {
         // of the nulls are not composited.
         let total = real.div_ceil(c) * c;
         self.count_fragments(real);
-        let chunk = s.chunk;
+        let chunk = s.composite.chunk;
         let chunks: Vec<(usize, usize)> = (0..total)
             .step_by(chunk)
             .map(|start| (start, chunk.min(total - start)))
@@ -2131,7 +2208,7 @@ impl FrameRun<'_> {
         let (p, s) = (self.plan, self.s);
         let kf = s.kernel_fragments.as_ref().expect("xyrast's streams");
         let edge = |i: usize| p.slice(kf.edges[i], start, len);
-        let [z, colour, _, prim] = s.zcap[0];
+        let [z, colour, _, prim] = s.composite.zcap[0];
         let interpolated = match &s.texturing {
             Some(t) => ("varyings", p.first(t.varyings, len)),
             None => ("colour", p.first(colour, len)),
@@ -2160,142 +2237,27 @@ impl FrameRun<'_> {
     fn composite(
         &mut self,
         h: &mut StreamHost,
-        mut current: [(StreamId, usize); 4],
-        mut len: usize,
+        current: [(StreamId, usize); 4],
+        len: usize,
     ) -> Result<(), RenderError> {
         let (p, s, m) = (self.plan, self.s, self.m);
-        let c = h.clusters();
-        let mut set = 1;
-        // Whether a merge of this chunk dropped fragments, or dropped none.
-        let mut stacked = false;
-        let mut fruitless = false;
-        let by_pixel = Layout::records(PIXEL_WORDS);
-        loop {
-            self.stats.composite_rounds += 1;
-            if let Some(row) = self.stats.batch_rows.last_mut() {
-                row.composite_rounds += 1;
-            }
-            let view = |(id, first): (StreamId, usize), n: usize| p.slice(id, first, n);
-            let [zs, cs, addr, ps] = current;
-            let pixel = p.first(s.pixel, len);
-            // The pixels are gathered while `hash` looks for conflicts.
-            h.gather(
-                m.framebuffer,
-                view(addr, len),
-                m.pixels,
-                by_pixel,
-                len,
-                pixel,
-            );
-            let conflict = p.first(s.conflict, len + GROUP);
-            let conflicts = p.whole(s.conflicts);
-            h.call(
-                self.k.hash,
-                &[
-                    ("addr", view(addr, len)),
-                    ("conflict", conflict),
-                    ("count", conflicts),
-                ],
-            )?;
-            let (new_pixel, newaddr) = (p.first(s.new_pixel, len), p.first(s.newaddr, len));
-            h.call(
-                self.k.zcompare,
-                &[
-                    ("z", view(zs, len)),
-                    ("colour", view(cs, len)),
-                    ("addr", view(addr, len)),
-                    ("prim", view(ps, len)),
-                    ("pixel", pixel),
-                    ("conflict", p.first(s.conflict, len)),
-                    ("new_pixel", new_pixel),
-                    ("newaddr", newaddr),
-                ],
-            )?;
-            h.scatter(new_pixel, newaddr, m.pixels, by_pixel, len, m.framebuffer);
-            // The zcompare and the scatter are queued; the host needs only the count.
-            let held = h.read_back(p.first(s.conflicts, 1))?[0] as usize;
-            if held == 0 {
-                return Ok(());
-            }
-            let next = s.zcap[set];
-            let cap = s.chunk.next_multiple_of(GROUP) + c;
-            let out = |i: usize| p.first(next[i], cap);
-            // Merge on many conflicts, and after a merge of this chunk that found a pixel's
-            // fragments together, on any that could merge; not again after a merge of this
-            // chunk that dropped nothing.
-            let merge = self.k.merge.filter(|_| {
-                !fruitless
-                    && self
-                        .merge_min_conflicts
-                        .is_some_and(|m| held >= m || (stacked && held >= 2))
-            });
-            if let Some((sort32, mergefrag)) = merge {
-                // Sort the conflicting fragments by address in groups of 32 and keep one
-                // per address: whole groups, `hash`'s rows of zeros after its flags.
-                self.stats.merge_rounds += 1;
-                let groups = len.next_multiple_of(GROUP);
-                let sorted = s.sorted.map(|id| p.first(id, groups));
-                h.call(
-                    sort32,
-                    &[
-                        ("conflict", p.first(s.conflict, groups)),
-                        ("addr", view(addr, groups)),
-                        ("z", view(zs, groups)),
-                        ("prim", view(ps, groups)),
-                        ("key", sorted[0]),
-                        ("z_sorted", sorted[1]),
-                        ("prim_sorted", sorted[2]),
-                    ],
-                )?;
-                let merged = h.call(
-                    mergefrag,
-                    &[
-                        ("key", sorted[0]),
-                        ("z_sorted", sorted[1]),
-                        ("prim_sorted", sorted[2]),
-                        ("colour", view(cs, groups)),
-                        ("z", out(0)),
-                        ("colour_kept", out(1)),
-                        ("addr", out(2)),
-                        ("prim_kept", out(3)),
-                    ],
-                )?;
-                // The next round needs the survivors' count.
-                h.wait(merged)?;
-                let written = h.written(merged, "z")?;
-                let dropped = held + c - written;
-                self.stats.merged_fragments += dropped as u64;
-                stacked |= dropped > 0;
-                fruitless = dropped == 0;
-                len = written / c * c;
-            } else {
-                h.call(
-                    self.k.recycle_zc,
-                    &[
-                        ("conflict", p.first(s.conflict, len)),
-                        ("a", view(zs, len)),
-                        ("b", view(cs, len)),
-                        ("a_kept", out(0)),
-                        ("b_kept", out(1)),
-                    ],
-                )?;
-                h.call(
-                    self.k.recycle_ap,
-                    &[
-                        ("conflict", p.first(s.conflict, len)),
-                        ("a", view(addr, len)),
-                        ("b", view(ps, len)),
-                        ("a_kept", out(2)),
-                        ("b_kept", out(3)),
-                    ],
-                )?;
-                // The conflicting fragments, then `compact_recycle`'s row of nulls: whole
-                // rows.
-                len = (held + c) / c * c;
-            }
-            current = next.map(|id| (id, 0));
-            set = if set == 1 { 2 } else { 1 };
+        let composite = Composite {
+            k: &self.k.composite(),
+            plan: p,
+            s: &s.composite,
+            framebuffer: m.framebuffer,
+            pixels: m.pixels,
+            merge_min_conflicts: self.merge_min_conflicts,
+        };
+        let mut counts = CompositeCounts::default();
+        let done = composite.run(h, current, len, &mut counts);
+        self.stats.composite_rounds += counts.rounds;
+        if let Some(row) = self.stats.batch_rows.last_mut() {
+            row.composite_rounds += counts.rounds;
         }
+        self.stats.merge_rounds += counts.merge_rounds;
+        self.stats.merged_fragments += counts.merged_fragments;
+        done
     }
 
     /// The fragment program of the batch's object on `len` fragments (`varyings`): its
@@ -2453,9 +2415,197 @@ impl FrameRun<'_> {
     }
 }
 
+/// The composite kernels of a frame (the OpenGL pipeline's, which the Reyes pipeline
+/// shares).
+#[derive(Clone, Copy)]
+pub(crate) struct CompositeKernels {
+    pub hash: KernelId,
+    pub zcompare: KernelId,
+    pub recycle_zc: KernelId,
+    pub recycle_ap: KernelId,
+    /// `sort32` and `mergefrag`, when the depth test allows merging.
+    pub merge: Option<(KernelId, KernelId)>,
+}
+
+/// What a chunk's composite counted.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct CompositeCounts {
+    pub rounds: u64,
+    pub merge_rounds: u64,
+    pub merged_fragments: u64,
+}
+
+/// The composite of chunks of fragments against a framebuffer in DRAM.
+pub(crate) struct Composite<'a> {
+    pub k: &'a CompositeKernels,
+    pub plan: &'a SrfPlan,
+    pub s: &'a CompositeStreams,
+    pub framebuffer: Buffer,
+    /// Window pixels and the trash pixel: the bound of gathers and scatters by pixel.
+    pub pixels: u64,
+    pub merge_min_conflicts: Option<usize>,
+}
+
+impl Composite<'_> {
+    /// Composites `len` fragments (whole rows, at most a chunk) whose `z`, `colour`, `addr`
+    /// and `prim` are the records from the given first record of the given streams, in
+    /// rounds: the pixels are gathered while `hash` marks fragments that share a pixel with
+    /// an earlier one, `zcompare` applies the depth test to the others, the pixels that
+    /// passed are scattered, and the held-back fragments are recycled (`compact_recycle`),
+    /// or sorted and merged (`sort32`, `mergefrag`) when many are, until none is left.
+    pub fn run(
+        &self,
+        h: &mut StreamHost,
+        first: [(StreamId, usize); 4],
+        len: usize,
+        counts: &mut CompositeCounts,
+    ) -> Result<(), RenderError> {
+        // The current round's streams: (stream, first record).
+        let mut current = first;
+        let (p, s, k) = (self.plan, self.s, self.k);
+        let c = h.clusters();
+        let mut len = len;
+        let mut set = 1;
+        // Whether a merge of this chunk dropped fragments, or dropped none.
+        let mut stacked = false;
+        let mut fruitless = false;
+        let by_pixel = Layout::records(PIXEL_WORDS);
+        loop {
+            counts.rounds += 1;
+            let view = |(id, first): (StreamId, usize), n: usize| p.slice(id, first, n);
+            let [zs, cs, addr, ps] = current;
+            let pixel = p.first(s.pixel, len);
+            // The pixels are gathered while `hash` looks for conflicts.
+            h.gather(
+                self.framebuffer,
+                view(addr, len),
+                self.pixels,
+                by_pixel,
+                len,
+                pixel,
+            );
+            let conflict = p.first(s.conflict, len + GROUP);
+            let conflicts = p.whole(s.conflicts);
+            h.call(
+                k.hash,
+                &[
+                    ("addr", view(addr, len)),
+                    ("conflict", conflict),
+                    ("count", conflicts),
+                ],
+            )?;
+            let (new_pixel, newaddr) = (p.first(s.new_pixel, len), p.first(s.newaddr, len));
+            h.call(
+                k.zcompare,
+                &[
+                    ("z", view(zs, len)),
+                    ("colour", view(cs, len)),
+                    ("addr", view(addr, len)),
+                    ("prim", view(ps, len)),
+                    ("pixel", pixel),
+                    ("conflict", p.first(s.conflict, len)),
+                    ("new_pixel", new_pixel),
+                    ("newaddr", newaddr),
+                ],
+            )?;
+            h.scatter(
+                new_pixel,
+                newaddr,
+                self.pixels,
+                by_pixel,
+                len,
+                self.framebuffer,
+            );
+            // The zcompare and the scatter are queued; the host needs only the count.
+            let held = h.read_back(p.first(s.conflicts, 1))?[0] as usize;
+            if held == 0 {
+                return Ok(());
+            }
+            let next = s.zcap[set];
+            let cap = s.chunk.next_multiple_of(GROUP) + c;
+            let out = |i: usize| p.first(next[i], cap);
+            // Merge on many conflicts, and after a merge of this chunk that found a pixel's
+            // fragments together, on any that could merge; not again after a merge of this
+            // chunk that dropped nothing.
+            let merge = k.merge.filter(|_| {
+                !fruitless
+                    && self
+                        .merge_min_conflicts
+                        .is_some_and(|m| held >= m || (stacked && held >= 2))
+            });
+            if let Some((sort32, mergefrag)) = merge {
+                // Sort the conflicting fragments by address in groups of 32 and keep one
+                // per address: whole groups, `hash`'s rows of zeros after its flags.
+                counts.merge_rounds += 1;
+                let groups = len.next_multiple_of(GROUP);
+                let sorted = s.sorted.map(|id| p.first(id, groups));
+                h.call(
+                    sort32,
+                    &[
+                        ("conflict", p.first(s.conflict, groups)),
+                        ("addr", view(addr, groups)),
+                        ("z", view(zs, groups)),
+                        ("prim", view(ps, groups)),
+                        ("key", sorted[0]),
+                        ("z_sorted", sorted[1]),
+                        ("prim_sorted", sorted[2]),
+                    ],
+                )?;
+                let merged = h.call(
+                    mergefrag,
+                    &[
+                        ("key", sorted[0]),
+                        ("z_sorted", sorted[1]),
+                        ("prim_sorted", sorted[2]),
+                        ("colour", view(cs, groups)),
+                        ("z", out(0)),
+                        ("colour_kept", out(1)),
+                        ("addr", out(2)),
+                        ("prim_kept", out(3)),
+                    ],
+                )?;
+                // The next round needs the survivors' count.
+                h.wait(merged)?;
+                let written = h.written(merged, "z")?;
+                let dropped = held + c - written;
+                counts.merged_fragments += dropped as u64;
+                stacked |= dropped > 0;
+                fruitless = dropped == 0;
+                len = written / c * c;
+            } else {
+                h.call(
+                    k.recycle_zc,
+                    &[
+                        ("conflict", p.first(s.conflict, len)),
+                        ("a", view(zs, len)),
+                        ("b", view(cs, len)),
+                        ("a_kept", out(0)),
+                        ("b_kept", out(1)),
+                    ],
+                )?;
+                h.call(
+                    k.recycle_ap,
+                    &[
+                        ("conflict", p.first(s.conflict, len)),
+                        ("a", view(addr, len)),
+                        ("b", view(ps, len)),
+                        ("a_kept", out(2)),
+                        ("b_kept", out(3)),
+                    ],
+                )?;
+                // The conflicting fragments, then `compact_recycle`'s row of nulls: whole
+                // rows.
+                len = (held + c) / c * c;
+            }
+            current = next.map(|id| (id, 0));
+            set = if set == 1 { 2 } else { 1 };
+        }
+    }
+}
+
 /// What the DRAM channels did over the run, channel 0 first (whatever order the design
 /// holds its modules in: the attribution's ties are broken by channel order).
-fn dram_activity<'a>(sim: &'a Sim, desc: &MachineDesc) -> DramActivity<'a> {
+pub(crate) fn dram_activity<'a>(sim: &'a Sim, desc: &MachineDesc) -> DramActivity<'a> {
     let mut channels: Vec<&DramChannel> = sim.modules_of::<DramChannel>().collect();
     channels.sort_by_key(|c| c.index());
     DramActivity {

@@ -24,6 +24,35 @@ pub enum Basis {
 /// One patch's control points, `points[4·row + col]`, col along u.
 pub type Patch = [[f64; 3]; 16];
 
+/// A patch's control points in the Bezier basis, as fp32: a B-spline span's 4×4 points
+/// are converted exactly (per direction, Bezier points = `S · B` with `S = [1 4 1 0; 0 4 2
+/// 0; 0 2 4 0; 0 1 4 1] / 6`), Bezier points are copied. The Reyes pipeline subdivides
+/// Bezier nets (de Casteljau halving).
+pub fn to_bezier(p: &Patch, b: Basis) -> [[f32; 3]; 16] {
+    let s: [[f64; 4]; 4] = [
+        [1.0, 4.0, 1.0, 0.0],
+        [0.0, 4.0, 2.0, 0.0],
+        [0.0, 2.0, 4.0, 0.0],
+        [0.0, 1.0, 4.0, 1.0],
+    ];
+    let m = |i: usize, k: usize| match b {
+        Basis::Bezier => f64::from(u8::from(i == k)),
+        Basis::BSpline => s[i][k] / 6.0,
+    };
+    std::array::from_fn(|idx| {
+        let (row, col) = (idx / 4, idx % 4);
+        std::array::from_fn(|c| {
+            let mut v = 0.0;
+            for r in 0..4 {
+                for q in 0..4 {
+                    v += m(row, r) * m(col, q) * p[4 * r + q][c];
+                }
+            }
+            v as f32
+        })
+    })
+}
+
 /// Reads a `.bpt` file's text.
 pub fn parse(text: &str) -> Result<Vec<Patch>, AssetError> {
     let mut lines = text

@@ -220,6 +220,7 @@ pub fn window_scene(old: super::Scene) -> model::Scene {
             model: IDENTITY,
             colour: [1.0; 3],
             space: Space::Window,
+            patches: Vec::new(),
             mesh: Mesh {
                 positions: old.positions,
                 normals: Vec::new(),
@@ -1278,6 +1279,7 @@ impl Cx {
             }
         }
         let mut space = Space::World;
+        let mut bezier = Vec::new();
         let (name, mesh) = if let Some(file) = &o.mesh {
             let (path, bytes) = self.read(&key("mesh"), file)?;
             let text = String::from_utf8(bytes).map_err(|_| {
@@ -1311,6 +1313,7 @@ impl Cx {
                 BasisFile::Bezier => Basis::Bezier,
                 BasisFile::Bspline => Basis::BSpline,
             };
+            bezier = patches.iter().map(|p| bpt::to_bezier(p, basis)).collect();
             (file.clone(), bpt::tessellate(&patches, basis, n, stitch))
         } else if o.cage.is_some() {
             return Err(self.err(
@@ -1462,6 +1465,7 @@ impl Cx {
             colour: self.colour(&key("colour"), o.colour, 1.0)?,
             space,
             mesh,
+            patches: bezier,
         })
     }
 

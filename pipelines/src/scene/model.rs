@@ -261,6 +261,10 @@ pub struct Object {
     pub colour: [f32; 3],
     pub space: Space,
     pub mesh: Mesh,
+    /// A patch object's patches as Bezier control points in object space (B-spline
+    /// patches converted, [`super::bpt::to_bezier`]), for the Reyes pipeline; empty for
+    /// other objects. `mesh` is their tessellation, for the OpenGL pipeline.
+    pub patches: Vec<[[f32; 3]; 16]>,
 }
 
 /// A triangle of the scene, as a frame's pixel names the one it shows: the object's index

@@ -1,0 +1,395 @@
+//! The Reyes pipeline: its kernels on the clocked machine against their interpretation,
+//! its refusals, and small frames (coverage with no cracks, counts).
+//!
+//! Every frame here is [`W`]×[`W`] pixels, so that the frames' kernels are the same
+//! microcode. The tests that need `subdiv` compiled are `#[ignore]`d: cold, compiling it
+//! takes minutes (warm, from the compile cache under `target/`, the whole file takes about
+//! 2 s). Run them with `cargo test -p imagine-pipelines --test reyes -- --include-ignored`;
+//! they compile every frame kernel once per test process ([`frame_cache`]) before any of
+//! them runs.
+
+use imagine_pipelines::compile::{CompileCache, Compiled};
+use imagine_pipelines::kernel::KernelInputs;
+use imagine_pipelines::kernels::records_to_stream;
+use imagine_pipelines::reyes::frame::{self, BezierPatch, ReyesOptions};
+use imagine_pipelines::reyes::kernels::{self, PATCH_WORDS, STATE_WORDS};
+use imagine_pipelines::run::check;
+use imagine_units::desc::MachineDesc;
+
+fn reyes() -> MachineDesc {
+    MachineDesc::resolve("reyes").expect("built-in machine")
+}
+
+/// The window of every frame and of `sample`'s check.
+const W: u32 = 44;
+
+fn cache() -> CompileCache {
+    CompileCache::at(concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache"))
+}
+
+/// The compile cache, with every kernel of a frame compiled into it once (two at a time),
+/// so that tests running at once do not each compile `subdiv`.
+fn frame_cache() -> CompileCache {
+    static WARM: std::sync::OnceLock<()> = std::sync::OnceLock::new();
+    let cache = cache();
+    WARM.get_or_init(|| {
+        let desc = reyes();
+        let shape = imagine_pipelines::opengl::kernels::FrameShape {
+            width: W,
+            height: W,
+            clusters: desc.cluster.count,
+            cull: imagine_pipelines::scene::model::Cull::None,
+            depth_test: imagine_pipelines::scene::model::DepthTest::Less,
+            batch: desc.cluster.count,
+            blend: imagine_pipelines::scene::model::Blend::None,
+        };
+        use imagine_pipelines::opengl::kernels as gl;
+        let all = vec![
+            kernels::subdiv(&desc).unwrap(),
+            kernels::project(&desc).unwrap(),
+            kernels::subdiv_split(&desc).unwrap(),
+            kernels::sample(&desc, W, W, 1.5).unwrap(),
+            gl::hash(&desc, shape).unwrap(),
+            gl::zcompare(&desc, shape).unwrap(),
+            gl::compact_recycle(&desc, [gl::NULL_DEPTH, 0]).unwrap(),
+            gl::compact_recycle(&desc, [shape.trash(), 0]).unwrap(),
+            gl::clear(&desc).unwrap(),
+        ];
+        // `subdiv` on one thread, the rest on another.
+        let (first, rest) = all.split_at(1);
+        std::thread::scope(|s| {
+            s.spawn(|| {
+                cache.compile(&first[0], &desc).unwrap();
+            });
+            for k in rest {
+                cache.compile(k, &desc).unwrap_or_else(|e| panic!("{e}"));
+            }
+        });
+    });
+    cache
+}
+
+fn compiled(k: &imagine_pipelines::kernel::Kernel, desc: &MachineDesc) -> Compiled {
+    cache().compile(k, desc).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A bilinear-ish Bezier patch: the grid `x0 + col·dx`, `y0 + row·dy`, with the inner
+/// points lifted in z by `bulge` (window space when the matrix is the identity).
+fn grid(x0: f32, y0: f32, dx: f32, dy: f32, bulge: f32) -> BezierPatch {
+    std::array::from_fn(|k| {
+        let (r, c) = ((k / 4) as f32, (k % 4) as f32);
+        let inner = (1.0..=2.0).contains(&r) && (1.0..=2.0).contains(&c);
+        [x0 + c * dx, y0 + r * dy, if inner { bulge } else { 0.0 }]
+    })
+}
+
+/// The matrix that takes window pixels (x, y) and depth z in [0, 1] to clip space, for a
+/// `w × h` window.
+fn window_to_clip(w: u32, h: u32) -> [f32; 16] {
+    imagine_pipelines::scene::window_to_clip(w, h)
+}
+
+fn patch_record(p: &BezierPatch, colour: u32) -> Vec<u32> {
+    let mut r: Vec<u32> = p.iter().flatten().map(|v| v.to_bits()).collect();
+    r.push(colour);
+    r.push(1);
+    r
+}
+
+#[test]
+#[ignore = "compiles `subdiv_split`: minutes cold"]
+fn subdiv_split_machine_equals_interpretation() {
+    let desc = reyes();
+    let c = desc.cluster.count;
+    let records: Vec<Vec<u32>> = (0..2 * c)
+        .map(|i| patch_record(&grid(i as f32, 1.0, 0.5, 0.25, 0.1), i as u32))
+        .collect();
+    let split = kernels::subdiv_split(&desc).unwrap();
+    let inputs = KernelInputs {
+        streams: vec![records_to_stream(&records, c), Vec::new()],
+        params: vec![],
+    };
+    let _ = frame_cache();
+    let r = check(&split, &compiled(&split, &desc), &desc, &inputs).unwrap();
+    assert!(
+        r.mismatch.is_none(),
+        "subdiv_split: {}",
+        r.mismatch.unwrap()
+    );
+    assert_eq!(r.words, 2 * c * 4 * PATCH_WORDS);
+}
+
+#[test]
+#[ignore = "compiles `subdiv`: minutes cold"]
+fn subdiv_machine_equals_interpretation() {
+    let desc = reyes();
+    let c = desc.cluster.count;
+    let k = kernels::subdiv(&desc).unwrap();
+    let _ = frame_cache();
+    let compiled = compiled(&k, &desc);
+    // Patches of different sizes, so the clusters' walks differ; one inactive.
+    let mut records: Vec<Vec<u32>> = (0..c - 1)
+        .map(|i| {
+            let s = 1.0 + i as f32;
+            patch_record(
+                &grid(3.0 * i as f32, 2.0, s, 0.7 * s, 0.3),
+                0xFF00_0000 + i as u32,
+            )
+        })
+        .collect();
+    records.push(vec![0; PATCH_WORDS]);
+    let inputs = KernelInputs {
+        streams: vec![
+            vec![0; STATE_WORDS * c],
+            records_to_stream(&records, c),
+            vec![0; 40 * c],
+            Vec::new(),
+            Vec::new(),
+        ],
+        params: vec![(1.5f32 * 1.5).to_bits()],
+    };
+    let r = check(&k, &compiled, &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "{}", r.mismatch.unwrap());
+    assert!(r.words > 40 * c * kernels::QUAD_WORDS);
+}
+
+#[test]
+fn project_and_sample_machine_equal_interpretation() {
+    let desc = reyes();
+    let c = desc.cluster.count;
+    let p = kernels::project(&desc).unwrap();
+    let records: Vec<Vec<u32>> = (0..2 * c)
+        .map(|i| patch_record(&grid(i as f32, 1.0, 0.5, 0.25, 0.1), i as u32))
+        .collect();
+    let mut params: Vec<u32> = window_to_clip(W, W).iter().map(|v| v.to_bits()).collect();
+    params.extend([22.0f32.to_bits(), 22.0f32.to_bits()]);
+    let inputs = KernelInputs {
+        streams: vec![records_to_stream(&records, c), Vec::new()],
+        params,
+    };
+    let r = check(&p, &compiled(&p, &desc), &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "project: {}", r.mismatch.unwrap());
+    assert_eq!(r.words, 2 * c * PATCH_WORDS);
+
+    // Quads straight from subdiv's interpretation, so that the sampler sees real ones; at
+    // stop length 0.5, whose sampler (2×2 centres a quad) compiles in about a second (that
+    // of 1.5, 4×4, in minutes: the frames' tests, ignored, run it).
+    let stop = 0.5f32;
+    let s = kernels::subdiv(&desc).unwrap();
+    let patches: Vec<Vec<u32>> = (0..c)
+        .map(|i| patch_record(&grid(2.0 + 5.0 * i as f32, 3.0, 1.5, 2.0, 0.5), 7))
+        .collect();
+    let out = imagine_pipelines::kernel::interpret(
+        &s,
+        &KernelInputs {
+            streams: vec![
+                vec![0; STATE_WORDS * c],
+                records_to_stream(&patches, c),
+                vec![0; 24 * c],
+                Vec::new(),
+                Vec::new(),
+            ],
+            params: vec![(stop * stop).to_bits()],
+        },
+        &desc,
+    )
+    .unwrap();
+    let sampler = kernels::sample(&desc, W, W, stop).unwrap();
+    let inputs = KernelInputs {
+        streams: vec![out[3].clone(), vec![], vec![], vec![], vec![], vec![]],
+        params: vec![],
+    };
+    let r = check(&sampler, &compiled(&sampler, &desc), &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "sample: {}", r.mismatch.unwrap());
+    let golden = imagine_pipelines::kernel::interpret(&sampler, &inputs, &desc).unwrap();
+    assert!(golden[1].len() > c, "the quads cover pixels");
+}
+
+#[test]
+fn subdiv_needs_the_reyes_scratchpad_and_a_good_stop_length() {
+    let gold8 = MachineDesc::resolve("gold8").unwrap();
+    let e = kernels::subdiv(&gold8).unwrap_err().to_string();
+    assert!(e.contains("subdiv") && e.contains("scratchpad"), "{e}");
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY, 100.0] {
+        let e = frame::check_stop_length(bad).unwrap_err().to_string();
+        assert!(
+            e.contains("stop length") && e.contains("subdiv"),
+            "{bad}: {e}"
+        );
+    }
+}
+
+/// Two patches that share a curved edge, one five times wider than the other (so their
+/// quads along the edge come from different levels), whose union is the square
+/// [4, 40]²: every pixel centre inside it is covered, none outside.
+#[test]
+#[ignore = "compiles `subdiv`: minutes cold"]
+fn shared_edges_at_different_depths_leave_no_crack() {
+    let desc = reyes();
+    // Column 3 of `a` is column 0 of `b`: x = 34 at the corners, bowed to 37 inside.
+    let seam = |r: usize| if r == 1 || r == 2 { 37.0 } else { 34.0 };
+    let a: BezierPatch = std::array::from_fn(|k| {
+        let (r, c) = (k / 4, k % 4);
+        let y = 4.0 + 12.0 * r as f32;
+        let x = if c == 3 {
+            seam(r)
+        } else {
+            4.0 + 10.0 * c as f32
+        };
+        // A warp inside, so that the map is not affine.
+        let (x, y) = if (1..=2).contains(&r) && (1..=2).contains(&c) {
+            (x + 3.0, y - 2.0)
+        } else {
+            (x, y)
+        };
+        [x, y, 0.25 + 0.01 * c as f32]
+    });
+    let b: BezierPatch = std::array::from_fn(|k| {
+        let (r, c) = (k / 4, k % 4);
+        let y = 4.0 + 12.0 * r as f32;
+        let x = if c == 0 {
+            seam(r)
+        } else {
+            34.0 + 2.0 * c as f32
+                + if c < 3 && (r == 1 || r == 2) {
+                    1.0
+                } else {
+                    0.0
+                }
+        };
+        [x, y, 0.5]
+    });
+    let (w, h) = (W, W);
+    let m = window_to_clip(w, h);
+    let options = ReyesOptions {
+        cache: frame_cache(),
+        iterations: Some(64),
+        ..ReyesOptions::default()
+    };
+    let f = frame::render_patches(
+        &[(a, m, 0xFF00_00FF), (b, m, 0xFF00_FF00)],
+        w,
+        h,
+        0,
+        &desc,
+        &options,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let mut holes = Vec::new();
+    let mut spill = Vec::new();
+    for y in 0..h {
+        for x in 0..w {
+            let (cx, cy) = (x as f32 + 0.5, y as f32 + 0.5);
+            let drawn = f.colour[(y * w + x) as usize] != 0;
+            let inside = (4.05..=39.95).contains(&cx) && (4.05..=39.95).contains(&cy);
+            let outside = !((3.7..=40.3).contains(&cx) && (3.7..=40.3).contains(&cy));
+            if inside && !drawn {
+                holes.push((x, y));
+            }
+            if outside && drawn {
+                spill.push((x, y));
+            }
+        }
+    }
+    assert!(holes.is_empty(), "uncovered pixels inside: {holes:?}");
+    assert!(spill.is_empty(), "covered pixels outside: {spill:?}");
+    let s = &f.stats;
+    assert!(s.quads > 500, "{s:?}");
+    // Every quad once: a leaf of level l is one of the 4^l of its patch.
+    let bound: u64 = s
+        .levels
+        .iter()
+        .enumerate()
+        .map(|(l, _)| 2 * 4u64.pow(l as u32))
+        .max()
+        .unwrap();
+    assert!(
+        s.quads <= bound,
+        "{} quads from two patches of at most {} levels",
+        s.quads,
+        s.levels.len()
+    );
+    // Calls of a few iterations (each walk saved and resumed many times, one patch done
+    // long before the other) give the same quads and the same image.
+    let short = ReyesOptions {
+        iterations: Some(5),
+        ..options.clone()
+    };
+    let g = frame::render_patches(
+        &[(a, m, 0xFF00_00FF), (b, m, 0xFF00_FF00)],
+        w,
+        h,
+        0,
+        &desc,
+        &short,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(g.stats.quads, s.quads);
+    assert_eq!(g.stats.levels, s.levels);
+    assert_eq!(g.colour, f.colour);
+    assert!(
+        g.stats
+            .kernels
+            .iter()
+            .find(|k| k.name == "subdiv")
+            .unwrap()
+            .calls
+            > 10
+    );
+    assert!(s.levels.len() >= 6, "levels {:?}", s.levels);
+    assert_eq!(s.visible_pixels, 36 * 36);
+    assert!(s.zero_pixel_quads > 0 && s.zero_pixel_quads < s.quads);
+    assert!(s.kernel_cycles("subdiv") > 0 && s.cycles > s.kernel_cycles("subdiv"));
+    // A breadth-first level first: eight patches, still no crack.
+    let split = ReyesOptions {
+        split_levels: Some(1),
+        ..options.clone()
+    };
+    let g = frame::render_patches(
+        &[(a, m, 0xFF00_00FF), (b, m, 0xFF00_FF00)],
+        w,
+        h,
+        0,
+        &desc,
+        &split,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let holes = (0..w * h)
+        .filter(|&p| {
+            let (cx, cy) = ((p % w) as f32 + 0.5, (p / w) as f32 + 0.5);
+            (4.05..=39.95).contains(&cx)
+                && (4.05..=39.95).contains(&cy)
+                && g.colour[p as usize] == 0
+        })
+        .count();
+    assert_eq!(holes, 0);
+    assert!(g.stats.quads >= s.quads && g.stats.levels[0] == 0);
+}
+
+/// A patch 1,800 pixels across at stop length 1.5 needs 11 levels: more frames than the
+/// scratchpad holds. The frame stops with an error naming the kernel and the scratchpad.
+#[test]
+#[ignore = "compiles `subdiv`: minutes cold"]
+fn a_walk_deeper_than_the_stack_is_an_error() {
+    let desc = reyes();
+    let (w, h) = (W, W);
+    let m = window_to_clip(w, h);
+    let options = ReyesOptions {
+        cache: frame_cache(),
+        ..ReyesOptions::default()
+    };
+    let e = frame::render_patches(
+        &[(grid(0.0, 0.0, 600.0, 600.0, 0.0), m, 1)],
+        w,
+        h,
+        0,
+        &desc,
+        &options,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("`subdiv`") && e.contains("scratchpad.words") && e.contains("7 frames"),
+        "{e}"
+    );
+}

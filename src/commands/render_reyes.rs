@@ -1,0 +1,181 @@
+//! `imagine render --pipeline reyes`: a scene's patch objects through the Reyes pipeline
+//! ([`imagine_pipelines::reyes`]) on the machine, its statistics, and its coverage against
+//! `verif`'s f64 reference renderer drawing the same patches evaluated densely.
+
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use imagine_pipelines::compile::CompileCache;
+use imagine_pipelines::reyes::frame::{self, ReyesFrame, ReyesOptions};
+use imagine_pipelines::scene::bpt::{self, Basis};
+use imagine_pipelines::scene::model::Scene;
+use imagine_units::desc::MachineDesc;
+use imagine_verif::image::Image;
+use imagine_verif::reference_model as reference;
+
+use super::render::RenderArgs;
+
+/// Quads per patch side the reference draws the patches with: at 720×720 the teapot's
+/// largest patch spans about 250 pixels, so its triangles are about 4 pixels across and
+/// the flat triangles lie within a small fraction of a pixel of the surface.
+pub const REFERENCE_DICE: u32 = 64;
+
+/// The scene with every patch object's mesh replaced by its patches diced `n × n` (from
+/// the same Bezier nets the Reyes pipeline subdivides).
+pub fn densely_diced(scene: &Scene, n: u32) -> Scene {
+    let mut dense = scene.clone();
+    for object in &mut dense.objects {
+        if object.patches.is_empty() {
+            continue;
+        }
+        let patches: Vec<bpt::Patch> = object
+            .patches
+            .iter()
+            .map(|p| p.map(|q| q.map(f64::from)))
+            .collect();
+        object.mesh = bpt::tessellate(&patches, Basis::Bezier, n, false);
+    }
+    dense
+}
+
+/// Pixels one frame covers and the other does not.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Coverage {
+    /// Covered by the reference, not by the machine (holes, cracks, a shrunken silhouette).
+    pub missing: u64,
+    /// Covered by the machine, not by the reference.
+    pub extra: u64,
+    /// Pixels the reference covers.
+    pub reference: u64,
+}
+
+/// The machine frame's coverage against the reference's (`triangles` per pixel).
+pub fn coverage(
+    frame: &ReyesFrame,
+    triangles: &[Option<imagine_pipelines::scene::model::TriangleId>],
+) -> Coverage {
+    let mut c = Coverage {
+        missing: 0,
+        extra: 0,
+        reference: 0,
+    };
+    for (p, t) in triangles.iter().enumerate() {
+        // A drawn pixel passed the LESS test against the cleared depth, 1.0.
+        let drawn = frame.depth[p] < 1.0;
+        let reference = t.is_some();
+        c.reference += u64::from(reference);
+        c.missing += u64::from(reference && !drawn);
+        c.extra += u64::from(drawn && !reference);
+    }
+    c
+}
+
+pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode> {
+    let stop = a.stop_length.unwrap_or(scene.pipeline.stop_length);
+    frame::check_stop_length(stop).context("--stop-length")?;
+    let options = ReyesOptions {
+        stop_length: stop,
+        cache: if a.no_cache {
+            CompileCache::disabled()
+        } else {
+            CompileCache::from_env()
+        },
+        ..ReyesOptions::default()
+    };
+    let start = Instant::now();
+    let f = frame::render(scene, desc, &options)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let image = Image::from_rgba8_words(f.width, f.height, &f.colour);
+    if let Some(p) = &a.png {
+        image.write_png(p).map_err(anyhow::Error::msg)?;
+    }
+    let dense = densely_diced(scene, REFERENCE_DICE);
+    let (reference_image, triangles) = reference::render_visible(&dense)?;
+    if let Some(p) = &a.reference_png {
+        reference_image.write_png(p).map_err(anyhow::Error::msg)?;
+    }
+    let cov = coverage(&f, &triangles);
+    let s = &f.stats;
+    let mhz = desc.clocks.core_mhz as f64;
+    let fps = mhz * 1e6 / s.cycles.max(1) as f64;
+    if let Some(p) = &a.stats {
+        let json = serde_json::json!({
+            "scene": scene.name,
+            "pipeline": "reyes",
+            "machine": desc.name,
+            "stop_length": stop,
+            "cycles": s.cycles,
+            "load_cycles": s.load_cycles,
+            "clear_cycles": s.clear_cycles,
+            "readback_cycles": s.readback_cycles,
+            "fps": fps,
+            "patches": s.patches,
+            "quads": s.quads,
+            "zero_pixel_quads": s.zero_pixel_quads,
+            "zero_pixel_share": s.zero_pixel_share(),
+            "fragments": s.fragments,
+            "visible_pixels": s.visible_pixels,
+            "quads_per_visible_pixel": s.quads_per_visible_pixel(),
+            "levels": s.levels,
+            "composite_rounds": s.rounds,
+            "kernels": s.kernels.iter().map(|k| serde_json::json!({
+                "name": k.name, "calls": k.calls, "cycles": k.cycles,
+            })).collect::<Vec<_>>(),
+            "reference": {
+                "dice": REFERENCE_DICE,
+                "missing_pixels": cov.missing,
+                "extra_pixels": cov.extra,
+                "reference_pixels": cov.reference,
+            },
+        });
+        std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")
+            .with_context(|| format!("cannot write `{}`", p.display()))?;
+    }
+    println!(
+        "{} through Reyes on {} (stop length {stop} px), {}x{}",
+        scene.name, desc.name, f.width, f.height
+    );
+    println!(
+        "  cycles      {} (the frame: kernels, dispatch, memory), {fps:.2} fps at {} MHz; \
+         load {}, clear {}, read-back {}",
+        s.cycles, desc.clocks.core_mhz, s.load_cycles, s.clear_cycles, s.readback_cycles
+    );
+    println!("  patches     {}", s.patches);
+    println!(
+        "  quads       {} ({} zero-pixel, {:.1}%), {:.2} per visible pixel",
+        s.quads,
+        s.zero_pixel_quads,
+        100.0 * s.zero_pixel_share(),
+        s.quads_per_visible_pixel()
+    );
+    println!(
+        "  fragments   {} sampled, {} pixels visible, {} composite rounds",
+        s.fragments, s.visible_pixels, s.rounds
+    );
+    let levels: Vec<String> = s
+        .levels
+        .iter()
+        .enumerate()
+        .filter(|(_, n)| **n > 0)
+        .map(|(l, n)| format!("{l}: {n}"))
+        .collect();
+    println!("  levels      {}", levels.join(", "));
+    println!("  kernel                      calls        cycles   share");
+    for k in &s.kernels {
+        println!(
+            "    {:<26}{:>7}{:>14}{:>7.1}%",
+            k.name,
+            k.calls,
+            k.cycles,
+            100.0 * k.cycles as f64 / s.cycles.max(1) as f64
+        );
+    }
+    println!(
+        "  reference   the patches diced {REFERENCE_DICE}x{REFERENCE_DICE} (f64): {} of its {} pixels \
+         not covered, {} covered beyond it (colours not compared: quads are flat, unlit)",
+        cov.missing, cov.reference, cov.extra
+    );
+    println!("  host        {seconds:.1} s");
+    Ok(ExitCode::SUCCESS)
+}
