@@ -502,16 +502,19 @@ impl MachineDesc {
         }
     }
 
+    /// The error naming `key` of this description and its `problem`.
+    fn invalid(&self, key: &'static str, problem: String) -> Result<(), DescError> {
+        Err(DescError::Invalid {
+            machine: self.name.clone(),
+            source: None,
+            key,
+            problem,
+        })
+    }
+
     /// Rejects descriptions that cannot be built.
     pub fn validate(&self) -> Result<(), DescError> {
-        let bad = |key, problem: String| {
-            Err(DescError::Invalid {
-                machine: self.name.clone(),
-                source: None,
-                key,
-                problem,
-            })
-        };
+        let bad = |key, problem| self.invalid(key, problem);
         let c = &self.cluster;
         if !(1..=MAX_CLUSTERS).contains(&c.count) {
             return bad(
@@ -653,14 +656,7 @@ impl MachineDesc {
 
 impl MachineDesc {
     fn validate_memory(&self) -> Result<(), DescError> {
-        let bad = |key, problem: String| {
-            Err(DescError::Invalid {
-                machine: self.name.clone(),
-                source: None,
-                key,
-                problem,
-            })
-        };
+        let bad = |key, problem| self.invalid(key, problem);
         let d = &self.dram;
         let pow2 = [
             ("dram.channels", d.channels, 16),
@@ -833,14 +829,7 @@ impl MachineDesc {
         let Some(r) = &self.rasterizer else {
             return Ok(());
         };
-        let bad = |key, problem: String| {
-            Err(DescError::Invalid {
-                machine: self.name.clone(),
-                source: None,
-                key,
-                problem,
-            })
-        };
+        let bad = |key, problem| self.invalid(key, problem);
         for (key, v, lo, hi) in [
             ("rasterizer.latency", r.latency as usize, 1, 1 << 16),
             (
@@ -892,14 +881,7 @@ impl MachineDesc {
     }
 
     fn validate_s3(&self) -> Result<(), DescError> {
-        let bad = |key, problem: String| {
-            Err(DescError::Invalid {
-                machine: self.name.clone(),
-                source: None,
-                key,
-                problem,
-            })
-        };
+        let bad = |key, problem| self.invalid(key, problem);
         let s = &self.s3;
         for (key, v, lo, hi) in [
             (
