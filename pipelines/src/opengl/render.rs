@@ -2672,16 +2672,7 @@ fn finish_stats(
                     continue;
                 }
                 let o: u64 = st.fu_ops.iter().sum::<u64>() * desc.cluster.count as u64;
-                let share = match shares.iter_mut().find(|sh| &sh.kernel == name) {
-                    Some(sh) => sh,
-                    None => {
-                        shares.push(KernelShare {
-                            kernel: name.clone(),
-                            ..KernelShare::default()
-                        });
-                        shares.last_mut().expect("pushed")
-                    }
-                };
+                let share = KernelShare::of(&mut shares, name);
                 share.calls += 1;
                 share.cycles += st.cycles;
                 share.stall_cycles += st.stall_cycles;
@@ -2702,16 +2693,7 @@ fn finish_stats(
                     continue;
                 };
                 let name = imagine_units::stream_controller::RASTERIZER_KERNEL;
-                let share = match shares.iter_mut().find(|sh| sh.kernel == name) {
-                    Some(sh) => sh,
-                    None => {
-                        shares.push(KernelShare {
-                            kernel: name.into(),
-                            ..KernelShare::default()
-                        });
-                        shares.last_mut().expect("pushed")
-                    }
-                };
+                let share = KernelShare::of(&mut shares, name);
                 share.calls += 1;
                 share.cycles += c - i;
                 rasterizing += c - i;

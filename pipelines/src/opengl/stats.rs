@@ -17,6 +17,23 @@ pub struct KernelShare {
     pub ops: u64,
 }
 
+impl KernelShare {
+    /// The share of kernel `name` in `shares`, added (empty) at the end if it has none.
+    pub fn of<'a>(shares: &'a mut Vec<KernelShare>, name: &str) -> &'a mut KernelShare {
+        let i = match shares.iter().position(|sh| sh.kernel == name) {
+            Some(i) => i,
+            None => {
+                shares.push(KernelShare {
+                    kernel: name.into(),
+                    ..KernelShare::default()
+                });
+                shares.len() - 1
+            }
+        };
+        &mut shares[i]
+    }
+}
+
 /// The pipeline built for the scene (ARCHITECTURE §8: leave out what a scene does not
 /// need).
 #[derive(Clone, Debug, Default, Serialize)]
