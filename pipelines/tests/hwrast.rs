@@ -104,31 +104,6 @@ fn the_hardware_rasterizer_draws_gold8s_frames_bit_for_bit() {
     }
 }
 
-/// The two-phase contract with the unit in the machine: evaluating the blocks in the
-/// reverse order and stepping every idle cycle gives the same frame, cycle for cycle.
-#[test]
-fn a_hardware_rasterizer_frame_is_the_same_in_either_evaluation_order() {
-    let scene = builtin("ADVS-8", 48);
-    let desc = MachineDesc::resolve("gold8+hwrast").unwrap();
-    let render = |reverse| {
-        let options = RenderOptions {
-            reverse_eval_order: reverse,
-            step_idle: reverse,
-            ..cached()
-        };
-        render_with(&scene, &desc, options, None, |_, _| {}).unwrap()
-    };
-    let (forward, reversed) = (render(false), render(true));
-    same(&forward.pixels, &reversed.pixels, "colour");
-    assert_eq!(forward.stats.cycles, reversed.stats.cycles);
-    assert_eq!(
-        serde_json::to_value(&forward.stats.kernels).unwrap(),
-        serde_json::to_value(&reversed.stats.kernels).unwrap()
-    );
-    assert_eq!(forward.stats.attribution, reversed.stats.attribution);
-    assert_eq!(reversed.stats.skipped_cycles, 0);
-}
-
 /// With a small SRF the unit's output streams fill: the call stops, the host splits the
 /// scissor tile and calls again, and the frame is still gold8's.
 #[test]

@@ -439,7 +439,8 @@ fn advs1_24x24() -> Scene {
 /// The two-phase contract on whole frames: every block computes its next state from
 /// committed state only, so evaluating the blocks in the reverse order, and stepping every
 /// idle cycle as well, gives the same image, cycles and statistics — on an untextured and a
-/// textured scene, on two cluster counts.
+/// textured scene, on two cluster counts, with a texture cache and with the hardware
+/// rasterizer (a mipmapped scene: its fragments carry varyings and derivatives).
 #[test]
 fn frames_are_the_same_cycle_for_cycle_in_either_evaluation_order() {
     let cases = [
@@ -447,6 +448,18 @@ fn frames_are_the_same_cycle_for_cycle_in_either_evaluation_order() {
         (rate1_16x16(), MachineDesc::resolve("gold16").unwrap()),
         (advs1_24x24(), MachineDesc::gold8()),
         (advs1_24x24(), gold8_with_texture_cache(1)),
+        (
+            scene::load(
+                "ADVS-8",
+                &LoadOptions {
+                    size: Some(48),
+                    subdivisions: None,
+                    filter: None,
+                },
+            )
+            .unwrap(),
+            MachineDesc::resolve("gold8+hwrast").unwrap(),
+        ),
     ];
     for (scene, desc) in cases {
         let render = |reverse| {
