@@ -268,6 +268,7 @@ fn shared_edges_at_different_depths_leave_no_crack() {
     };
     let f = frame::render_patches(
         &[(a, m, 0xFF00_00FF), (b, m, 0xFF00_FF00)],
+        &frame::ShadeSetup::flat(),
         w,
         h,
         0,
@@ -317,6 +318,7 @@ fn shared_edges_at_different_depths_leave_no_crack() {
     };
     let g = frame::render_patches(
         &[(a, m, 0xFF00_00FF), (b, m, 0xFF00_FF00)],
+        &frame::ShadeSetup::flat(),
         w,
         h,
         0,
@@ -347,6 +349,7 @@ fn shared_edges_at_different_depths_leave_no_crack() {
     };
     let g = frame::render_patches(
         &[(a, m, 0xFF00_00FF), (b, m, 0xFF00_FF00)],
+        &frame::ShadeSetup::flat(),
         w,
         h,
         0,
@@ -380,6 +383,7 @@ fn a_walk_deeper_than_the_stack_is_an_error() {
     };
     let e = frame::render_patches(
         &[(grid(0.0, 0.0, 600.0, 600.0, 0.0), m, 1)],
+        &frame::ShadeSetup::flat(),
         w,
         h,
         0,

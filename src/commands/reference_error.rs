@@ -6,8 +6,10 @@ use std::time::Instant;
 
 use anyhow::Result;
 use imagine_pipelines::opengl::render::Frame;
+use imagine_pipelines::reyes::frame::ReyesFrame;
+use imagine_pipelines::scene::bpt::{self, Basis};
 use imagine_pipelines::scene::model::{Scene, TriangleId};
-use imagine_verif::image::{Image, Metrics, compare_frames};
+use imagine_verif::image::{Image, Metrics, compare_coverage, compare_frames};
 use imagine_verif::reference_model as reference;
 
 /// The reference frame and how far the machine's is from it.
@@ -41,6 +43,51 @@ pub fn measure(scene: &Scene, frame: &Frame) -> Result<ReferenceError> {
     Ok(ReferenceError {
         reference,
         triangles: reference_triangles,
+        metrics,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Quads per patch side the reference draws a Reyes frame's patches with: at 720×720 the
+/// teapot's largest patch spans about 250 pixels, so its triangles are about 4 pixels
+/// across and the flat triangles lie within a small fraction of a pixel of the surface.
+pub const REFERENCE_DICE: u32 = 64;
+
+/// The scene with every patch object's mesh replaced by its patches diced `n × n` (from
+/// the same Bezier nets the Reyes pipeline subdivides), normals from the patches.
+pub fn densely_diced(scene: &Scene, n: u32) -> Scene {
+    let mut dense = scene.clone();
+    for object in &mut dense.objects {
+        if object.patches.is_empty() {
+            continue;
+        }
+        let patches: Vec<bpt::Patch> = object
+            .patches
+            .iter()
+            .map(|p| p.map(|q| q.map(f64::from)))
+            .collect();
+        object.mesh = bpt::tessellate(&patches, Basis::Bezier, n, false);
+    }
+    dense
+}
+
+/// A Reyes frame's error against the reference renderer drawing the scene's patches
+/// diced [`REFERENCE_DICE`]² each (the limit surface, within a small fraction of a pixel):
+/// colour over the whole window and over the pixels both cover, and coverage (a pixel the
+/// machine drew passed the depth test against the cleared 1.0). Visibility is not
+/// compared: quads are not the reference's triangles.
+pub fn measure_reyes(scene: &Scene, frame: &ReyesFrame) -> Result<ReferenceError> {
+    let start = Instant::now();
+    let dense = densely_diced(scene, REFERENCE_DICE);
+    let (reference, triangles) = reference::render_visible(&dense)?;
+    let image = Image::from_rgba8_words(frame.width, frame.height, &frame.colour);
+    let drawn: Vec<bool> = frame.depth.iter().map(|&d| d < 1.0).collect();
+    let covered: Vec<bool> = triangles.iter().map(Option::is_some).collect();
+    let metrics =
+        compare_coverage(&image, &drawn, &reference, &covered).map_err(anyhow::Error::msg)?;
+    Ok(ReferenceError {
+        reference,
+        triangles,
         metrics,
         seconds: start.elapsed().as_secs_f64(),
     })

@@ -8,36 +8,12 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::reyes::frame::{self, ReyesFrame, ReyesOptions};
-use imagine_pipelines::scene::bpt::{self, Basis};
 use imagine_pipelines::scene::model::Scene;
 use imagine_units::desc::MachineDesc;
 use imagine_verif::image::Image;
-use imagine_verif::reference_model as reference;
 
+use super::reference_error::{REFERENCE_DICE, measure_reyes};
 use super::render::RenderArgs;
-
-/// Quads per patch side the reference draws the patches with: at 720×720 the teapot's
-/// largest patch spans about 250 pixels, so its triangles are about 4 pixels across and
-/// the flat triangles lie within a small fraction of a pixel of the surface.
-pub const REFERENCE_DICE: u32 = 64;
-
-/// The scene with every patch object's mesh replaced by its patches diced `n × n` (from
-/// the same Bezier nets the Reyes pipeline subdivides).
-pub fn densely_diced(scene: &Scene, n: u32) -> Scene {
-    let mut dense = scene.clone();
-    for object in &mut dense.objects {
-        if object.patches.is_empty() {
-            continue;
-        }
-        let patches: Vec<bpt::Patch> = object
-            .patches
-            .iter()
-            .map(|p| p.map(|q| q.map(f64::from)))
-            .collect();
-        object.mesh = bpt::tessellate(&patches, Basis::Bezier, n, false);
-    }
-    dense
-}
 
 /// Pixels one frame covers and the other does not.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -90,12 +66,12 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
     if let Some(p) = &a.png {
         image.write_png(p).map_err(anyhow::Error::msg)?;
     }
-    let dense = densely_diced(scene, REFERENCE_DICE);
-    let (reference_image, triangles) = reference::render_visible(&dense)?;
+    let error = measure_reyes(scene, &f)?;
     if let Some(p) = &a.reference_png {
-        reference_image.write_png(p).map_err(anyhow::Error::msg)?;
+        error.reference.write_png(p).map_err(anyhow::Error::msg)?;
     }
-    let cov = coverage(&f, &triangles);
+    let cov = coverage(&f, &error.triangles);
+    let m = &error.metrics;
     let s = &f.stats;
     let mhz = desc.clocks.core_mhz as f64;
     let fps = mhz * 1e6 / s.cycles.max(1) as f64;
@@ -127,6 +103,10 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
                 "missing_pixels": cov.missing,
                 "extra_pixels": cov.extra,
                 "reference_pixels": cov.reference,
+                "psnr_db": m.psnr_db.is_finite().then_some(m.psnr_db),
+                "max_abs_error": m.max_abs_error,
+                "covered_psnr_db": m.covered_psnr_db.is_finite().then_some(m.covered_psnr_db),
+                "differing_share": m.differing_share,
             },
         });
         std::fs::write(p, serde_json::to_string_pretty(&json)? + "\n")
@@ -173,8 +153,9 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
     }
     println!(
         "  reference   the patches diced {REFERENCE_DICE}x{REFERENCE_DICE} (f64): {} of its {} pixels \
-         not covered, {} covered beyond it (colours not compared: quads are flat, unlit)",
-        cov.missing, cov.reference, cov.extra
+         not covered, {} covered beyond it; PSNR {:.2} dB ({:.2} dB on the pixels both cover), \
+         max error {:.3}",
+        cov.missing, cov.reference, cov.extra, m.psnr_db, m.covered_psnr_db, m.max_abs_error
     );
     println!("  host        {seconds:.1} s");
     Ok(ExitCode::SUCCESS)

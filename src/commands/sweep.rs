@@ -29,6 +29,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::opengl::render::{RenderOptions, render_with};
+use imagine_pipelines::reyes::{self, frame::ReyesOptions};
 use imagine_pipelines::scene::model::Filter;
 use imagine_pipelines::scene::{self, LoadOptions, file::BUILTIN};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -49,7 +50,9 @@ pub struct SweepArgs {
     /// batch (triangles per batch), filter (nearest, bilinear, trilinear: every texture's),
     /// flush_to_zero, normalise_clip and reference_depth (true, false: the machine's
     /// arithmetic and the scene's pipeline settings), newton_raphson (0 to 3: irast's
-    /// reciprocal, 0 the divide unit); repeat for a grid of every combination
+    /// reciprocal, 0 the divide unit), stop_length (pixels: the point renders the scene's
+    /// patches through the Reyes pipeline; with machine and flush_to_zero only); repeat for
+    /// a grid of every combination
     #[arg(long = "knob", value_name = "NAME=V1,V2,…", required = true)]
     knobs: Vec<String>,
     /// The CSV to write, one row per point in grid order; finished points are kept in
@@ -102,6 +105,9 @@ struct PointResult {
     visibility_differing_share: Option<f64>,
     /// The texture cache's hits over texel references, on a machine that has one.
     texture_cache_hit_rate: Option<f64>,
+    /// Reyes points: the quads `subdiv` wrote.
+    #[serde(default)]
+    quads: Option<u64>,
 }
 
 /// A line of the JSON-lines file.
@@ -121,7 +127,7 @@ struct Point {
     key: String,
 }
 
-const CSV_METRICS: [&str; 18] = [
+const CSV_METRICS: [&str; 19] = [
     "cycles",
     "frames_per_second",
     "host_seconds",
@@ -140,12 +146,13 @@ const CSV_METRICS: [&str; 18] = [
     "missed_share",
     "visibility_differing_share",
     "texture_cache_hit_rate",
+    "quads",
 ];
 
 impl PointResult {
     /// The CSV fields, in the order of [`CSV_METRICS`]; an infinite PSNR is `inf`, an
     /// unknown share is empty.
-    fn csv_fields(&self) -> [String; 18] {
+    fn csv_fields(&self) -> [String; 19] {
         let psnr = |p: Option<f64>| p.map_or("inf".to_string(), |v| format!("{v:.4}"));
         [
             self.cycles.to_string(),
@@ -168,6 +175,7 @@ impl PointResult {
                 .map_or(String::new(), |v| format!("{v:.6}")),
             self.texture_cache_hit_rate
                 .map_or(String::new(), |v| format!("{v:.4}")),
+            self.quads.map_or(String::new(), |q| q.to_string()),
         ]
     }
 }
@@ -202,17 +210,18 @@ fn scene_content_hash(name_or_path: &str) -> Result<blake3::Hash> {
 /// A point's key: every input that decides its frame and cycles.
 fn point_key(scene_hash: &blake3::Hash, size: Option<u32>, setup: &Setup) -> String {
     let mut h = blake3::Hasher::new();
-    h.update(b"imagine sweep point 4\n");
+    h.update(b"imagine sweep point 5\n");
     h.update(scene_hash.as_bytes());
     h.update(
         format!(
-            "{size:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{:?}",
+            "{size:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{:?}\n{:?}",
             setup.machine,
             setup.batch,
             setup.filter,
             setup.normalise_clip,
             setup.reference_depth,
-            setup.newton_raphson
+            setup.newton_raphson,
+            setup.stop_length
         )
         .as_bytes(),
     );
@@ -286,6 +295,7 @@ pub fn run(a: SweepArgs) -> Result<ExitCode> {
             );
         }
     }
+    knobs::check_pipeline(&axes)?;
     if a.machine.is_some() && axes.iter().any(|x| x.knob == Knob::Machine) {
         bail!("--machine and --knob machine=…: give the machines as the knob's values");
     }
@@ -566,6 +576,9 @@ fn render_point(
 ) -> Result<PointResult> {
     let start = Instant::now();
     let mut scene = scene::load(&a.scene, &load_options(point.setup.filter))?;
+    if let Some(stop_length) = point.setup.stop_length {
+        return render_reyes_point(&scene, &point.setup.machine, stop_length, start);
+    }
     if let Some(on) = point.setup.normalise_clip {
         scene.pipeline.normalise_clip = on;
     }
@@ -603,6 +616,49 @@ fn render_point(
         missed_share: m.missed_share,
         visibility_differing_share: m.visibility_differing_share,
         texture_cache_hit_rate: frame.stats.texture_cache.as_ref().map(|t| t.hit_rate),
+        quads: None,
+    })
+}
+
+/// Renders one point through the Reyes pipeline and measures its error against the
+/// patches diced densely. Reyes has no batches, and its DRAM traffic is not counted
+/// (0 in the CSV).
+fn render_reyes_point(
+    scene: &scene::model::Scene,
+    machine: &imagine_units::desc::MachineDesc,
+    stop_length: f32,
+    start: Instant,
+) -> Result<PointResult> {
+    let options = ReyesOptions {
+        stop_length,
+        cache: CompileCache::from_env(),
+        ..ReyesOptions::default()
+    };
+    let frame = reyes::frame::render(scene, machine, &options)?;
+    let error = reference_error::measure_reyes(scene, &frame)?;
+    let (s, m) = (&frame.stats, &error.metrics);
+    let busy: u64 = s.kernels.iter().map(|k| k.cycles).sum();
+    let finite = |v: f64| v.is_finite().then_some(v);
+    Ok(PointResult {
+        cycles: s.cycles,
+        frames_per_second: machine.clocks.core_mhz as f64 * 1e6 / s.cycles.max(1) as f64,
+        host_seconds: start.elapsed().as_secs_f64(),
+        cluster_occupancy: busy as f64 / s.cycles.max(1) as f64,
+        batch_triangles: 0,
+        batches: 0,
+        dram_gbs: 0.0,
+        psnr_db: finite(m.psnr_db),
+        max_abs_error: m.max_abs_error,
+        differing_pixels_share: m.differing_share,
+        coverage_differences_share: m.coverage_mismatch_share,
+        covered_in_both_pixels: m.covered_in_both_pixels,
+        covered_psnr_db: finite(m.covered_psnr_db),
+        covered_max_abs_error_levels: m.covered_max_abs_error_levels,
+        wrongly_covered_share: m.wrongly_covered_share,
+        missed_share: m.missed_share,
+        visibility_differing_share: m.visibility_differing_share,
+        texture_cache_hit_rate: None,
+        quads: Some(s.quads),
     })
 }
 

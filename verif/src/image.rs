@@ -280,6 +280,29 @@ pub fn compare_frames(
     ))
 }
 
+/// The metrics of frame `b` against frame `a` where each says which pixels it covers
+/// (a frame whose primitives are not the other's triangles, such as a Reyes frame's
+/// quads against a diced reference): no visibility comparison. An error when the sizes
+/// differ.
+pub fn compare_coverage(
+    a: &Image,
+    a_covered: &[bool],
+    b: &Image,
+    b_covered: &[bool],
+) -> Result<Metrics, String> {
+    same_size(a, b)?;
+    let n = a.pixels.len();
+    if a_covered.len() != n || b_covered.len() != n {
+        return Err(format!(
+            "{n} pixels, but the frames say which are covered of {} and {}",
+            a_covered.len(),
+            b_covered.len()
+        ));
+    }
+    let covered = |i: usize| (a_covered[i], b_covered[i]);
+    Ok(measure(a, b, covered, None, CoverageFrom::Triangles))
+}
+
 /// Peak signal-to-noise ratio of `squared` summed squared channel errors over `channels`
 /// channels, peak 255, in dB; infinite without error.
 fn psnr_db(squared: u64, channels: usize) -> f64 {

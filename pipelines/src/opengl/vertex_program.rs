@@ -616,14 +616,7 @@ impl VertexProgram {
         if !self.lit() {
             return own;
         }
-        let (c, block) = (desc.cluster.count, desc.srf.block_words.max(1));
-        let gcd = |mut a: usize, mut b: usize| {
-            while b != 0 {
-                (a, b) = (b, a % b);
-            }
-            a
-        };
-        own.next_multiple_of(block / gcd(c, block))
+        own.next_multiple_of(crate::stream::srf::block_rows(desc))
     }
 
     /// The parameters `perbegin` computes (`perlight` writes the rest).
@@ -830,18 +823,7 @@ impl VertexProgram {
         for i in self.perbegin_param_count()..self.perbegin_rows(desc) {
             b.param_f32(&format!("pad{i}"));
         }
-        let rgb = |b: &mut KernelBuilder, p: &str| {
-            ["r", "g", "b"].map(|c| b.param_f32(&format!("{p}_{c}")))
-        };
-        let lights = (0..lights)
-            .map(|l| {
-                let pos = ["x", "y", "z"].map(|c| b.param_f32(&format!("light{l}_{c}")));
-                let d = rgb(b, &format!("light{l}_diffuse"));
-                let s = specular.then(|| rgb(b, &format!("light{l}_specular")));
-                (pos, d, s)
-            })
-            .collect();
-        let base = rgb(b, "base");
+        let (lights, base) = light_params(b, lights, specular);
         LitParams {
             mvp,
             mv,
@@ -916,7 +898,28 @@ pub const SPLIT: (usize, usize) = (3, 5);
 
 /// A light's parameters: eye-space position, `d_l·d_m` and (with the specular term)
 /// `s_l·s_m`.
-type LightParams = (Vec3, Vec3, Option<Vec3>);
+pub(crate) type LightParams = (Vec3, Vec3, Option<Vec3>);
+
+/// Declares the parameters `perlight` writes, in its order: per light its [`LightParams`],
+/// then `base`. The last parameters of every kernel that lights with them.
+pub(crate) fn light_params(
+    b: &mut KernelBuilder,
+    lights: usize,
+    specular: bool,
+) -> (Vec<LightParams>, Vec3) {
+    let rgb =
+        |b: &mut KernelBuilder, p: &str| ["r", "g", "b"].map(|c| b.param_f32(&format!("{p}_{c}")));
+    let lights = (0..lights)
+        .map(|l| {
+            let pos = ["x", "y", "z"].map(|c| b.param_f32(&format!("light{l}_{c}")));
+            let d = rgb(b, &format!("light{l}_diffuse"));
+            let s = specular.then(|| rgb(b, &format!("light{l}_specular")));
+            (pos, d, s)
+        })
+        .collect();
+    let base = rgb(b, "base");
+    (lights, base)
+}
 
 /// A lit program's parameters.
 struct LitParams {
@@ -930,17 +933,17 @@ struct LitParams {
 }
 
 /// A vertex being lit: what every light reads, and the colour so far.
-struct LitVertex {
-    clip: [Value; 4],
-    colour: Vec3,
-    eye_pos: Vec3,
-    unit_n: Vec3,
+pub(crate) struct LitVertex {
+    pub clip: [Value; 4],
+    pub colour: Vec3,
+    pub eye_pos: Vec3,
+    pub unit_n: Vec3,
     /// The unit vector to the eye (with the specular term).
-    e: Option<Vec3>,
+    pub e: Option<Vec3>,
     /// The general program's vertex colour.
-    vertex_colour: Option<Vec3>,
+    pub vertex_colour: Option<Vec3>,
     /// Texture coordinates, passed through.
-    extras: Vec<Value>,
+    pub extras: Vec<Value>,
 }
 
 /// The clip position, eye-space position, unit normal and (`specular`) unit vector to the
@@ -984,7 +987,7 @@ fn transform_vertex(
 
 /// `v`'s colour plus light `(light_pos, dd, ss)`'s diffuse and specular terms, channel by
 /// channel (diffuse first).
-fn add_light(
+pub(crate) fn add_light(
     b: &mut KernelBuilder,
     v: &LitVertex,
     (light_pos, dd, ss): LightParams,

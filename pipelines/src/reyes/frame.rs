@@ -44,7 +44,7 @@ use imagine_units::stream_controller::StreamInstr;
 
 use super::kernels::{
     self, FLAG_QUAD, FRAME_WORDS, MAX_STOP_LENGTH, PATCH_WORDS, Q_FLAGS, Q_LEVEL, QUAD_WORDS,
-    STACK_FRAMES, STATE_WORDS, stamp,
+    STACK_FRAMES, STATE_WORDS, SUBDIV_QUAD_WORDS, Shading, stamp,
 };
 use crate::compile::CompileCache;
 use crate::kernels::stream_to_records;
@@ -53,6 +53,7 @@ use crate::opengl::render::{
     Composite, CompositeCounts, CompositeKernels, clear_framebuffer, composite_chunk, pack_rgb,
     plan_composite, plan_phases,
 };
+use crate::opengl::vertex_program::VertexProgram;
 use crate::scene::mat_mul;
 use crate::scene::model::{Blend, Cull, DepthTest, Scene};
 use crate::stream::{
@@ -209,15 +210,118 @@ pub fn scene_patches(scene: &Scene) -> Result<Vec<(BezierPatch, [f32; 16], u32)>
     Ok(out)
 }
 
+/// How a frame's quads are shaded ([`kernels::shade`]) and what the machine reads to
+/// shade them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShadeSetup {
+    pub shading: Shading,
+    /// `shade`'s own parameters (lit): `2/W`, `2/H` and the projection's `P₀₀`, `P₁₁`,
+    /// `P₂₂`, `P₂₃`.
+    pub params: Vec<u32>,
+    /// Lit: the vertex program whose `perlight` writes the lights' words, with its
+    /// parameters and its input (the scene's OpenGL state, as the OpenGL pipeline hands
+    /// them to the same kernel).
+    pub perlight: Option<(VertexProgram, Vec<u32>, Vec<u32>)>,
+}
+
+impl ShadeSetup {
+    /// Each quad its patch's colour.
+    pub fn flat() -> ShadeSetup {
+        ShadeSetup {
+            shading: Shading::Flat,
+            params: Vec::new(),
+            perlight: None,
+        }
+    }
+
+    /// The shading of `scene`'s patch objects on a machine of `clusters` clusters: their
+    /// material's, which they must share, with one camera. `lit` and `unlit` materials are
+    /// built; the textured, marble and bump-mapped shaders are not (an error).
+    pub fn of(scene: &Scene, clusters: usize) -> Result<ShadeSetup, ReyesError> {
+        let Some(first) = scene.objects.first() else {
+            return Ok(ShadeSetup::flat());
+        };
+        for o in &scene.objects {
+            if o.material != first.material || scene.camera_for(o) != scene.camera_for(first) {
+                return Err(ReyesError(format!(
+                    "objects `{}` and `{}`: the Reyes pipeline shades one material through \
+                     one camera per frame",
+                    first.name, o.name
+                )));
+            }
+        }
+        let material = &scene.materials[first.material];
+        if !material.textures.is_empty() {
+            return Err(ReyesError(format!(
+                "material `{}`: the Reyes pipeline does not texture quads yet (lit and unlit \
+                 materials only)",
+                material.name
+            )));
+        }
+        let program = VertexProgram::for_object(scene, first, false).map_err(ReyesError)?;
+        let VertexProgram::Lit {
+            lights,
+            specular,
+            shininess,
+            ..
+        } = program
+        else {
+            return match program {
+                VertexProgram::Unlit { .. } => Ok(ShadeSetup::flat()),
+                _ => Err(ReyesError(format!(
+                    "material `{}`: the Reyes pipeline shades lit and unlit materials only",
+                    material.name
+                ))),
+            };
+        };
+        let p = scene.camera_for(first).projection;
+        // `shade` inverts a symmetric perspective projection (row-major): only P₀₀, P₁₁,
+        // P₂₂ and P₂₃ and the last row `0 0 −1 0`.
+        let symmetric = [1, 2, 3, 4, 6, 7, 8, 9, 12, 13, 15]
+            .iter()
+            .all(|&i| p[i] == 0.0)
+            && p[14] == -1.0;
+        if !symmetric {
+            return Err(ReyesError(
+                "the Reyes shader needs the camera's symmetric perspective projection".into(),
+            ));
+        }
+        let params = [
+            2.0 / scene.width as f32,
+            2.0 / scene.height as f32,
+            p[0],
+            p[5],
+            p[10],
+            p[11],
+        ]
+        .map(f32::to_bits)
+        .to_vec();
+        Ok(ShadeSetup {
+            shading: Shading::Lit {
+                lights,
+                specular,
+                shininess,
+            },
+            params,
+            perlight: Some((
+                program.clone(),
+                VertexProgram::perlight_params(scene, first),
+                program.light_words(scene, clusters),
+            )),
+        })
+    }
+}
+
 /// Quads per cluster per `subdiv` call that keep a call's streams within the SRF space a
-/// kernel's output gets here (an eighth of the SRF): the quads (20 words each), and their
+/// kernel's output gets here (an eighth of the SRF): the quads (32 words each as `subdiv`
+/// writes them, 20 as `shade` does), and their
 /// fragments, at most about `(L + 1)²` per quad of side `L`. At most 64.
 pub fn iterations_for(desc: &MachineDesc, stop: f32) -> usize {
     let c = desc.cluster.count.max(1);
     let share = desc.srf.words / 8;
     let per_quad = (f64::from(stop) + 1.0).powi(2).ceil() as usize;
     let by_fragments = share / (c * per_quad);
-    let by_quads = share * 2 / (c * QUAD_WORDS);
+    let by_quads = share * 2 / (c * (SUBDIV_QUAD_WORDS + QUAD_WORDS));
     by_fragments.min(by_quads).min(65).saturating_sub(1).max(1)
 }
 
@@ -250,8 +354,10 @@ pub fn render(
     options: &ReyesOptions,
 ) -> Result<ReyesFrame, ReyesError> {
     let patches = scene_patches(scene)?;
+    let shading = ShadeSetup::of(scene, desc.cluster.count)?;
     render_patches(
         &patches,
+        &shading,
         scene.width,
         scene.height,
         pack_rgb(scene.background),
@@ -264,6 +370,7 @@ pub fn render(
 /// matrix and colour) into a `width × height` window cleared to `background`.
 pub fn render_patches(
     patches: &[(BezierPatch, [f32; 16], u32)],
+    shading: &ShadeSetup,
     width: u32,
     height: u32,
     background: u32,
@@ -300,6 +407,14 @@ pub fn render_patches(
             lib.register("project", kernels::project(desc)?),
             lib.register("subdiv_split", kernels::subdiv_split(desc)?),
             lib.register("subdiv", kernels::subdiv(desc)?),
+            lib.register("shade", kernels::shade(desc, shading.shading)?),
+            match &shading.perlight {
+                Some((program, ..)) => Some(lib.register(
+                    "perlight",
+                    program.perlight(desc).expect("a lit program has perlight"),
+                )),
+                None => None,
+            },
             lib.register(
                 "sample",
                 kernels::sample(desc, width, height, options.stop_length)?,
@@ -320,9 +435,10 @@ pub fn render_patches(
             lib.register("clear", gl::clear(desc)?),
         ))
     })();
-    let (project, split, subdiv, sample, ck, clear) =
+    let (project, split, subdiv, shade, perlight, sample, ck, clear) =
         built.map_err(|e| ReyesError(e.to_string()))?;
-    let mut eager = vec![project, subdiv, sample, clear];
+    let mut eager = vec![project, subdiv, shade, sample, clear];
+    eager.extend(perlight);
     eager.extend([ck.hash, ck.zcompare, ck.recycle_zc, ck.recycle_ap]);
     if levels > 0 {
         eager.push(split);
@@ -364,9 +480,53 @@ pub fn render_patches(
     let quad_records = (iterations + 1) * c;
     let quads = pl.stream(
         "quads",
+        Layout::records(SUBDIV_QUAD_WORDS),
+        quad_records,
+        walk_live,
+    );
+    let shaded = pl.stream(
+        "shaded",
         Layout::records(QUAD_WORDS),
         quad_records,
         walk_live,
+    );
+    // `shade`'s parameters: its own, then the words `perlight` writes per cluster.
+    let perlight_out = match shading.shading {
+        Shading::Flat => 0,
+        Shading::Lit {
+            lights, specular, ..
+        } => lights * if specular { 9 } else { 6 } + 3,
+    };
+    let own_params: Vec<u32> = match shading.shading {
+        Shading::Flat => Vec::new(),
+        Shading::Lit { .. } => {
+            let mut p = shading.params.clone();
+            p.resize(kernels::shade_own_rows(desc), 0);
+            p
+        }
+    };
+    let shade_params = pl.stream(
+        "shade_params",
+        words,
+        ((own_params.len() + perlight_out) * c).max(c),
+        Lifetime::Always,
+    );
+    let (perlight_params, perlight_in) = match &shading.perlight {
+        Some((_, params, lights)) => (params.len() * c, lights.len()),
+        None => (0, 0),
+    };
+    // (At least a row each: the planner places no empty stream.)
+    let perlight_params = pl.stream(
+        "perlight_params",
+        words,
+        perlight_params.max(c),
+        live("project", "project"),
+    );
+    let lights = pl.stream(
+        "lights",
+        words,
+        perlight_in.max(c),
+        live("project", "project"),
     );
     let covered = pl.stream("covered", words, quad_records, walk_live);
     let frag_live = live("sample", "composite");
@@ -379,14 +539,7 @@ pub fn render_patches(
     let frag_capacity = plan.capacity(f_addr);
     // Pieces start on SRF blocks: whole blocks of `covered`'s one word per quad (and so of
     // the quads' 20).
-    let block = desc.srf.block_words.max(1);
-    let gcd = |mut a: usize, mut b: usize| {
-        while b != 0 {
-            (a, b) = (b, a % b);
-        }
-        a
-    };
-    let unit = block / gcd(block, c);
+    let unit = crate::stream::srf::block_rows(desc);
     let fit_rows = frag_capacity.saturating_sub(c) / (per_quad * c);
     let piece_rows = if fit_rows > iterations {
         iterations + 1
@@ -470,6 +623,25 @@ pub fn render_patches(
     )?;
     h.drain()?;
     let cleared = h.cycles();
+
+    // The shader's parameters: its own, then the lights `perlight` writes from the OpenGL
+    // state.
+    let shade_b = plan.whole(shade_params);
+    let own = plan.words(shade_params, own_params.len() * c);
+    if !own_params.is_empty() {
+        h.write_params(own, &own_params);
+    }
+    if let (Some(perlight), Some((_, params, light_words))) = (perlight, &shading.perlight) {
+        let pb = plan.words(perlight_params, params.len() * c);
+        h.write_params(pb, params);
+        let lb = plan.words(lights, light_words.len());
+        h.write(lb, light_words.clone());
+        let out = plan.word_range(shade_params, own.words, shade_b.words - own.words);
+        h.call(
+            perlight,
+            &[("lights", lb), ("light_params", out), (PARAMS, pb)],
+        )?;
+    }
 
     // Projection: each run in chunks, scattered to the real patches' record numbers.
     let trash = (rows[0] * c) as u64;
@@ -598,7 +770,15 @@ pub fn render_patches(
                     desc.scratchpad.words
                 )));
             }
-            for r in stream_to_records(&peek(&h, quad_stream), QUAD_WORDS, c) {
+            let mut streams = vec![
+                ("quads", quad_stream),
+                ("shaded", plan.first(shaded, quad_records)),
+            ];
+            if shading.shading != Shading::Flat {
+                streams.push((PARAMS, shade_b));
+            }
+            h.call(shade, &streams)?;
+            for r in stream_to_records(&peek(&h, quad_stream), SUBDIV_QUAD_WORDS, c) {
                 if r[Q_FLAGS] & FLAG_QUAD != 0 {
                     stats.quads += 1;
                     let level = r[Q_LEVEL] as usize + levels;
@@ -616,7 +796,7 @@ pub fn render_patches(
                 let call = h.call(
                     sample,
                     &[
-                        ("quads", plan.slice(quads, r0 * c, n)),
+                        ("quads", plan.slice(shaded, r0 * c, n)),
                         ("addr", outs[0]),
                         ("z", outs[1]),
                         ("colour", outs[2]),
@@ -644,7 +824,7 @@ pub fn render_patches(
                 r0 += n / c;
             }
             let quad_words = peek(&h, quad_stream);
-            let quad_recs = stream_to_records(&quad_words, QUAD_WORDS, c);
+            let quad_recs = stream_to_records(&quad_words, SUBDIV_QUAD_WORDS, c);
             for (r, &n) in quad_recs
                 .iter()
                 .zip(&peek(&h, plan.first(covered, quad_records)))

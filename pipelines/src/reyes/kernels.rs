@@ -73,6 +73,11 @@ pub const Q_EDGES: usize = 2;
 pub const Q_BOX: usize = 14;
 pub const Q_DEPTH: usize = 18;
 pub const Q_COLOUR: usize = 19;
+/// Words of a quad record as `subdiv` writes it: a quad record, then its four corners
+/// (`x, y, z` in window space each, in the edges' order) for [`shade`], which writes
+/// [`QUAD_WORDS`]-word records without them.
+pub const SUBDIV_QUAD_WORDS: usize = QUAD_WORDS + 12;
+pub const Q_CORNERS: usize = QUAD_WORDS;
 /// Bits of a quad record's flags.
 pub const FLAG_QUAD: u32 = 1;
 pub const FLAG_OVERFLOW: u32 = 2;
@@ -444,6 +449,9 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     for &w in &root_words {
         b.write(quads, w);
     }
+    for v in rc.into_iter().flatten() {
+        b.write(quads, v);
+    }
     let root_frame = negate(&mut b, rt.done);
     let root_depth = b.select(start, root_frame, zero);
     let depth0 = b.select(fresh, root_depth, saved_depth);
@@ -586,6 +594,10 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     for &w in &qw {
         b.write(quads, w);
     }
+    // The corners, for `shade`.
+    for v in cc.into_iter().flatten() {
+        b.write(quads, v);
+    }
     b.end_loop();
 
     // ---- After the loop: the walk saved for the next call.
@@ -597,6 +609,174 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
         let w = b.sp_read(i as u16, None);
         b.write(state, w);
     }
+    Ok(finish(b))
+}
+
+/// How [`shade`] colours a quad.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Shading {
+    /// The patch's colour, as `subdiv` carried it (an unlit material).
+    Flat,
+    /// OpenGL's fixed-function lighting of the vertex program ([`crate::opengl::vertex_program`]):
+    /// `lights` lights, the specular term when `specular`, to the integer power `shininess`.
+    Lit {
+        lights: usize,
+        specular: bool,
+        shininess: u32,
+    },
+}
+
+/// A lit [`shade`]'s own parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃`.
+pub const SHADE_OWN_PARAMS: usize = 6;
+
+/// Rows of a lit [`shade`]'s own parameters: [`SHADE_OWN_PARAMS`] padded so that
+/// `perlight`'s words after them start on an SRF block.
+pub fn shade_own_rows(desc: &MachineDesc) -> usize {
+    SHADE_OWN_PARAMS.next_multiple_of(crate::stream::srf::block_rows(desc))
+}
+
+/// A lit [`shade`]'s parameters.
+struct ShadeParams {
+    two_over: [Value; 2],
+    inv_p00: Value,
+    inv_p11: Value,
+    p22: Value,
+    p23: Value,
+    lights: Vec<crate::opengl::vertex_program::LightParams>,
+    base: [Value; 3],
+    specular: bool,
+    shininess: u32,
+}
+
+/// `shade`: per quad record of `subdiv` ([`SUBDIV_QUAD_WORDS`]), the record `sample`
+/// reads ([`QUAD_WORDS`]) with the quad's colour from its material: Reyes's shading
+/// stage, once per quad, with the vertex and fragment frequencies collapsed (the quads
+/// are flat-shaded).
+///
+/// **Lit** quads are lit as the OpenGL pipeline lights a vertex, at the quad's centre with
+/// the quad's own normal: each corner goes back from window space to eye space through
+/// the camera's perspective projection (`x_n = x·(2/W) − 1`, `y_n = y·(2/H) − 1`, `z_n =
+/// 2z − 1`; `z_e = −P₂₃/(z_n + P₂₂)`, `x_e = x_n·(−z_e)/P₀₀`, `y_e = y_n·(−z_e)/P₁₁`: a
+/// symmetric frustum, which the host checks), the position is the mean of the four
+/// corners, and the normal the cross product of the diagonals, turned to face the eye
+/// (two-sided: the quad's orientation follows its patch's parametrisation, which no file
+/// format fixes; a quad with no area faces the eye). Then `base + Σ` lights exactly as
+/// [`add_light`](crate::opengl::vertex_program::add_light) sums them, clamped to [0, 1]
+/// and packed as RGBA8 rounded to nearest, alpha 1.
+///
+/// Parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃` (padded to [`shade_own_rows`]),
+/// then `perlight`'s words (the
+/// lights in eye space and their colour products, and `base`): the vertex program's
+/// `perlight` runs on the machine to write them.
+pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequirementError> {
+    use crate::kernels::dot;
+    use crate::kernels::vertex::normalize;
+    use crate::opengl::vertex_program::{LitVertex, add_light, light_params};
+
+    let mut b = KernelBuilder::new("shade");
+    let quads = b.input("quads");
+    let shaded = b.output("shaded");
+    let (zero, one) = (b.f32(0.0), b.f32(1.0));
+    let lit = match shading {
+        Shading::Flat => None,
+        Shading::Lit {
+            lights,
+            specular,
+            shininess,
+        } => {
+            let [two_over_w, two_over_h, p00, p11, p22, p23] =
+                ["two_over_w", "two_over_h", "p00", "p11", "p22", "p23"].map(|n| b.param_f32(n));
+            for i in SHADE_OWN_PARAMS..shade_own_rows(desc) {
+                b.param_f32(&format!("pad{i}"));
+            }
+            let (lights, base) = light_params(&mut b, lights, specular);
+            // The projection's reciprocals, once per call.
+            let (inv_p00, inv_p11) = (b.fdiv(one, p00), b.fdiv(one, p11));
+            Some(ShadeParams {
+                two_over: [two_over_w, two_over_h],
+                inv_p00,
+                inv_p11,
+                p22,
+                p23,
+                lights,
+                base,
+                specular,
+                shininess,
+            })
+        }
+    };
+    b.begin_loop(LoopSpec::OverStream(quads));
+    let rec: Vec<Value> = (0..SUBDIV_QUAD_WORDS).map(|_| b.read(quads)).collect();
+    for &w in &rec[..Q_COLOUR] {
+        b.write(shaded, w);
+    }
+    let colour = match &lit {
+        None => rec[Q_COLOUR],
+        Some(p) => {
+            let eye: [[Value; 3]; 4] = std::array::from_fn(|k| {
+                let at = Q_CORNERS + 3 * k;
+                let [x, y, z] = std::array::from_fn(|i| b.cast(rec[at + i], Ty::F32));
+                let xs = b.fmul(x, p.two_over[0]);
+                let xn = b.fsub(xs, one);
+                let ys = b.fmul(y, p.two_over[1]);
+                let yn = b.fsub(ys, one);
+                let zz = b.fadd(z, z);
+                let zn = b.fsub(zz, one);
+                let d = b.fadd(zn, p.p22);
+                // −z_e = P₂₃/(z_n + P₂₂): the clip w.
+                let w = b.fdiv(p.p23, d);
+                let ze = b.fneg(w);
+                let xw = b.fmul(xn, w);
+                let yw = b.fmul(yn, w);
+                [b.fmul(xw, p.inv_p00), b.fmul(yw, p.inv_p11), ze]
+            });
+            let quarter = b.f32(0.25);
+            let position: [Value; 3] = std::array::from_fn(|i| {
+                let s01 = b.fadd(eye[0][i], eye[1][i]);
+                let s23 = b.fadd(eye[2][i], eye[3][i]);
+                let s = b.fadd(s01, s23);
+                b.fmul(s, quarter)
+            });
+            let d1: [Value; 3] = std::array::from_fn(|i| b.fsub(eye[2][i], eye[0][i]));
+            let d2: [Value; 3] = std::array::from_fn(|i| b.fsub(eye[3][i], eye[1][i]));
+            let cross: [Value; 3] = std::array::from_fn(|i| {
+                let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+                let u = b.fmul(d1[j], d2[k]);
+                let v = b.fmul(d1[k], d2[j]);
+                b.fsub(u, v)
+            });
+            let to_eye = position.map(|c| b.fneg(c));
+            // Facing the eye: flipped where it points away; the direction to the eye where
+            // the quad has no area.
+            let facing = dot(&mut b, cross, to_eye);
+            let away = b.flt(facing, zero);
+            let area = dot(&mut b, cross, cross);
+            let none = b.feq(area, zero);
+            let normal = std::array::from_fn(|i| {
+                let flipped = b.fneg(cross[i]);
+                let n = b.select(away, flipped, cross[i]);
+                b.select(none, to_eye[i], n)
+            });
+            let unit_n = normalize(&mut b, normal);
+            let e = p.specular.then(|| normalize(&mut b, to_eye));
+            let mut v = LitVertex {
+                clip: [zero; 4],
+                colour: p.base,
+                eye_pos: position,
+                unit_n,
+                e,
+                vertex_colour: None,
+                extras: Vec::new(),
+            };
+            for &light in &p.lights {
+                v.colour = add_light(&mut b, &v, light, p.shininess, zero, one);
+            }
+            let [r, g, bl] = v.colour;
+            crate::kernels::texture::pack(&mut b, [r, g, bl, one])
+        }
+    };
+    b.write(shaded, colour);
+    b.end_loop();
     Ok(finish(b))
 }
 

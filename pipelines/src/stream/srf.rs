@@ -66,6 +66,19 @@ pub enum Lifetime {
     Phases(&'static str, &'static str),
 }
 
+/// The fewest rows of one word per cluster that fill whole SRF blocks: a stream that
+/// begins inside another (a kernel's parameters after another kernel's) starts on a block.
+pub fn block_rows(desc: &MachineDesc) -> usize {
+    let (c, block) = (desc.cluster.count.max(1), desc.srf.block_words.max(1));
+    let gcd = |mut a: usize, mut b: usize| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    block / gcd(c, block)
+}
+
 /// Shorthand for [`Lifetime::Phases`].
 pub fn live(from: &'static str, to: &'static str) -> Lifetime {
     Lifetime::Phases(from, to)

@@ -3,6 +3,8 @@
 //! how the scene is loaded). `--knob NAME=V1,V2,…` gives one knob's values.
 
 use anyhow::{Context, Result, bail};
+use imagine_pipelines::reyes::frame::check_stop_length;
+use imagine_pipelines::reyes::kernels::MAX_STOP_LENGTH;
 use imagine_pipelines::scene::model::Filter;
 use imagine_units::desc::{BUILTIN, MachineDesc};
 use imagine_units::limits::{MAX_BATCH, MAX_NEWTON_STEPS};
@@ -24,10 +26,13 @@ pub enum Knob {
     ReferenceDepth,
     /// The scene's `pipeline.newton_raphson` (`irast`'s reciprocal: 0 the divide unit).
     NewtonRaphson,
+    /// Reyes's stop length (`render --pipeline reyes --stop-length`): the point renders
+    /// through the Reyes pipeline.
+    StopLength,
 }
 
 impl Knob {
-    pub const ALL: [Knob; 7] = [
+    pub const ALL: [Knob; 8] = [
         Knob::Machine,
         Knob::Batch,
         Knob::Filter,
@@ -35,6 +40,7 @@ impl Knob {
         Knob::NormaliseClip,
         Knob::ReferenceDepth,
         Knob::NewtonRaphson,
+        Knob::StopLength,
     ];
 
     pub fn name(self) -> &'static str {
@@ -46,6 +52,7 @@ impl Knob {
             Knob::NormaliseClip => "normalise_clip",
             Knob::ReferenceDepth => "reference_depth",
             Knob::NewtonRaphson => "newton_raphson",
+            Knob::StopLength => "stop_length",
         }
     }
 
@@ -65,6 +72,9 @@ impl Knob {
             Knob::FlushToZero | Knob::NormaliseClip | Knob::ReferenceDepth => "true, false".into(),
             Knob::NewtonRaphson => {
                 format!("Newton–Raphson steps, 0 (the divide unit) to {MAX_NEWTON_STEPS}")
+            }
+            Knob::StopLength => {
+                format!("Reyes's largest quad side in pixels, above 0 and up to {MAX_STOP_LENGTH}")
             }
         }
     }
@@ -93,6 +103,10 @@ impl Knob {
                 Ok(n) if n <= MAX_NEWTON_STEPS => KnobValue::NewtonRaphson(n),
                 _ => bail!("`{text}` is not a number of Newton–Raphson steps"),
             },
+            Knob::StopLength => match text.parse::<f32>() {
+                Ok(l) if check_stop_length(l).is_ok() => KnobValue::StopLength(l),
+                _ => bail!("`{text}` is not a stop length"),
+            },
         };
         Ok(value)
     }
@@ -116,6 +130,7 @@ pub enum KnobValue {
     NormaliseClip(bool),
     ReferenceDepth(bool),
     NewtonRaphson(u8),
+    StopLength(f32),
 }
 
 /// A knob and its values in the order given: one axis of the grid.
@@ -172,6 +187,31 @@ pub fn parse_axis(arg: &str) -> Result<Axis> {
     Ok(Axis { knob, values })
 }
 
+/// The knobs that set what only the OpenGL pipeline has, refused beside `stop_length`
+/// (which renders through Reyes).
+pub fn check_pipeline(axes: &[Axis]) -> Result<()> {
+    if !axes.iter().any(|a| a.knob == Knob::StopLength) {
+        return Ok(());
+    }
+    for a in axes {
+        if matches!(
+            a.knob,
+            Knob::Batch
+                | Knob::Filter
+                | Knob::NormaliseClip
+                | Knob::ReferenceDepth
+                | Knob::NewtonRaphson
+        ) {
+            bail!(
+                "--knob {} is a setting of the OpenGL pipeline; --knob stop_length renders \
+                 through Reyes (machine and flush_to_zero apply to both)",
+                a.knob.name()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// What a point's knob values make of the base machine and the render: the machine
 /// description, the batch limit, the texture filter override and the overrides of the
 /// scene's clip normalisation, reference depth and Newton–Raphson steps.
@@ -183,6 +223,8 @@ pub struct Setup {
     pub normalise_clip: Option<bool>,
     pub reference_depth: Option<bool>,
     pub newton_raphson: Option<u8>,
+    /// Reyes at this stop length (else the OpenGL pipeline).
+    pub stop_length: Option<f32>,
 }
 
 impl Setup {
@@ -203,6 +245,7 @@ impl Setup {
             normalise_clip: None,
             reference_depth: None,
             newton_raphson: None,
+            stop_length: None,
         };
         for value in values {
             match value {
@@ -213,6 +256,7 @@ impl Setup {
                 KnobValue::NormaliseClip(on) => setup.normalise_clip = Some(*on),
                 KnobValue::ReferenceDepth(on) => setup.reference_depth = Some(*on),
                 KnobValue::NewtonRaphson(n) => setup.newton_raphson = Some(*n),
+                KnobValue::StopLength(l) => setup.stop_length = Some(*l),
             }
         }
         Ok(setup)
@@ -231,7 +275,9 @@ mod tests {
         let f = parse_axis("filter=nearest,bilinear").unwrap();
         assert_eq!(f.values[1].1, KnobValue::Filter(Filter::Linear));
         for (bad, says) in [
-            ("stop_length=1,2", "no knob is named `stop_length`"),
+            ("stop_size=1,2", "no knob is named `stop_size`"),
+            ("stop_length=0", "above 0 and up to 7"),
+            ("stop_length=1.5,nan", "not a stop length"),
             ("batch", "NAME=V1,V2"),
             ("batch=0", "triangles per batch"),
             ("batch=8,,16", "an empty value"),
