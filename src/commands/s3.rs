@@ -89,7 +89,7 @@ pub fn run_cmd(a: S3Args) -> Result<ExitCode> {
     if a.csv_window == 0 {
         bail!("--csv-window 0: a window must be at least 1 cycle");
     }
-    let mut cfg = S3Config::of(&desc.s3);
+    let mut cfg = S3Config::of(&desc);
     if let Some(k) = a.accelerators {
         check_k("--accelerators", k)?;
         cfg.accelerators = k;

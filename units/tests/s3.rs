@@ -5,11 +5,11 @@ use imagine_units::desc::{MachineDesc, S3};
 use imagine_units::s3::game::{GameParams, generate};
 use imagine_units::s3::raster::{Mode, TraceTriangle, reference_frame};
 use imagine_units::s3::run::{RunOptions, S3Report, cycle_bound, run};
-use imagine_units::s3::{S3Config, Select};
+use imagine_units::s3::{S3Config, S3Memory, Select};
 use proptest::prelude::*;
 
 fn config(k: usize) -> S3Config {
-    let mut c = S3Config::of(&S3::default());
+    let mut c = S3Config::of(&MachineDesc::gold8());
     c.accelerators = k;
     c
 }
@@ -174,7 +174,7 @@ fn the_statistics_add_up() {
 fn the_machine_description_carries_the_papers_defaults_and_names_bad_keys() {
     let m = MachineDesc::gold8();
     assert_eq!(m.s3, S3::default());
-    let c = S3Config::of(&m.s3);
+    let c = S3Config::of(&m);
     assert_eq!(
         (c.accelerators, c.candidates(), c.dest_rs()),
         (16, 128, 144)
@@ -185,7 +185,7 @@ fn the_machine_description_carries_the_papers_defaults_and_names_bad_keys() {
         ("accelerators = 16", "accelerators = 0", "s3.accelerators"),
         ("source_slots = 1", "source_slots = 3", "s3.source_slots"),
         ("select = \"random\"", "select = \"best\"", "s3.select"),
-        ("memory = \"ideal\"", "memory = \"dram\"", "s3.memory"),
+        ("memory = \"ideal\"", "memory = \"sram\"", "s3.memory"),
         ("split_height = 32", "split_height = 0", "s3.split_height"),
         ("select_seed = 1", "select_seed = 0", "s3.select_seed"),
     ] {
@@ -312,5 +312,55 @@ proptest! {
         let r = run(&c, 32, 32, &tris, RunOptions::default()).expect("finishes");
         prop_assert_eq!(r.in_flight_hazards, 0);
         prop_assert!(r.frame == reference_frame(&tris, 32, 32), "frame differs");
+    }
+}
+
+/// `config(k)` with `s3.memory = "dram"`: the gold8 DRAM behind the accelerators.
+fn dram_config(k: usize) -> S3Config {
+    let mut c = config(k);
+    c.memory = S3Memory::Dram(Box::new(MachineDesc::gold8()));
+    c
+}
+
+#[test]
+fn the_dram_memory_draws_the_ideal_memorys_frame_in_more_cycles() {
+    let (w, h, tris) = small_game(11);
+    let golden = reference_frame(&tris, w, h);
+    for k in [1, 16] {
+        let ideal = run_ok(&config(k), w, h, &tris);
+        let dram = run_ok(&dram_config(k), w, h, &tris);
+        assert_eq!(
+            dram.frame, golden,
+            "K={k}: the DRAM frame is not in-order drawing's"
+        );
+        assert_eq!(dram.frame, ideal.frame, "K={k}");
+        assert_eq!(
+            (dram.pixels, dram.primitives),
+            (ideal.pixels, ideal.primitives)
+        );
+        assert!(
+            dram.cycles > ideal.cycles,
+            "K={k}: {} vs {}",
+            dram.cycles,
+            ideal.cycles
+        );
+        assert!(dram.mem_stall_cycles > 0 && ideal.mem_stall_cycles == 0);
+        assert_eq!((ideal.memory, dram.memory), ("ideal", "dram"));
+        let s = dram.dram.clone().expect("DRAM counters");
+        assert!(ideal.dram.is_none());
+        // Every Z access is two DRAM words, a colour access one; every read is a Z read
+        // or a blend's destination read, and every passed fragment writes.
+        assert!(s.fb_reads >= dram.pixels && s.fb_writes >= dram.fragments_passed);
+        assert!(s.reads > s.fb_reads && s.writes > s.fb_writes);
+        assert!(s.row_hits > 0 && s.activates > 0);
+        eprintln!(
+            "K={k}: ideal {} cycles TLP {:.2}, dram {} cycles TLP {:.2} stalls {} {:?}",
+            ideal.cycles,
+            ideal.mean_parallelism(),
+            dram.cycles,
+            dram.mean_parallelism(),
+            dram.mem_stall_cycles,
+            s
+        );
     }
 }
