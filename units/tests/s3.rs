@@ -235,9 +235,10 @@ fn triangles() -> impl Strategy<Value = Vec<TraceTriangle>> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
-    /// Any machine draws the in-order frame, never has two primitives in hazard in flight,
-    /// retires everything within the sequential bound, and does not care in which order
-    /// its blocks are evaluated.
+    /// Any machine, with either memory, draws the in-order frame, never has two primitives
+    /// in hazard in flight, retires everything within the sequential bound, and does not
+    /// care in which order its blocks are evaluated (the DRAM memory's two clock domains,
+    /// crossings and channels included).
     #[test]
     fn any_machine_is_exact_safe_live_and_order_independent(
         tris in triangles(),
@@ -248,8 +249,11 @@ proptest! {
         chain_break in any::<bool>(),
         oldest in any::<bool>(),
         slots in 0usize..3,
+        dram in any::<bool>(),
+        latency in 1u32..4,
     ) {
-        let mut c = config(k);
+        let mut c = if dram { dram_config(k) } else { config(k) };
+        c.memory_latency = latency;
         c.window_per_accelerator = window;
         (c.split, c.split_height, c.chain_break) = (split, split_height, chain_break);
         c.select = if oldest { Select::Oldest } else { Select::Random };
@@ -363,4 +367,15 @@ fn the_dram_memory_draws_the_ideal_memorys_frame_in_more_cycles() {
             s
         );
     }
+}
+
+#[test]
+fn the_dram_memory_refuses_bursts_it_would_have_to_read_modify_write() {
+    let (w, h, tris) = small_game(11);
+    let mut m = MachineDesc::gold8();
+    m.dram.burst_words = 4;
+    let mut c = config(2);
+    c.memory = S3Memory::Dram(Box::new(m));
+    let e = run(&c, w, h, &tris, RunOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("burst_words = 1"), "{e}");
 }

@@ -278,6 +278,13 @@ pub fn run(
     let (mut window_full, mut hazards) = (0u64, 0u64);
     let mut windows = Vec::new();
     let (mut win_busy, mut win_cycles) = (0u64, 0u64);
+    // Once the last accelerator retires, its last writes are still in the ideal memory's
+    // request pipe for L − 1 more cycles; the frame is done when they land. (The DRAM
+    // memory acknowledges writes before an accelerator retires.)
+    let mut tail = match cfg.memory {
+        S3Memory::Ideal => cfg.memory_latency as u64 - 1,
+        S3Memory::Dram(_) => 0,
+    };
     loop {
         if sim.core_cycles() >= bound {
             sim.finish().map_err(|e| S3Error::Input(e.to_string()))?;
@@ -306,7 +313,10 @@ pub fn run(
             && issue.is_idle()
             && busy == 0;
         if done {
-            break;
+            if tail == 0 {
+                break;
+            }
+            tail -= 1;
         }
     }
     if win_cycles > 0 {
