@@ -268,8 +268,8 @@ proptest! {
     }
 }
 
-/// The built-in game frames at K = 16 with every combination of the two features draw
-/// the in-order frame (a few seconds each; `imagine s3` checks this on every run too).
+/// The built-in game frames at K = 16 with every combination of the two features, and
+/// through the DRAM, draw the in-order frame (`imagine s3` checks this on every run too).
 #[test]
 #[ignore]
 fn the_builtin_game_frames_are_exact_at_sixteen_accelerators() {
@@ -286,6 +286,9 @@ fn the_builtin_game_frames_are_exact_at_sixteen_accelerators() {
                 "{name} split={split} chain_break={chain_break}"
             );
         }
+        // Through the DRAM (about a minute each).
+        let r = run_ok(&dram_config(16), p.width, p.height, &tris);
+        assert!(r.frame == golden, "{name} through the DRAM");
     }
 }
 

@@ -13,6 +13,7 @@
 //!                                                   ▲                          pixels)   │
 //!                                                   └──────── pipe retire k ◀───────────┤
 //!                                               FbMem ◀── pipe mem_req k / mem_rsp k ──▶┘
+//!                                    (or FbDram ◀── … and pipe mem_ack k ──▶ DRAM channels)
 //! ```
 //!
 //! * [`fetch`] — the command queue's reader: decodes a triangle into fixed point,
