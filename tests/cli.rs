@@ -1709,6 +1709,64 @@ fn s3_sweeps_k_and_dumps_every_block_to_vcd() {
 }
 
 #[test]
+fn s3_through_the_dram_draws_the_same_frame_slower_and_reports_the_dram() {
+    let trace = s3_trace();
+    let t = trace.to_str().unwrap();
+    let mut runs = Vec::new();
+    for memory in ["ideal", "dram"] {
+        let json = temp(&format!("s3-{memory}.json"));
+        let png = temp(&format!("s3-{memory}.png"));
+        let o = imagine(&[
+            "s3",
+            "--trace",
+            t,
+            "--accelerators",
+            "4",
+            "--memory",
+            memory,
+            "--json",
+            json.to_str().unwrap(),
+            "--png",
+            png.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            stdout(&o).contains(&format!("{memory} memory")),
+            "{}",
+            stdout(&o)
+        );
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(j["memory"], memory, "{j}");
+        runs.push((j, std::fs::read(&png).unwrap()));
+    }
+    let ((ideal, ideal_png), (dram, dram_png)) = (&runs[0], &runs[1]);
+    assert_eq!(
+        ideal_png, dram_png,
+        "the two memories drew different frames"
+    );
+    assert!(
+        ideal["dram"].is_null() && ideal["memory_stall_cycles"] == 0,
+        "{ideal}"
+    );
+    assert!(
+        dram["cycles"].as_u64().unwrap() > ideal["cycles"].as_u64().unwrap(),
+        "{dram}"
+    );
+    assert!(dram["memory_stall_cycles"].as_u64().unwrap() > 0, "{dram}");
+    let d = &dram["dram"];
+    assert_eq!(d["channels"], 4, "{d}");
+    for key in ["reads", "writes", "activates", "row_hits", "dram_cycles"] {
+        assert!(d[key].as_u64().unwrap() > 0, "{key}: {d}");
+    }
+    // A Z access is two DRAM words.
+    assert!(
+        d["reads"].as_u64().unwrap() >= 2 * ideal["pixels"].as_u64().unwrap(),
+        "{d}"
+    );
+}
+
+#[test]
 fn s3_bad_input_is_a_clear_error() {
     let trace = s3_trace();
     let t = trace.to_str().unwrap();
@@ -1723,6 +1781,7 @@ fn s3_bad_input_is_a_clear_error() {
         &["s3", "--trace", t, "--sweep", "1,0"],
         &["s3", "--trace", t, "--csv-window", "0"],
         &["s3", "--trace", t, "--machine", "gold9"],
+        &["s3", "--trace", t, "--memory", "sram"],
     ] {
         assert_clear_error(args);
     }

@@ -207,8 +207,8 @@ fn machine_descriptions() {
         &["s3.accelerators", "is 0"],
     );
     show(
-        "s3-dram.toml",
-        gold8_with("memory", "memory = \"dram\"").as_bytes(),
+        "s3-sram.toml",
+        gold8_with("memory", "memory = \"sram\"").as_bytes(),
         &["s3.memory", "ideal"],
     );
     show(

@@ -282,6 +282,54 @@ fn a_kernel_call_is_dumped_by_name_and_a_waveform_over_its_limit_stops_the_run()
 }
 
 #[test]
+fn an_s3_waveform_through_the_dram_shows_the_memory_blocks_and_reads_back_whole() {
+    let dir =
+        std::env::temp_dir().join(format!("imagine-vcd-{}-s3-dram-trace", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let trace = dir.join("s3.tri");
+    std::fs::write(
+        &trace,
+        "48 32\n0 0 0.5 1 0 0  47 0 0.5 0 1 0  24 31 0.5 0 0 1\n\
+         4 4 0.25 0 1 1  30 4 0.25 1 1 0  12 28 0.25 1 0 1\n\
+         20 2 0.75 0 0 1  46 8 0.75 1 1 1  30 30 0.75 0 1 0\n",
+    )
+    .unwrap();
+    let vcd = run_with_vcd(
+        "s3-dram",
+        &[
+            "s3",
+            "--trace",
+            trace.to_str().unwrap(),
+            "--accelerators",
+            "2",
+            "--memory",
+            "dram",
+        ],
+    );
+    let paths = var_paths(&vcd);
+    for want in [
+        "top.s3.fbdram.reads",
+        "top.s3.fbdram.outbox",
+        "top.s3.fbdram.in_flight",
+        "top.s3.accel1.mem_stall",
+        "top.s3.accel1.unacked_writes",
+        "top.s3.accel1.mem_ack.valid",
+        "top.mem.ch0.cmd",
+        "top.mem.ch3.cmd",
+    ] {
+        assert!(paths.contains(want), "`{want}` missing");
+    }
+    let mut parser = vcd::Parser::new(BufReader::new(File::open(&vcd).unwrap()));
+    parser.parse_header().unwrap();
+    let mut changes = 0;
+    for command in parser {
+        command.unwrap();
+        changes += 1;
+    }
+    assert!(changes > 1_000, "{changes}");
+}
+
+#[test]
 fn an_s3_waveform_shows_every_block_and_reads_back_whole() {
     let vcd = run_with_vcd(
         "s3",

@@ -8,12 +8,12 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use imagine_units::desc::MachineDesc;
+use imagine_units::desc::{MachineDesc, S3_MEMORY};
 use imagine_units::s3::game::{self, GameParams};
 use imagine_units::s3::issue::CAUSE_NAMES;
 use imagine_units::s3::raster::{Frame, Mode, TraceTriangle, reference_frame};
 use imagine_units::s3::run::{RunOptions, S3Report, run};
-use imagine_units::s3::{S3Config, Select};
+use imagine_units::s3::{S3Config, S3Memory, Select};
 use imagine_verif::image::Image;
 
 use super::outputs::Outputs;
@@ -42,6 +42,10 @@ pub struct S3Args {
     /// Candidate buffers per accelerator (default: the machine's)
     #[arg(long, value_name = "N")]
     window: Option<usize>,
+    /// Frame-buffer memory: `ideal` (the paper's) or `dram` (the machine's DRAM channels);
+    /// default: the machine's `s3.memory`
+    #[arg(long, value_name = "ideal|dram", value_parser = clap::builder::PossibleValuesParser::new(S3_MEMORY))]
+    memory: Option<String>,
     /// Do not split tall triangles into slices
     #[arg(long)]
     no_split: bool,
@@ -89,7 +93,7 @@ pub fn run_cmd(a: S3Args) -> Result<ExitCode> {
     if a.csv_window == 0 {
         bail!("--csv-window 0: a window must be at least 1 cycle");
     }
-    let mut cfg = S3Config::of(&desc.s3);
+    let mut cfg = S3Config::of(&desc);
     if let Some(k) = a.accelerators {
         check_k("--accelerators", k)?;
         cfg.accelerators = k;
@@ -99,6 +103,11 @@ pub fn run_cmd(a: S3Args) -> Result<ExitCode> {
             bail!("--window {w}: candidate buffers per accelerator must be 1..=64");
         }
         cfg.window_per_accelerator = w;
+    }
+    match a.memory.as_deref() {
+        Some("ideal") => cfg.memory = S3Memory::Ideal,
+        Some(_) => cfg.memory = S3Memory::Dram(Box::new(desc.clone())),
+        None => {}
     }
     cfg.split &= !a.no_split;
     cfg.chain_break &= !a.no_chain_break;
@@ -262,6 +271,20 @@ fn json(c: &S3Config, r: &S3Report, base: Option<u64>) -> serde_json::Value {
         "fragments_passed": r.fragments_passed,
         "issue_cycles": causes,
         "window_full_cycles": r.window_full,
+        "memory": r.memory,
+        "memory_latency": c.memory_latency,
+        "memory_stall_cycles": r.mem_stall_cycles,
+        "dram": r.dram.as_ref().map(|d| serde_json::json!({
+            "channels": d.channels,
+            "frame_buffer_reads": d.fb_reads,
+            "frame_buffer_writes": d.fb_writes,
+            "reads": d.reads,
+            "writes": d.writes,
+            "activates": d.activates,
+            "row_hits": d.row_hits,
+            "refreshes": d.refreshes,
+            "dram_cycles": d.dram_cycles,
+        })),
         "speedup_over_k1": base.map(|b| b as f64 / r.cycles as f64),
         "k1_cycles": base,
         "frame_matches_in_order": true,
@@ -270,7 +293,7 @@ fn json(c: &S3Config, r: &S3Report, base: Option<u64>) -> serde_json::Value {
 
 fn describe(c: &S3Config) -> String {
     format!(
-        "K={}, {} candidate buffers, {} dest RS, split {}, chain breaking {}, select {}",
+        "K={}, {} candidate buffers, {} dest RS, split {}, chain breaking {}, select {}, {} memory",
         c.accelerators,
         c.candidates(),
         c.dest_rs(),
@@ -285,6 +308,7 @@ fn describe(c: &S3Config) -> String {
         } else {
             "random"
         },
+        c.memory.name(),
     )
 }
 
@@ -318,6 +342,20 @@ fn print_report(source: &str, desc: &MachineDesc, c: &S3Config, r: &S3Report, ba
         causes.join(", "),
         r.window_full
     );
+    if let Some(d) = &r.dram {
+        println!(
+            "memory       dram, {} channels: {} frame-buffer reads, {} writes; {} DRAM reads, {} writes, {} activates, {} row hits, {} DRAM cycles; accelerators held {} cycles",
+            d.channels,
+            d.fb_reads,
+            d.fb_writes,
+            d.reads,
+            d.writes,
+            d.activates,
+            d.row_hits,
+            d.dram_cycles,
+            r.mem_stall_cycles
+        );
+    }
     if let Some(b) = base {
         println!(
             "speedup      {:.3} over K=1 ({b} cycles)",
@@ -330,11 +368,12 @@ fn print_report(source: &str, desc: &MachineDesc, c: &S3Config, r: &S3Report, ba
 fn print_sweep(source: &str, desc: &MachineDesc, rows: &[(S3Config, S3Report)]) {
     let c = &rows[0].0;
     println!(
-        "{source} on {} [s3]: {} candidate buffers per accelerator, split {}, chain breaking {}",
+        "{source} on {} [s3]: {} candidate buffers per accelerator, split {}, chain breaking {}, {} memory",
         desc.name,
         c.window_per_accelerator,
         if c.split { "on" } else { "off" },
-        if c.chain_break { "on" } else { "off" }
+        if c.chain_break { "on" } else { "off" },
+        c.memory.name()
     );
     println!(
         "{:>4} {:>10} {:>8} {:>8} {:>10} {:>10} {:>10}",

@@ -98,7 +98,8 @@ pub struct S3 {
     /// and gives no figure).
     pub setup_cycles: u32,
     /// Frame-buffer memory: `ideal` (multi-ported, fixed latency, 128 bits per clock per
-    /// accelerator, as simulated in the paper).
+    /// accelerator, as simulated in the paper) or `dram` (the machine's `[dram]` channels
+    /// through `[memory]`'s scheduler and crossings, see `s3::fbdram`).
     pub memory: String,
     /// Cycles from an accelerator's request to the memory and from the memory back (A).
     pub memory_latency: u32,
@@ -125,6 +126,8 @@ impl Default for S3 {
 
 /// The select policies of [`S3::select`].
 pub const S3_SELECT: &[&str] = &["random", "oldest"];
+/// The S3 frame-buffer memory modes (`s3.memory`).
+pub const S3_MEMORY: &[&str] = &["ideal", "dram"];
 
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
@@ -928,13 +931,14 @@ impl MachineDesc {
                 "is 0, must be non-zero (an LFSR seed)".into(),
             );
         }
-        if s.memory != "ideal" {
+        if !S3_MEMORY.contains(&s.memory.as_str()) {
             return bad(
                 "s3.memory",
                 format!(
-                    "is `{}`: only `ideal` is modelled (the paper's memory); the DRAM mode is \
-                     not built yet",
-                    s.memory
+                    "is `{}`, must be one of {} (the paper's ideal memory, or the machine's \
+                     DRAM channels)",
+                    s.memory,
+                    S3_MEMORY.join(", ")
                 ),
             );
         }

@@ -5,11 +5,11 @@ use imagine_units::desc::{MachineDesc, S3};
 use imagine_units::s3::game::{GameParams, generate};
 use imagine_units::s3::raster::{Mode, TraceTriangle, reference_frame};
 use imagine_units::s3::run::{RunOptions, S3Report, cycle_bound, run};
-use imagine_units::s3::{S3Config, Select};
+use imagine_units::s3::{S3Config, S3Memory, Select};
 use proptest::prelude::*;
 
 fn config(k: usize) -> S3Config {
-    let mut c = S3Config::of(&S3::default());
+    let mut c = S3Config::of(&MachineDesc::gold8());
     c.accelerators = k;
     c
 }
@@ -174,7 +174,7 @@ fn the_statistics_add_up() {
 fn the_machine_description_carries_the_papers_defaults_and_names_bad_keys() {
     let m = MachineDesc::gold8();
     assert_eq!(m.s3, S3::default());
-    let c = S3Config::of(&m.s3);
+    let c = S3Config::of(&m);
     assert_eq!(
         (c.accelerators, c.candidates(), c.dest_rs()),
         (16, 128, 144)
@@ -185,7 +185,7 @@ fn the_machine_description_carries_the_papers_defaults_and_names_bad_keys() {
         ("accelerators = 16", "accelerators = 0", "s3.accelerators"),
         ("source_slots = 1", "source_slots = 3", "s3.source_slots"),
         ("select = \"random\"", "select = \"best\"", "s3.select"),
-        ("memory = \"ideal\"", "memory = \"dram\"", "s3.memory"),
+        ("memory = \"ideal\"", "memory = \"sram\"", "s3.memory"),
         ("split_height = 32", "split_height = 0", "s3.split_height"),
         ("select_seed = 1", "select_seed = 0", "s3.select_seed"),
     ] {
@@ -235,9 +235,10 @@ fn triangles() -> impl Strategy<Value = Vec<TraceTriangle>> {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
-    /// Any machine draws the in-order frame, never has two primitives in hazard in flight,
-    /// retires everything within the sequential bound, and does not care in which order
-    /// its blocks are evaluated.
+    /// Any machine, with either memory, draws the in-order frame, never has two primitives
+    /// in hazard in flight, retires everything within the sequential bound, and does not
+    /// care in which order its blocks are evaluated (the DRAM memory's two clock domains,
+    /// crossings and channels included).
     #[test]
     fn any_machine_is_exact_safe_live_and_order_independent(
         tris in triangles(),
@@ -248,8 +249,11 @@ proptest! {
         chain_break in any::<bool>(),
         oldest in any::<bool>(),
         slots in 0usize..3,
+        dram in any::<bool>(),
+        latency in 1u32..4,
     ) {
-        let mut c = config(k);
+        let mut c = if dram { dram_config(k) } else { config(k) };
+        c.memory_latency = latency;
         c.window_per_accelerator = window;
         (c.split, c.split_height, c.chain_break) = (split, split_height, chain_break);
         c.select = if oldest { Select::Oldest } else { Select::Random };
@@ -264,8 +268,8 @@ proptest! {
     }
 }
 
-/// The built-in game frames at K = 16 with every combination of the two features draw
-/// the in-order frame (a few seconds each; `imagine s3` checks this on every run too).
+/// The built-in game frames at K = 16 with every combination of the two features, and
+/// through the DRAM, draw the in-order frame (`imagine s3` checks this on every run too).
 #[test]
 #[ignore]
 fn the_builtin_game_frames_are_exact_at_sixteen_accelerators() {
@@ -282,6 +286,9 @@ fn the_builtin_game_frames_are_exact_at_sixteen_accelerators() {
                 "{name} split={split} chain_break={chain_break}"
             );
         }
+        // Through the DRAM (about a minute each).
+        let r = run_ok(&dram_config(16), p.width, p.height, &tris);
+        assert!(r.frame == golden, "{name} through the DRAM");
     }
 }
 
@@ -313,4 +320,65 @@ proptest! {
         prop_assert_eq!(r.in_flight_hazards, 0);
         prop_assert!(r.frame == reference_frame(&tris, 32, 32), "frame differs");
     }
+}
+
+/// `config(k)` with `s3.memory = "dram"`: the gold8 DRAM behind the accelerators.
+fn dram_config(k: usize) -> S3Config {
+    let mut c = config(k);
+    c.memory = S3Memory::Dram(Box::new(MachineDesc::gold8()));
+    c
+}
+
+#[test]
+fn the_dram_memory_draws_the_ideal_memorys_frame_in_more_cycles() {
+    let (w, h, tris) = small_game(11);
+    let golden = reference_frame(&tris, w, h);
+    for k in [1, 16] {
+        let ideal = run_ok(&config(k), w, h, &tris);
+        let dram = run_ok(&dram_config(k), w, h, &tris);
+        assert_eq!(
+            dram.frame, golden,
+            "K={k}: the DRAM frame is not in-order drawing's"
+        );
+        assert_eq!(dram.frame, ideal.frame, "K={k}");
+        assert_eq!(
+            (dram.pixels, dram.primitives),
+            (ideal.pixels, ideal.primitives)
+        );
+        assert!(
+            dram.cycles > ideal.cycles,
+            "K={k}: {} vs {}",
+            dram.cycles,
+            ideal.cycles
+        );
+        assert!(dram.mem_stall_cycles > 0 && ideal.mem_stall_cycles == 0);
+        assert_eq!((ideal.memory, dram.memory), ("ideal", "dram"));
+        let s = dram.dram.clone().expect("DRAM counters");
+        assert!(ideal.dram.is_none());
+        // Every Z access is two DRAM words, a colour access one; every read is a Z read
+        // or a blend's destination read, and every passed fragment writes.
+        assert!(s.fb_reads >= dram.pixels && s.fb_writes >= dram.fragments_passed);
+        assert!(s.reads > s.fb_reads && s.writes > s.fb_writes);
+        assert!(s.row_hits > 0 && s.activates > 0);
+        eprintln!(
+            "K={k}: ideal {} cycles TLP {:.2}, dram {} cycles TLP {:.2} stalls {} {:?}",
+            ideal.cycles,
+            ideal.mean_parallelism(),
+            dram.cycles,
+            dram.mean_parallelism(),
+            dram.mem_stall_cycles,
+            s
+        );
+    }
+}
+
+#[test]
+fn the_dram_memory_refuses_bursts_it_would_have_to_read_modify_write() {
+    let (w, h, tris) = small_game(11);
+    let mut m = MachineDesc::gold8();
+    m.dram.burst_words = 4;
+    let mut c = config(2);
+    c.memory = S3Memory::Dram(Box::new(m));
+    let e = run(&c, w, h, &tris, RunOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("burst_words = 1"), "{e}");
 }

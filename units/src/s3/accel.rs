@@ -17,9 +17,19 @@
 //!   list are skipped per mode (opaque: no alpha test, destination read or blend; the
 //!   trace has no textures, so no texel read, filter or texture blend). With ideal memory
 //!   the pipeline never stalls.
+//! * **Memory stalls** (DRAM memory, [`super::fbdram`]): read data that arrives early waits
+//!   in a read-data buffer; when the pixel at the compare stage has no data yet, or the
+//!   write stage would exceed [`MAX_UNACKED_WRITES`] writes the memory has not yet
+//!   acknowledged, the whole pixel pipeline, walker and span generator hold (an in-order
+//!   stall: nothing moves, nothing is re-sent). A primitive retires only once its writes
+//!   are acknowledged, so a dependent primitive issued after the broadcast reads what it
+//!   wrote whatever the DRAM scheduler reorders. With the ideal memory (no acknowledge
+//!   port) a missing read word is a contract error, as before.
 //!
 //! The accelerator is busy, for the parallelism statistic, from the cycle the primitive
 //! arrives to the cycle it broadcasts its tag ("busy if any of its stages is busy", l.215).
+
+use std::collections::VecDeque;
 
 use imagine_hdl::{
     ContractError, Display, DomainId, Module, PipeRx, PipeTx, Scope, SignalId, SignalKind, Trace,
@@ -38,6 +48,14 @@ pub enum Phase {
 }
 
 pub const PHASE_NAMES: &[&str] = &["idle", "setup", "raster"];
+
+/// Writes an accelerator may have sent and not yet seen acknowledged (DRAM memory): bounds
+/// the memory's per-port queue. (A) Four pixels' depth and colour writes.
+pub const MAX_UNACKED_WRITES: u32 = 8;
+
+/// An accelerator's memory port: requests out, read data back in request order, and (for
+/// a memory that can be slow) the count of its writes completed each cycle.
+pub type Port = (PipeTx<MemReq>, PipeRx<MemRsp>, Option<PipeRx<u8>>);
 
 /// A pixel in the pipeline.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -64,6 +82,14 @@ struct State {
     /// The walker: (row, next x, last x).
     walk: Option<(u16, u16, u16)>,
     pipe: Vec<Option<Pixel>>,
+    /// Read data that arrived before its pixel reached the compare stage.
+    read_data: VecDeque<MemRsp>,
+    /// Writes sent and not acknowledged (DRAM memory only).
+    unacked: u32,
+    /// Cycles the accelerator was busy but held by the memory.
+    mem_stalls: u64,
+    /// This cycle was one of them.
+    stalled: bool,
     pixels: u64,
     fragments_passed: u64,
     busy_cycles: u64,
@@ -78,6 +104,7 @@ pub struct Accel {
     retire: PipeTx<Retire>,
     req: PipeTx<MemReq>,
     rsp: PipeRx<MemRsp>,
+    acks: Option<PipeRx<u8>>,
     path: String,
     q: State,
     d: State,
@@ -92,6 +119,9 @@ struct AccelIds {
     x: SignalId,
     stages: Vec<SignalId>,
     pixels: SignalId,
+    read_data: SignalId,
+    unacked: SignalId,
+    stall: SignalId,
 }
 
 impl Accel {
@@ -104,7 +134,7 @@ impl Accel {
         width: u32,
         dispatch: PipeRx<Job>,
         retire: PipeTx<Retire>,
-        (req, rsp): (PipeTx<MemReq>, PipeRx<MemRsp>),
+        (req, rsp, acks): Port,
     ) -> Self {
         let l = cfg.memory_latency as usize;
         // Stage 0 (interpolate, send the reads) is the walker's output; the registers
@@ -128,6 +158,18 @@ impl Accel {
                 .map(|i| s.child("pipe").signal(&stage_name(i), 1, SignalKind::Reg))
                 .collect(),
             pixels: s.signal("pixels", 32, SignalKind::Reg),
+            // At most two reads per pixel in the 2L stages before the compare.
+            read_data: s.signal(
+                "read_data",
+                imagine_hdl::bits_for(4 * l as u64),
+                SignalKind::Reg,
+            ),
+            unacked: s.signal(
+                "unacked_writes",
+                imagine_hdl::bits_for(MAX_UNACKED_WRITES as u64),
+                SignalKind::Reg,
+            ),
+            stall: s.signal("mem_stall", 1, SignalKind::Reg),
         };
         let q = State {
             phase: Phase::Idle,
@@ -138,6 +180,10 @@ impl Accel {
             span: None,
             walk: None,
             pipe: vec![None; n_stages],
+            read_data: VecDeque::new(),
+            unacked: 0,
+            mem_stalls: 0,
+            stalled: false,
             pixels: 0,
             fragments_passed: 0,
             busy_cycles: 0,
@@ -151,6 +197,7 @@ impl Accel {
             retire,
             req,
             rsp,
+            acks,
             path: s.path().to_string(),
             d: q.clone(),
             q,
@@ -171,6 +218,12 @@ impl Accel {
         self.q.busy_cycles
     }
 
+    /// Busy cycles the memory held this accelerator (read data late, too many writes
+    /// unacknowledged, or its last writes not yet done).
+    pub fn mem_stall_cycles(&self) -> u64 {
+        self.q.mem_stalls
+    }
+
     fn fail(&self, why: String) -> ContractError {
         ContractError::at(&self.path, Violation::Other(why))
     }
@@ -180,6 +233,23 @@ impl Accel {
         let job = q.job.expect("rastering a job");
         let n = q.pipe.len();
         let (cmp, last) = (n - 2, n - 1);
+        let mode = job.prim.tri.mode;
+        // Hold everything while the memory is behind (see the module doc).
+        let reads = 1 + (mode == Mode::Blended) as usize;
+        let data_late = q.pipe[cmp].is_some() && st.read_data.len() < reads;
+        let writes = q.pipe[last].map_or(0, |p| {
+            p.write_depth.is_some() as u32 + p.write_colour.is_some() as u32
+        });
+        let acked = self.acks.is_some();
+        let too_many_writes = acked && st.unacked + writes > MAX_UNACKED_WRITES;
+        if data_late && !acked {
+            return Err(self.fail("no depth read data at the compare stage".into()));
+        }
+        if data_late || too_many_writes {
+            st.mem_stalls += 1;
+            st.stalled = true;
+            return Ok(());
+        }
         // The write stage.
         if let Some(p) = q.pipe[last] {
             if let Some(w) = p.write_depth {
@@ -188,15 +258,18 @@ impl Accel {
             if let Some(c) = p.write_colour {
                 self.req.write(MemReq::WriteColour(p.addr, c))?;
             }
+            if acked {
+                st.unacked += writes;
+            }
         }
-        // The compare stage: the read data of this pixel arrives now.
+        // The compare stage: the read data of this pixel is here.
         let mut decided = None;
         if let Some(mut p) = q.pipe[cmp] {
-            let Some(MemRsp::Depth(old_z)) = self.rsp.read() else {
+            let Some(MemRsp::Depth(old_z)) = st.read_data.pop_front() else {
                 return Err(self.fail("no depth read data at the compare stage".into()));
             };
-            let old_c = match job.prim.tri.mode {
-                Mode::Blended => match self.rsp.read() {
+            let old_c = match mode {
+                Mode::Blended => match st.read_data.pop_front() {
                     Some(MemRsp::Colour(c)) => c,
                     _ => return Err(self.fail("no destination read data to blend".into())),
                 },
@@ -271,7 +344,11 @@ impl Accel {
             && q.span.is_none()
             && q.walk.is_none()
             && q.pipe.iter().all(Option::is_none);
-        if drained {
+        if drained && st.unacked > 0 {
+            // Its last writes are still on their way into the DRAM.
+            st.mem_stalls += 1;
+            st.stalled = true;
+        } else if drained {
             self.retire.write(Retire {
                 accel: self.index,
                 tag: job.tag,
@@ -291,6 +368,21 @@ impl Module for Accel {
 
     fn eval(&mut self) -> Result<(), ContractError> {
         let mut st = self.q.clone();
+        st.stalled = false;
+        // Every word that arrives is taken this cycle (a pipe's contract).
+        while let Some(r) = self.rsp.read() {
+            st.read_data.push_back(r);
+        }
+        if let Some(acks) = &mut self.acks {
+            while let Some(n) = acks.read() {
+                st.unacked = st.unacked.checked_sub(n as u32).ok_or_else(|| {
+                    ContractError::at(
+                        &self.path,
+                        Violation::Other("more writes acknowledged than sent".into()),
+                    )
+                })?;
+            }
+        }
         if let Some(job) = self.dispatch.read() {
             if self.q.phase != Phase::Idle {
                 return Err(self.fail(format!("given tag {} while busy", job.tag)));
@@ -323,6 +415,9 @@ impl Module for Accel {
                 Phase::Raster => self.raster(&mut st)?,
             }
         }
+        if self.acks.is_none() && !st.read_data.is_empty() {
+            return Err(self.fail("read data arrived with no pixel to take it".into()));
+        }
         st.busy_cycles = self.q.busy_cycles + (self.q.phase != Phase::Idle) as u64;
         self.d = st;
         Ok(())
@@ -344,5 +439,8 @@ impl Module for Accel {
             t.value(*id, s.is_some() as u64);
         }
         t.value(i.pixels, q.pixels & 0xFFFF_FFFF);
+        t.value(i.read_data, q.read_data.len() as u64);
+        t.value(i.unacked, q.unacked as u64);
+        t.value(i.stall, q.stalled as u64);
     }
 }

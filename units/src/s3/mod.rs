@@ -13,6 +13,7 @@
 //!                                                   ▲                          pixels)   │
 //!                                                   └──────── pipe retire k ◀───────────┤
 //!                                               FbMem ◀── pipe mem_req k / mem_rsp k ──▶┘
+//!                                    (or FbDram ◀── … and pipe mem_ack k ──▶ DRAM channels)
 //! ```
 //!
 //! * [`fetch`] — the command queue's reader: decodes a triangle into fixed point,
@@ -27,6 +28,8 @@
 //!   write), one pixel per clock at peak;
 //! * [`fbmem`] — the ideal multi-ported frame-buffer memory of the paper's simulator
 //!   (four 32-bit-class accesses per accelerator per clock, fixed latency);
+//! * [`fbdram`] — the other memory mode: the same ports arbitrated onto the machine's
+//!   DRAM channels ([`crate::dram`]) through the main machine's clock crossings;
 //! * [`raster`] — the accelerators' arithmetic as pure functions, and the in-order golden
 //!   frame;
 //! * [`run`] — the design, the trace driver and the statistics (triangle-level
@@ -36,6 +39,7 @@
 //! Parameters come from the machine description's `[s3]` table ([`crate::desc::S3`]).
 
 pub mod accel;
+pub mod fbdram;
 pub mod fbmem;
 pub mod fetch;
 pub mod game;
@@ -43,7 +47,7 @@ pub mod issue;
 pub mod raster;
 pub mod run;
 
-use crate::desc::S3;
+use crate::desc::MachineDesc;
 use raster::{FixedTriangle, Mode, Region};
 
 /// The S3 parameters of one run: the machine's `[s3]` table with the driver's switches.
@@ -59,7 +63,26 @@ pub struct S3Config {
     pub select_seed: u32,
     pub queue_entries: usize,
     pub setup_cycles: u32,
+    pub memory: S3Memory,
     pub memory_latency: u32,
+}
+
+/// The frame-buffer memory behind the accelerators' ports (`s3.memory`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum S3Memory {
+    /// The paper's ideal multi-ported memory ([`fbmem`]).
+    Ideal,
+    /// The DRAM channels, scheduler, crossings and clocks of this machine ([`fbdram`]).
+    Dram(Box<MachineDesc>),
+}
+
+impl S3Memory {
+    pub fn name(&self) -> &'static str {
+        match self {
+            S3Memory::Ideal => "ideal",
+            S3Memory::Dram(_) => "dram",
+        }
+    }
 }
 
 /// Which of several ready candidates issues.
@@ -72,8 +95,10 @@ pub enum Select {
 }
 
 impl S3Config {
-    /// The configuration of a (validated) machine description's `[s3]` table.
-    pub fn of(s: &S3) -> S3Config {
+    /// The configuration of a (validated) machine description's `[s3]` table (and, for
+    /// `memory = "dram"`, its `[dram]`, `[memory]` and `[clocks]`).
+    pub fn of(m: &MachineDesc) -> S3Config {
+        let s = &m.s3;
         S3Config {
             accelerators: s.accelerators,
             window_per_accelerator: s.window_per_accelerator,
@@ -89,6 +114,11 @@ impl S3Config {
             select_seed: s.select_seed,
             queue_entries: s.queue_entries,
             setup_cycles: s.setup_cycles,
+            memory: if s.memory == "dram" {
+                S3Memory::Dram(Box::new(m.clone()))
+            } else {
+                S3Memory::Ideal
+            },
             memory_latency: s.memory_latency,
         }
     }
