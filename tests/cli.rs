@@ -1786,3 +1786,58 @@ fn s3_bad_input_is_a_clear_error() {
         assert_clear_error(args);
     }
 }
+
+/// `imagine kernel` takes the Reyes pipeline's kernels by their breakdown's names: `shade`
+/// checks against its interpretation, the list names every kernel, and gold8 (whose
+/// scratchpad is too small for `subdiv`) says why it has none.
+#[test]
+fn kernel_takes_the_reyes_pipelines_kernels() {
+    let reyes = [
+        "--scene",
+        "TEAPOT-20",
+        "--pipeline",
+        "reyes",
+        "--machine",
+        "reyes",
+    ];
+    let o = imagine(&[&["kernel", "list"], &reyes[..]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    for name in [
+        "project",
+        "subdiv_split",
+        "subdiv",
+        "perlight",
+        "shade",
+        "sample",
+    ] {
+        assert!(
+            stdout(&o).lines().any(|l| l.trim_start().starts_with(name)),
+            "{name}: {}",
+            stdout(&o)
+        );
+    }
+    let o = imagine(&[&["kernel", "check", "shade"], &reyes[..]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("shade: pass on reyes"),
+        "{}",
+        stdout(&o)
+    );
+    let o = imagine(&[
+        "kernel",
+        "check",
+        "shade",
+        "--scene",
+        "TEAPOT-20",
+        "--pipeline",
+        "reyes",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("kernel `subdiv` needs 504 scratchpad words"),
+        "{}",
+        stderr(&o)
+    );
+    let o = imagine(&["kernel", "list", "--stop-length", "2"]);
+    assert!(stderr(&o).contains("--stop-length is for the Reyes pipeline"));
+}

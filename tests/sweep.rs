@@ -226,8 +226,12 @@ fn bad_knobs_are_clear_errors() {
     let csv_s = csv.to_str().unwrap();
     for (knob, says) in [
         (
-            "stop_length=1,2",
-            "no knob is named `stop_length`; the knobs are machine",
+            "stop_size=1,2",
+            "no knob is named `stop_size`; the knobs are machine",
+        ),
+        (
+            "stop_length=8",
+            "stop_length takes Reyes's largest quad side",
         ),
         ("batch=0", "batch takes triangles per batch"),
         ("filter=cubic", "filter takes nearest, bilinear"),
@@ -245,6 +249,21 @@ fn bad_knobs_are_clear_errors() {
         "sweep", "RATE-8", "--knob", "batch=8", "--knob", "batch=16", "--csv", csv_s,
     ]);
     assert!(stderr(&o).contains("given twice"), "{}", stderr(&o));
+    let o = imagine(&[
+        "sweep",
+        "TEAPOT-20",
+        "--knob",
+        "stop_length=1.5",
+        "--knob",
+        "filter=nearest",
+        "--csv",
+        csv_s,
+    ]);
+    assert!(
+        stderr(&o).contains("filter is a setting of the OpenGL pipeline"),
+        "{}",
+        stderr(&o)
+    );
     assert!(!csv.exists(), "no CSV is written for a refused sweep");
 }
 
@@ -292,4 +311,32 @@ fn a_failing_point_is_reported_and_the_others_are_kept() {
     // The rerun renders only the failed point again.
     let again = imagine(&args);
     assert!(stderr(&again).contains("1 already"), "{}", stderr(&again));
+}
+
+/// The Reyes stop length trades cycles for error on the Utah teapot's patches: a shorter
+/// one dices finer, costs more and comes closer to the densely diced reference.
+#[test]
+#[ignore = "compiles the Reyes kernels: minutes cold"]
+fn a_shorter_reyes_stop_length_costs_cycles_and_buys_psnr() {
+    let dir = scratch("reyes");
+    let csv = dir.join("teapot.csv");
+    let o = imagine(&[
+        "sweep",
+        "TEAPOT-20",
+        "--machine",
+        "reyes",
+        "--size",
+        "96",
+        "--knob",
+        "stop_length=1.0,3.0",
+        "--csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (header, rows) = read_csv(&csv);
+    let value = |r: usize, name: &str| column(&header, &rows[r], name).parse::<f64>().unwrap();
+    assert!(value(0, "cycles") > value(1, "cycles"));
+    assert!(value(0, "quads") > 2.0 * value(1, "quads"));
+    assert!(value(0, "psnr_db") > value(1, "psnr_db"));
+    assert!(value(0, "psnr_db") > 25.0, "{rows:?}");
 }

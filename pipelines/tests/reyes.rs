@@ -48,6 +48,7 @@ fn frame_cache() -> CompileCache {
             kernels::subdiv(&desc).unwrap(),
             kernels::project(&desc).unwrap(),
             kernels::subdiv_split(&desc).unwrap(),
+            kernels::shade(&desc, kernels::Shading::Flat).unwrap(),
             kernels::sample(&desc, W, W, 1.5).unwrap(),
             gl::hash(&desc, shape).unwrap(),
             gl::zcompare(&desc, shape).unwrap(),
@@ -87,6 +88,13 @@ fn grid(x0: f32, y0: f32, dx: f32, dy: f32, bulge: f32) -> BezierPatch {
 /// `w × h` window.
 fn window_to_clip(w: u32, h: u32) -> [f32; 16] {
     imagine_pipelines::scene::window_to_clip(w, h)
+}
+
+/// The quad records of a `shade` output stream.
+fn shaded_quads(stream: &[u32], desc: &MachineDesc) -> impl Iterator<Item = Vec<u32>> {
+    imagine_pipelines::kernels::stream_to_records(stream, kernels::QUAD_WORDS, desc.cluster.count)
+        .into_iter()
+        .filter(|r| r[kernels::Q_FLAGS] & kernels::FLAG_QUAD != 0)
 }
 
 fn patch_record(p: &BezierPatch, colour: u32) -> Vec<u32> {
@@ -194,9 +202,53 @@ fn project_and_sample_machine_equal_interpretation() {
         &desc,
     )
     .unwrap();
+    // Shaded, flat and lit (two lights, one specular term), each on the machine as
+    // interpreted; the lit quads go on to the sampler.
+    let flat = kernels::shade(&desc, kernels::Shading::Flat).unwrap();
+    let inputs = KernelInputs {
+        streams: vec![out[3].clone(), vec![]],
+        params: vec![],
+    };
+    let r = check(&flat, &compiled(&flat, &desc), &desc, &inputs).unwrap();
+    assert!(
+        r.mismatch.is_none(),
+        "shade (flat): {}",
+        r.mismatch.unwrap()
+    );
+    let lit = kernels::shade(
+        &desc,
+        kernels::Shading::Lit {
+            lights: 2,
+            specular: true,
+            shininess: 12,
+        },
+    )
+    .unwrap();
+    // 2/W, 2/H and a perspective projection's P00, P11, P22, P23 (fov 60°, near 1, far
+    // 10), padded; per light its eye-space position, d·d and s·s; then the base colour.
+    let mut params: Vec<f32> = vec![2.0 / W as f32, 2.0 / W as f32, 1.732, 1.732, -1.222, -2.222];
+    params.resize(kernels::shade_own_rows(&desc), 0.0);
+    params.extend([3.0, 4.0, 2.0, 0.6, 0.5, 0.4, 0.3, 0.3, 0.3]);
+    params.extend([-5.0, 1.0, -1.0, 0.2, 0.25, 0.3, 0.0, 0.1, 0.2]);
+    params.extend([0.05, 0.05, 0.08]);
+    let inputs = KernelInputs {
+        streams: vec![out[3].clone(), vec![]],
+        params: params.iter().map(|v| v.to_bits()).collect(),
+    };
+    let r = check(&lit, &compiled(&lit, &desc), &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "shade (lit): {}", r.mismatch.unwrap());
+    let shaded = imagine_pipelines::kernel::interpret(&lit, &inputs, &desc).unwrap();
+    let colours: std::collections::BTreeSet<u32> = shaded_quads(&shaded[1], &desc)
+        .map(|r| r[kernels::Q_COLOUR])
+        .collect();
+    assert!(
+        colours.len() > 4,
+        "lit quads take their own colours: {colours:?}"
+    );
+
     let sampler = kernels::sample(&desc, W, W, stop).unwrap();
     let inputs = KernelInputs {
-        streams: vec![out[3].clone(), vec![], vec![], vec![], vec![], vec![]],
+        streams: vec![shaded[1].clone(), vec![], vec![], vec![], vec![], vec![]],
         params: vec![],
     };
     let r = check(&sampler, &compiled(&sampler, &desc), &desc, &inputs).unwrap();

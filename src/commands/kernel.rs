@@ -21,7 +21,9 @@ use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::kernel::{Kernel, KernelInputs};
 use imagine_pipelines::kernels::{LibraryKernel, library};
 use imagine_pipelines::opengl::render::{RenderOptions, kernel_description, pipeline_kernels};
+use imagine_pipelines::reyes::frame::{self, ShadeSetup};
 use imagine_pipelines::run::{check, random_inputs};
+use imagine_pipelines::scene::model::PipelineKind;
 use imagine_pipelines::scene::{self, LoadOptions};
 
 use super::outputs::Outputs;
@@ -152,6 +154,13 @@ pub struct PipelineArgs {
     /// `render --no-specialize`)
     #[arg(long)]
     no_specialize: bool,
+    /// The pipeline whose kernels to take: `opengl` or `reyes` (the scene's patches; run
+    /// them on `--machine reyes`) [default: the scene's `pipeline.kind`]
+    #[arg(long, value_parser = ["opengl", "reyes"])]
+    pipeline: Option<String>,
+    /// Reyes: the stop length `sample` is built for (as `render --stop-length`)
+    #[arg(long, value_name = "L")]
+    stop_length: Option<f32>,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -498,6 +507,7 @@ impl Entry {
 /// cannot be: a machine a library kernel serves may still be one the pipeline cannot).
 struct Pipeline {
     scene: String,
+    reyes: bool,
     specialised: bool,
     kernels: Result<Vec<(String, Kernel)>, String>,
 }
@@ -517,19 +527,49 @@ impl Pipeline {
                 filter: None,
             },
         )?;
-        let options = RenderOptions {
-            specialise: !a.no_specialize,
-            ..RenderOptions::default()
+        let reyes = match a.pipeline.as_deref() {
+            Some(p) => p == "reyes",
+            None => scene.pipeline.kind == PipelineKind::Reyes,
+        };
+        if !reyes && a.stop_length.is_some() {
+            bail!("--stop-length is for the Reyes pipeline (`--pipeline reyes`)");
+        }
+        if reyes && a.no_specialize {
+            bail!("--no-specialize is for the OpenGL pipeline");
+        }
+        let kernels = if reyes {
+            let stop = a.stop_length.unwrap_or(scene.pipeline.stop_length);
+            frame::check_stop_length(stop).context("--stop-length")?;
+            ShadeSetup::of(&scene, desc.cluster.count)
+                .map_err(|e| e.to_string())
+                .and_then(|shading| {
+                    frame::frame_kernels(desc, scene.width, scene.height, stop, &shading)
+                        .map_err(|e| e.to_string())
+                })
+                .map(|ks| ks.into_iter().map(|(n, k)| (n.to_string(), k)).collect())
+        } else {
+            let options = RenderOptions {
+                specialise: !a.no_specialize,
+                ..RenderOptions::default()
+            };
+            pipeline_kernels(&scene, desc, &options).map_err(|e| e.to_string())
         };
         Ok(Pipeline {
             scene: scene.name.clone(),
+            reyes,
             specialised: !a.no_specialize,
-            kernels: pipeline_kernels(&scene, desc, &options).map_err(|e| e.to_string()),
+            kernels,
         })
     }
 
     /// How the list names the pipeline.
     fn title(&self, desc: &MachineDesc) -> String {
+        if self.reyes {
+            return format!(
+                "the Reyes pipeline of `render {} --pipeline reyes` on {}",
+                self.scene, desc.name
+            );
+        }
         format!(
             "the OpenGL pipeline of `render {}{}` on {}",
             self.scene,

@@ -96,7 +96,8 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
             "levels": s.levels,
             "composite_rounds": s.rounds,
             "kernels": s.kernels.iter().map(|k| serde_json::json!({
-                "name": k.name, "calls": k.calls, "cycles": k.cycles,
+                "name": k.name, "calls": k.calls, "cycles": k.cycles, "ops": k.ops,
+                "ops_per_cycle": k.ops_per_cycle(),
             })).collect::<Vec<_>>(),
             "reference": {
                 "dice": REFERENCE_DICE,
@@ -141,14 +142,15 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
         .map(|(l, n)| format!("{l}: {n}"))
         .collect();
     println!("  levels      {}", levels.join(", "));
-    println!("  kernel                      calls        cycles   share");
+    println!("  kernel                      calls        cycles   share  ops/cycle");
     for k in &s.kernels {
         println!(
-            "    {:<26}{:>7}{:>14}{:>7.1}%",
+            "    {:<26}{:>7}{:>14}{:>7.1}%{:>11.1}",
             k.name,
             k.calls,
             k.cycles,
-            100.0 * k.cycles as f64 / s.cycles.max(1) as f64
+            100.0 * k.cycles as f64 / s.cycles.max(1) as f64,
+            k.ops_per_cycle()
         );
     }
     println!(

@@ -876,6 +876,12 @@ pub fn kernel_description(name: &str) -> String {
             "vertex: the vertex program's next lights (a light pass)"
         }
         _ if stem.starts_with("vertex_") => "vertex: the vertex program (clip position, colour)",
+        // The Reyes pipeline's own (it shares the composite and `perlight`).
+        "project" => "patch (Reyes): its 16 control points to window space",
+        "subdiv_split" => "patch (Reyes): its four children, a breadth-first level",
+        "subdiv" => "iteration (Reyes): one quad of each cluster's depth-first walk",
+        "shade" => "quad (Reyes): its colour from the material, lit at its centre",
+        "sample" => "quad (Reyes): the pixel centres of its box against its four edges",
         _ => "a kernel of the OpenGL pipeline",
     };
     about.to_string()

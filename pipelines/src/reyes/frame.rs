@@ -47,6 +47,7 @@ use super::kernels::{
     STACK_FRAMES, STATE_WORDS, SUBDIV_QUAD_WORDS, Shading, stamp,
 };
 use crate::compile::CompileCache;
+use crate::kernel::{Kernel, MachineRequirementError};
 use crate::kernels::stream_to_records;
 use crate::opengl::kernels::{self as gl, FrameShape, NULL_DEPTH, PIXEL_WORDS};
 use crate::opengl::render::{
@@ -132,6 +133,15 @@ pub struct KernelShare {
     pub name: String,
     pub calls: u64,
     pub cycles: u64,
+    /// Arithmetic ops issued, across all clusters (the machine's FU ops).
+    pub ops: u64,
+}
+
+impl KernelShare {
+    /// Arithmetic ops per cycle of its calls, across all clusters.
+    pub fn ops_per_cycle(&self) -> f64 {
+        self.ops as f64 / self.cycles.max(1) as f64
+    }
 }
 
 /// What a Reyes frame counted.
@@ -347,6 +357,60 @@ pub fn check_stop_length(stop: f32) -> Result<(), ReyesError> {
     Ok(())
 }
 
+/// The composite's frame shape: every quad's fragments depth-tested LESS, nothing culled
+/// or blended.
+fn frame_shape(desc: &MachineDesc, width: u32, height: u32) -> FrameShape {
+    let c = desc.cluster.count;
+    FrameShape {
+        width,
+        height,
+        clusters: c,
+        cull: Cull::None,
+        depth_test: DepthTest::Less,
+        batch: c,
+        blend: Blend::None,
+    }
+}
+
+/// A frame's kernels by the names it calls them under (its kernel breakdown's): for a
+/// `width × height` window, stop length `stop` and `shading` (`perlight` only when lit).
+pub fn frame_kernels(
+    desc: &MachineDesc,
+    width: u32,
+    height: u32,
+    stop: f32,
+    shading: &ShadeSetup,
+) -> Result<Vec<(&'static str, Kernel)>, MachineRequirementError> {
+    let shape = frame_shape(desc, width, height);
+    let mut k = vec![
+        ("project", kernels::project(desc)?),
+        ("subdiv_split", kernels::subdiv_split(desc)?),
+        ("subdiv", kernels::subdiv(desc)?),
+    ];
+    if let Some((program, ..)) = &shading.perlight {
+        k.push((
+            "perlight",
+            program.perlight(desc).expect("a lit program has perlight"),
+        ));
+    }
+    k.extend([
+        ("shade", kernels::shade(desc, shading.shading)?),
+        ("sample", kernels::sample(desc, width, height, stop)?),
+        ("hash", gl::hash(desc, shape)?),
+        ("zcompare", gl::zcompare(desc, shape)?),
+        (
+            "compact_recycle:z,colour",
+            gl::compact_recycle(desc, [NULL_DEPTH, 0])?,
+        ),
+        (
+            "compact_recycle:addr,prim",
+            gl::compact_recycle(desc, [shape.trash(), 0])?,
+        ),
+        ("clear", gl::clear(desc)?),
+    ]);
+    Ok(k)
+}
+
 /// Renders a scene's patch objects through the Reyes pipeline on `desc`.
 pub fn render(
     scene: &Scene,
@@ -387,56 +451,35 @@ pub fn render_patches(
             "iterations per `subdiv` call must be at least 1".into(),
         ));
     }
-    let shape = FrameShape {
-        width,
-        height,
-        clusters: c,
-        cull: Cull::None,
-        depth_test: DepthTest::Less,
-        batch: c,
-        blend: Blend::None,
-    };
     let levels = options
         .split_levels
         .unwrap_or_else(|| split_levels_for(width, height)) as usize;
 
     // The kernels, registered by name and compiled up front.
     let mut lib = KernelLibrary::new(desc, options.cache.clone());
-    let built = (|| {
-        Ok::<_, crate::kernel::MachineRequirementError>((
-            lib.register("project", kernels::project(desc)?),
-            lib.register("subdiv_split", kernels::subdiv_split(desc)?),
-            lib.register("subdiv", kernels::subdiv(desc)?),
-            lib.register("shade", kernels::shade(desc, shading.shading)?),
-            match &shading.perlight {
-                Some((program, ..)) => Some(lib.register(
-                    "perlight",
-                    program.perlight(desc).expect("a lit program has perlight"),
-                )),
-                None => None,
-            },
-            lib.register(
-                "sample",
-                kernels::sample(desc, width, height, options.stop_length)?,
-            ),
-            CompositeKernels {
-                hash: lib.register("hash", gl::hash(desc, shape)?),
-                zcompare: lib.register("zcompare", gl::zcompare(desc, shape)?),
-                recycle_zc: lib.register(
-                    "compact_recycle:z,colour",
-                    gl::compact_recycle(desc, [NULL_DEPTH, 0])?,
-                ),
-                recycle_ap: lib.register(
-                    "compact_recycle:addr,prim",
-                    gl::compact_recycle(desc, [shape.trash(), 0])?,
-                ),
-                merge: None,
-            },
-            lib.register("clear", gl::clear(desc)?),
-        ))
-    })();
-    let (project, split, subdiv, shade, perlight, sample, ck, clear) =
-        built.map_err(|e| ReyesError(e.to_string()))?;
+    let mut ids = std::collections::HashMap::new();
+    for (name, kernel) in frame_kernels(desc, width, height, options.stop_length, shading)
+        .map_err(|e| ReyesError(e.to_string()))?
+    {
+        ids.insert(name, lib.register(name, kernel));
+    }
+    let id = |name: &str| ids[name];
+    let (project, split, subdiv, shade, sample, clear) = (
+        id("project"),
+        id("subdiv_split"),
+        id("subdiv"),
+        id("shade"),
+        id("sample"),
+        id("clear"),
+    );
+    let perlight = ids.get("perlight").copied();
+    let ck = CompositeKernels {
+        hash: id("hash"),
+        zcompare: id("zcompare"),
+        recycle_zc: id("compact_recycle:z,colour"),
+        recycle_ap: id("compact_recycle:addr,prim"),
+        merge: None,
+    };
     let mut eager = vec![project, subdiv, shade, sample, clear];
     eager.extend(perlight);
     eager.extend([ck.hash, ck.zcompare, ck.recycle_zc, ck.recycle_ap]);
@@ -909,6 +952,7 @@ fn kernel_shares(h: &StreamHost) -> Vec<KernelShare> {
         };
         shares[i].calls += 1;
         shares[i].cycles += st.cycles;
+        shares[i].ops += st.fu_ops.iter().sum::<u64>() * h.clusters() as u64;
     }
     shares
 }
