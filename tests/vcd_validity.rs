@@ -157,6 +157,15 @@ fn gtkwave_accepts_a_machine_vcd() {
 
 /// The values (as text, a Verilog string right-justified in its bits) the variable
 /// `name` of scope `scope` took.
+/// The commands after the header, each parsed with its declared width.
+fn value_changes(path: &Path) -> usize {
+    let mut parser = vcd::Parser::new(BufReader::new(File::open(path).unwrap()));
+    parser.parse_header().unwrap();
+    parser
+        .inspect(|command| assert!(command.is_ok(), "{command:?}"))
+        .count()
+}
+
 fn text_values(path: &Path, scope: &str, name: &str) -> BTreeSet<String> {
     let mut parser = vcd::Parser::new(BufReader::new(File::open(path).unwrap()));
     let header = parser.parse_header().unwrap();
@@ -319,13 +328,7 @@ fn an_s3_waveform_through_the_dram_shows_the_memory_blocks_and_reads_back_whole(
     ] {
         assert!(paths.contains(want), "`{want}` missing");
     }
-    let mut parser = vcd::Parser::new(BufReader::new(File::open(&vcd).unwrap()));
-    parser.parse_header().unwrap();
-    let mut changes = 0;
-    for command in parser {
-        command.unwrap();
-        changes += 1;
-    }
+    let changes = value_changes(&vcd);
     assert!(changes > 1_000, "{changes}");
 }
 
@@ -360,13 +363,7 @@ fn an_s3_waveform_shows_every_block_and_reads_back_whole() {
         assert!(paths.contains(want), "`{want}` missing");
     }
     // Every value change parses, with the declared widths.
-    let mut parser = vcd::Parser::new(BufReader::new(File::open(&vcd).unwrap()));
-    parser.parse_header().unwrap();
-    let mut changes = 0;
-    for command in parser {
-        command.unwrap();
-        changes += 1;
-    }
+    let changes = value_changes(&vcd);
     assert!(changes > 10_000, "{changes}");
     #[cfg(feature = "gtkwave")]
     assert_gtkwave_accepts(&vcd);

@@ -40,6 +40,7 @@ use self::batch_model::BatchModel;
 use self::knobs::{Axis, Knob, KnobValue, Setup};
 use super::outputs::Outputs;
 use super::reference_error;
+use imagine_verif::image::Metrics;
 
 #[derive(Args)]
 pub struct SweepArgs {
@@ -595,16 +596,46 @@ fn render_point(
     };
     let frame = render_with(&scene, &point.setup.machine, options, None, |_, _| {})?;
     let error = reference_error::measure(&scene, &frame)?;
-    let m = &error.metrics;
+    Ok(measured(
+        FrameNumbers {
+            cycles: frame.stats.cycles,
+            frames_per_second: frame.stats.frames_per_second,
+            cluster_occupancy: frame.stats.cluster_occupancy,
+            batch_triangles: frame.stats.batch_triangles,
+            batches: frame.stats.batches,
+            dram_gbs: frame.stats.dram_gbs,
+            texture_cache_hit_rate: frame.stats.texture_cache.as_ref().map(|t| t.hit_rate),
+            quads: None,
+        },
+        &error.metrics,
+        start,
+    ))
+}
+
+/// What a point's frame measured of itself (the rest of its [`PointResult`] is its error).
+struct FrameNumbers {
+    cycles: u64,
+    frames_per_second: f64,
+    cluster_occupancy: f64,
+    batch_triangles: usize,
+    batches: u64,
+    dram_gbs: f64,
+    texture_cache_hit_rate: Option<f64>,
+    quads: Option<u64>,
+}
+
+/// A point's result: its frame's numbers, its error `m` against the reference, and the
+/// host seconds since `start`.
+fn measured(f: FrameNumbers, m: &Metrics, start: Instant) -> PointResult {
     let finite = |v: f64| v.is_finite().then_some(v);
-    Ok(PointResult {
-        cycles: frame.stats.cycles,
-        frames_per_second: frame.stats.frames_per_second,
+    PointResult {
+        cycles: f.cycles,
+        frames_per_second: f.frames_per_second,
         host_seconds: start.elapsed().as_secs_f64(),
-        cluster_occupancy: frame.stats.cluster_occupancy,
-        batch_triangles: frame.stats.batch_triangles,
-        batches: frame.stats.batches,
-        dram_gbs: frame.stats.dram_gbs,
+        cluster_occupancy: f.cluster_occupancy,
+        batch_triangles: f.batch_triangles,
+        batches: f.batches,
+        dram_gbs: f.dram_gbs,
         psnr_db: finite(m.psnr_db),
         max_abs_error: m.max_abs_error,
         differing_pixels_share: m.differing_share,
@@ -615,9 +646,9 @@ fn render_point(
         wrongly_covered_share: m.wrongly_covered_share,
         missed_share: m.missed_share,
         visibility_differing_share: m.visibility_differing_share,
-        texture_cache_hit_rate: frame.stats.texture_cache.as_ref().map(|t| t.hit_rate),
-        quads: None,
-    })
+        texture_cache_hit_rate: f.texture_cache_hit_rate,
+        quads: f.quads,
+    }
 }
 
 /// Renders one point through the Reyes pipeline and measures its error against the
@@ -636,30 +667,22 @@ fn render_reyes_point(
     };
     let frame = reyes::frame::render(scene, machine, &options)?;
     let error = reference_error::measure_reyes(scene, &frame)?;
-    let (s, m) = (&frame.stats, &error.metrics);
+    let s = &frame.stats;
     let busy: u64 = s.kernels.iter().map(|k| k.cycles).sum();
-    let finite = |v: f64| v.is_finite().then_some(v);
-    Ok(PointResult {
-        cycles: s.cycles,
-        frames_per_second: machine.clocks.core_mhz as f64 * 1e6 / s.cycles.max(1) as f64,
-        host_seconds: start.elapsed().as_secs_f64(),
-        cluster_occupancy: busy as f64 / s.cycles.max(1) as f64,
-        batch_triangles: 0,
-        batches: 0,
-        dram_gbs: 0.0,
-        psnr_db: finite(m.psnr_db),
-        max_abs_error: m.max_abs_error,
-        differing_pixels_share: m.differing_share,
-        coverage_differences_share: m.coverage_mismatch_share,
-        covered_in_both_pixels: m.covered_in_both_pixels,
-        covered_psnr_db: finite(m.covered_psnr_db),
-        covered_max_abs_error_levels: m.covered_max_abs_error_levels,
-        wrongly_covered_share: m.wrongly_covered_share,
-        missed_share: m.missed_share,
-        visibility_differing_share: m.visibility_differing_share,
-        texture_cache_hit_rate: None,
-        quads: Some(s.quads),
-    })
+    Ok(measured(
+        FrameNumbers {
+            cycles: s.cycles,
+            frames_per_second: machine.clocks.core_mhz as f64 * 1e6 / s.cycles.max(1) as f64,
+            cluster_occupancy: busy as f64 / s.cycles.max(1) as f64,
+            batch_triangles: 0,
+            batches: 0,
+            dram_gbs: 0.0,
+            texture_cache_hit_rate: None,
+            quads: Some(s.quads),
+        },
+        &error.metrics,
+        start,
+    ))
 }
 
 /// Writes the CSV: a column per knob, then [`CSV_METRICS`], a row per point in grid order.
