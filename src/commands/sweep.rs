@@ -52,8 +52,9 @@ pub struct SweepArgs {
     /// flush_to_zero, normalise_clip and reference_depth (true, false: the machine's
     /// arithmetic and the scene's pipeline settings), newton_raphson (0 to 3: irast's
     /// reciprocal, 0 the divide unit), stop_length (pixels: the point renders the scene's
-    /// patches through the Reyes pipeline; with machine and flush_to_zero only); repeat for
-    /// a grid of every combination
+    /// patches through the Reyes pipeline; with machine and flush_to_zero only), rasterizer
+    /// (kernels, hardware: the thesis's hardware rasterizer added to the machine); repeat
+    /// for a grid of every combination
     #[arg(long = "knob", value_name = "NAME=V1,V2,…", required = true)]
     knobs: Vec<String>,
     /// The CSV to write, one row per point in grid order; finished points are kept in

@@ -29,10 +29,13 @@ pub enum Knob {
     /// Reyes's stop length (`render --pipeline reyes --stop-length`): the point renders
     /// through the Reyes pipeline.
     StopLength,
+    /// The OpenGL pipeline's rasterizer: its kernels, or the thesis's hardware rasterizer
+    /// (`gold8+hwrast`'s `[rasterizer]` table) on the chosen machine.
+    Rasterizer,
 }
 
 impl Knob {
-    pub const ALL: [Knob; 8] = [
+    pub const ALL: [Knob; 9] = [
         Knob::Machine,
         Knob::Batch,
         Knob::Filter,
@@ -41,6 +44,7 @@ impl Knob {
         Knob::ReferenceDepth,
         Knob::NewtonRaphson,
         Knob::StopLength,
+        Knob::Rasterizer,
     ];
 
     pub fn name(self) -> &'static str {
@@ -53,6 +57,7 @@ impl Knob {
             Knob::ReferenceDepth => "reference_depth",
             Knob::NewtonRaphson => "newton_raphson",
             Knob::StopLength => "stop_length",
+            Knob::Rasterizer => "rasterizer",
         }
     }
 
@@ -76,6 +81,7 @@ impl Knob {
             Knob::StopLength => {
                 format!("Reyes's largest quad side in pixels, above 0 and up to {MAX_STOP_LENGTH}")
             }
+            Knob::Rasterizer => "kernels, hardware".into(),
         }
     }
 
@@ -102,6 +108,11 @@ impl Knob {
             Knob::NewtonRaphson => match text.parse::<u8>() {
                 Ok(n) if n <= MAX_NEWTON_STEPS => KnobValue::NewtonRaphson(n),
                 _ => bail!("`{text}` is not a number of Newton–Raphson steps"),
+            },
+            Knob::Rasterizer => match text {
+                "kernels" => KnobValue::HardwareRasterizer(false),
+                "hardware" => KnobValue::HardwareRasterizer(true),
+                _ => bail!("`{text}` is not a rasterizer"),
             },
             Knob::StopLength => match text.parse::<f32>() {
                 Ok(l) if check_stop_length(l).is_ok() => KnobValue::StopLength(l),
@@ -131,6 +142,7 @@ pub enum KnobValue {
     ReferenceDepth(bool),
     NewtonRaphson(u8),
     StopLength(f32),
+    HardwareRasterizer(bool),
 }
 
 /// A knob and its values in the order given: one axis of the grid.
@@ -201,6 +213,7 @@ pub fn check_pipeline(axes: &[Axis]) -> Result<()> {
                 | Knob::NormaliseClip
                 | Knob::ReferenceDepth
                 | Knob::NewtonRaphson
+                | Knob::Rasterizer
         ) {
             bail!(
                 "--knob {} is a setting of the OpenGL pipeline; --knob stop_length renders \
@@ -211,6 +224,10 @@ pub fn check_pipeline(axes: &[Axis]) -> Result<()> {
     }
     Ok(())
 }
+
+/// The built-in machine whose `[rasterizer]` table `rasterizer=hardware` adds to a machine
+/// that has none.
+const HARDWARE_RASTERIZER_MACHINE: &str = "gold8+hwrast";
 
 /// What a point's knob values make of the base machine and the render: the machine
 /// description, the batch limit, the texture filter override and the overrides of the
@@ -229,7 +246,8 @@ pub struct Setup {
 
 impl Setup {
     /// The setup of `values` (one per axis) over the machine `base_machine`. The machine
-    /// is chosen before `flush_to_zero` changes it, whatever the knobs' order.
+    /// is chosen before `flush_to_zero` and `rasterizer` change it, whatever the knobs'
+    /// order.
     pub fn of(base_machine: &str, values: &[&KnobValue]) -> Result<Setup> {
         let machine_name = values
             .iter()
@@ -257,6 +275,18 @@ impl Setup {
                 KnobValue::ReferenceDepth(on) => setup.reference_depth = Some(*on),
                 KnobValue::NewtonRaphson(n) => setup.newton_raphson = Some(*n),
                 KnobValue::StopLength(l) => setup.stop_length = Some(*l),
+                KnobValue::HardwareRasterizer(false) => setup.machine.rasterizer = None,
+                KnobValue::HardwareRasterizer(true) => {
+                    if setup.machine.rasterizer.is_none() {
+                        let hwrast = MachineDesc::resolve(HARDWARE_RASTERIZER_MACHINE)
+                            .map_err(|e| anyhow::anyhow!("{e}"))?;
+                        setup.machine.rasterizer = hwrast.rasterizer;
+                        setup
+                            .machine
+                            .validate()
+                            .map_err(|e| anyhow::anyhow!("--knob rasterizer=hardware: {e}"))?;
+                    }
+                }
             }
         }
         Ok(setup)
@@ -278,6 +308,7 @@ mod tests {
             ("stop_size=1,2", "no knob is named `stop_size`"),
             ("stop_length=0", "above 0 and up to 7"),
             ("stop_length=1.5,nan", "not a stop length"),
+            ("rasterizer=scanline", "kernels, hardware"),
             ("batch", "NAME=V1,V2"),
             ("batch=0", "triangles per batch"),
             ("batch=8,,16", "an empty value"),
@@ -317,5 +348,15 @@ mod tests {
         assert_eq!(setup.normalise_clip, Some(true));
         assert_eq!(setup.reference_depth, Some(false));
         assert_eq!(setup.newton_raphson, Some(2));
+        let hardware = [
+            KnobValue::HardwareRasterizer(true),
+            KnobValue::Machine("gold16".into()),
+        ];
+        let setup = Setup::of("gold8", &hardware.iter().collect::<Vec<_>>()).unwrap();
+        assert_eq!(setup.machine.name, "gold16");
+        assert!(setup.machine.rasterizer.is_some());
+        let kernels = [KnobValue::HardwareRasterizer(false)];
+        let setup = Setup::of("gold8+hwrast", &kernels.iter().collect::<Vec<_>>()).unwrap();
+        assert!(setup.machine.rasterizer.is_none());
     }
 }
