@@ -534,12 +534,9 @@ pub fn render_patches(
         walk_live,
     );
     // `shade`'s parameters: its own, then the words `perlight` writes per cluster.
-    let perlight_out = match shading.shading {
-        Shading::Flat => 0,
-        Shading::Lit {
-            lights, specular, ..
-        } => lights * if specular { 9 } else { 6 } + 3,
-    };
+    let perlight_out = shading.perlight.as_ref().map_or(0, |(program, ..)| {
+        program.param_count(desc) - program.perbegin_rows(desc)
+    });
     let own_params: Vec<u32> = match shading.shading {
         Shading::Flat => Vec::new(),
         Shading::Lit { .. } => {
