@@ -62,7 +62,7 @@ pub struct S3Args {
     #[arg(long, value_name = "NAME|F.toml")]
     scene: Option<String>,
     /// With --scene: window side in pixels (a square window instead of the scene's)
-    #[arg(long, value_name = "N", requires = "scene")]
+    #[arg(long, value_name = "N")]
     size: Option<u32>,
     /// Machine name or description file (its [s3] table; with --scene also the stream
     /// machine the geometry runs on)
@@ -148,6 +148,9 @@ pub fn run_cmd(a: S3Args) -> Result<ExitCode> {
     }
     if !a.sweep.is_empty() && a.waves.wants_vcd() {
         bail!("--vcd needs a single run, not --sweep");
+    }
+    if a.trace.is_some() && a.size.is_some() {
+        bail!("--size sets a --scene's window; a --trace gives its own");
     }
     let (source, width, height, tris, geometry) = match (&a.trace, &a.scene) {
         (Some(trace), _) => {
