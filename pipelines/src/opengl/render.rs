@@ -26,6 +26,10 @@
 //! of this: `xyrast` walks the boxes in primitive order, `zcompare` blends, and the merge
 //! stage stays off (see [`kernels::xyrast`]).
 //!
+//! **Geometry only** ([`render_geometry`]): each batch stops after `viewport_cull`, its
+//! triangles' records are stored to DRAM, and the host reads them back as window-space
+//! triangles for another rasterizer (the S3 engine's, `imagine s3 --scene`).
+//!
 //! **Two batches in flight.** The next batch's vertices are loaded while this one is set
 //! up, and its vertex program is deferred to where the host first waits for the machine
 //! in this batch (the host's read-back of `xyprep`'s counts), so the clusters shade while
