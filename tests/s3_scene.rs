@@ -256,18 +256,30 @@ fn cli_scene_errors_are_clear() {
     assert!(e.contains("--scene") && e.contains("--trace"), "{e}");
     let neither = imagine(&["s3"]);
     assert!(!neither.status.success());
-    assert!(
-        String::from_utf8_lossy(&neither.stderr).contains("--trace"),
-        "{}",
-        String::from_utf8_lossy(&neither.stderr)
-    );
+    let e = String::from_utf8_lossy(&neither.stderr);
+    assert!(e.contains("--trace") && e.contains("--scene"), "{e}");
     let unknown = imagine(&["s3", "--scene", "NO-SUCH-SCENE"]);
     assert_eq!(unknown.status.code(), Some(1));
     let e = String::from_utf8_lossy(&unknown.stderr);
     assert!(e.contains("NO-SUCH-SCENE"), "{e}");
     assert!(!e.contains("panicked"), "{e}");
     let size = imagine(&["s3", "--trace", "game-sky", "--size", "64"]);
-    assert!(!size.status.success());
+    assert_eq!(size.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&size.stderr).contains("--size"));
+    let blending = imagine(&[
+        "s3",
+        "--scene",
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/verif/tests/scenes/spot-alpha-blend.toml"
+        ),
+    ]);
+    assert_eq!(blending.status.code(), Some(1));
+    let e = String::from_utf8_lossy(&blending.stderr);
+    assert!(
+        e.contains("spot-alpha-blend") && e.contains("pipeline.blend"),
+        "{e}"
+    );
     let bad_size = imagine(&["s3", "--scene", "SPHERE", "--size", "0"]);
     assert_eq!(bad_size.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad_size.stderr).contains("--size 0"));

@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::Args;
+use clap::{ArgGroup, Args};
 use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::opengl::render::{Geometry, RenderOptions, render_geometry};
 use imagine_pipelines::scene::model::{Blend, DepthTest, PipelineKind};
@@ -35,6 +35,7 @@ use super::outputs::Outputs;
 use super::waves::WaveArgs;
 
 #[derive(Args)]
+#[command(group(ArgGroup::new("input").required(true).args(["trace", "scene"])))]
 #[command(after_help = "\
 Scenes (--scene): a built-in scene (SPHERE, RATE-1, ADVS-1, ...) or a `.toml` scene file,
 OpenGL pipeline, depth test LESS, no blending; its geometry runs on the stream machine of
@@ -50,12 +51,7 @@ split, split_height, chain_break, select, ...); the flags above override some of
 Every run checks its frame against in-order drawing of the trace and fails if they differ.")]
 pub struct S3Args {
     /// Triangle trace: a `.tri` file or a built-in (game-strips, game-sky)
-    #[arg(
-        long,
-        value_name = "F.tri|NAME",
-        required_unless_present = "scene",
-        conflicts_with = "scene"
-    )]
+    #[arg(long, value_name = "F.tri|NAME")]
     trace: Option<String>,
     /// Scene whose OpenGL geometry stage, run on the stream machine, feeds S3: a built-in
     /// name or a `.toml` scene file
@@ -317,7 +313,8 @@ fn scene_geometry(name: &str, size: Option<u32>, desc: &MachineDesc) -> Result<G
         size,
         ..LoadOptions::default()
     };
-    let scene = scene::load(name, &opts).with_context(|| format!("--scene `{name}`"))?;
+    // The loader's errors name the scene.
+    let scene = scene::load(name, &opts)?;
     let p = &scene.pipeline;
     if p.kind != PipelineKind::OpenGl {
         bail!(
