@@ -1492,10 +1492,12 @@ fn run_frame(
                 .chain(o.passes.iter().copied())
         })
         .collect();
-    eager.extend([k.assemble_clip, k.viewport_cull]);
-    // A geometry-only run never reaches the rest.
+    // A geometry-only run reaches neither the clear nor anything after `viewport_cull`.
     if !geometry_only {
         eager.push(k.clear);
+    }
+    eager.extend([k.assemble_clip, k.viewport_cull]);
+    if !geometry_only {
         // The hardware rasterizer, where there is one, does the rasterizer kernels' work.
         if desc.rasterizer.is_none() {
             eager.extend([k.baryprep, k.xyprep, k.xyrast, k.irast]);
