@@ -1,13 +1,28 @@
-//! `imagine s3`: run a triangle trace through the S3 superscalar out-of-order rasterizer
-//! (`imagine_units::s3`) and report its triangle-level parallelism, cycles and stalls; the
-//! frame is checked against in-order drawing every run.
+//! `imagine s3`: run a triangle trace, or a scene's triangles from the OpenGL pipeline's
+//! geometry stage on the stream machine, through the S3 superscalar out-of-order
+//! rasterizer (`imagine_units::s3`) and report its triangle-level parallelism, cycles and
+//! stalls; the frame is checked against in-order drawing every run.
+//!
+//! **Scenes** (`--scene`): the stream machine runs the scene's vertex programs,
+//! `assemble_clip` and `viewport_cull`, and stores each kept batch's records to its DRAM
+//! (`imagine_pipelines::opengl::render::render_geometry`); the host reads them out of DRAM
+//! into S3's trace memory in drawing order, as window-space `.tri` triangles: window x, y,
+//! depth `z_ndc·½ + ½` and the vertex program's colour per corner. S3 then snaps them to
+//! its fixed point (1/16 pixel, 24-bit depth, 8-bit colour), interpolates colour and depth
+//! linearly in the window (the pipeline: perspective-correct), draws no texture, clamps
+//! depth to [0, 1] (the pipeline drops fragments outside it) and keeps its own clear
+//! (black, far depth). Triangles the geometry discarded never reach S3.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use clap::Args;
+use clap::{ArgGroup, Args};
+use imagine_pipelines::compile::CompileCache;
+use imagine_pipelines::opengl::render::{Geometry, RenderOptions, render_geometry};
+use imagine_pipelines::scene::model::{Blend, DepthTest, PipelineKind};
+use imagine_pipelines::scene::{self, LoadOptions};
 use imagine_units::desc::{MachineDesc, S3_MEMORY};
 use imagine_units::s3::game::{self, GameParams};
 use imagine_units::s3::issue::CAUSE_NAMES;
@@ -20,7 +35,12 @@ use super::outputs::Outputs;
 use super::waves::WaveArgs;
 
 #[derive(Args)]
+#[command(group(ArgGroup::new("input").required(true).args(["trace", "scene"])))]
 #[command(after_help = "\
+Scenes (--scene): a built-in scene (SPHERE, RATE-1, ADVS-1, ...) or a `.toml` scene file,
+OpenGL pipeline, depth test LESS, no blending; its geometry runs on the stream machine of
+--machine and its triangles are stored to DRAM and fed to S3 in drawing order.
+
 Traces: a `.tri` file (window-space triangles, `W H` then 3 × (x y z r g b) per line; all
 opaque and Z-buffered, depth test LESS) or a built-in generated game-like frame:
   game-strips  640×480: full-window background, 64 strips of 40 small triangles, 200 blended particles
@@ -32,8 +52,16 @@ Every run checks its frame against in-order drawing of the trace and fails if th
 pub struct S3Args {
     /// Triangle trace: a `.tri` file or a built-in (game-strips, game-sky)
     #[arg(long, value_name = "F.tri|NAME")]
-    trace: String,
-    /// Machine name or description file (its [s3] table)
+    trace: Option<String>,
+    /// Scene whose OpenGL geometry stage, run on the stream machine, feeds S3: a built-in
+    /// name or a `.toml` scene file
+    #[arg(long, value_name = "NAME|F.toml")]
+    scene: Option<String>,
+    /// With --scene: window side in pixels (a square window instead of the scene's)
+    #[arg(long, value_name = "N")]
+    size: Option<u32>,
+    /// Machine name or description file (its [s3] table; with --scene also the stream
+    /// machine the geometry runs on)
     #[arg(long, default_value = "gold8")]
     machine: String,
     /// Rasterizing accelerators K (default: the machine's)
@@ -117,7 +145,21 @@ pub fn run_cmd(a: S3Args) -> Result<ExitCode> {
     if !a.sweep.is_empty() && a.waves.wants_vcd() {
         bail!("--vcd needs a single run, not --sweep");
     }
-    let (source, width, height, tris) = load_trace(&a.trace)?;
+    if a.trace.is_some() && a.size.is_some() {
+        bail!("--size sets a --scene's window; a --trace gives its own");
+    }
+    let (source, width, height, tris, geometry) = match (&a.trace, &a.scene) {
+        (Some(trace), _) => {
+            let (source, width, height, tris) = load_trace(trace)?;
+            (source, width, height, tris, None)
+        }
+        (None, Some(name)) => {
+            let g = scene_geometry(name, a.size, &desc)?;
+            let tris = trace_triangles(&g);
+            (name.clone(), g.width, g.height, tris, Some(g))
+        }
+        (None, None) => bail!("give --trace or --scene"),
+    };
     let golden = reference_frame(&tris, width, height);
     let go = |cfg: &S3Config, waves: Option<&WaveArgs>| -> Result<S3Report> {
         let mut opts = RunOptions {
@@ -159,11 +201,18 @@ pub fn run_cmd(a: S3Args) -> Result<ExitCode> {
             c.accelerators = k;
             rows.push((c.clone(), go(&c, None)?));
         }
+        if let Some(g) = &geometry {
+            print_geometry(g);
+        }
         print_sweep(&source, &desc, &rows);
         if let Some(p) = &a.json {
             let base = rows[0].1.cycles;
             let runs: Vec<_> = rows.iter().map(|(c, r)| json(c, r, Some(base))).collect();
-            let out = serde_json::json!({ "trace": source, "machine": desc.name, "runs": runs });
+            let mut out =
+                serde_json::json!({ "trace": source, "machine": desc.name, "runs": runs });
+            if let Some(g) = &geometry {
+                out["scene"] = geometry_json(g);
+            }
             write(p, &serde_json::to_string_pretty(&out)?)?;
         }
         return Ok(ExitCode::SUCCESS);
@@ -176,6 +225,9 @@ pub fn run_cmd(a: S3Args) -> Result<ExitCode> {
     } else {
         None
     };
+    if let Some(g) = &geometry {
+        print_geometry(g);
+    }
     print_report(&source, &desc, &cfg, &r, base);
     if let Some(p) = &a.png {
         png(&r.frame, p)?;
@@ -184,6 +236,9 @@ pub fn run_cmd(a: S3Args) -> Result<ExitCode> {
         let mut j = json(&cfg, &r, base);
         j["trace"] = source.clone().into();
         j["machine"] = desc.name.clone().into();
+        if let Some(g) = &geometry {
+            j["scene"] = geometry_json(g);
+        }
         write(p, &serde_json::to_string_pretty(&j)?)?;
     }
     if let Some(p) = &a.csv {
@@ -244,6 +299,84 @@ fn load_trace(name: &str) -> Result<(String, u32, u32, Vec<TraceTriangle>)> {
         })
         .collect();
     Ok((name.to_string(), scene.width, scene.height, tris))
+}
+
+/// Scene `name`'s triangles after its geometry stage on the stream machine `desc` (see the
+/// module notes); an error names the scene and what S3 cannot draw of it.
+fn scene_geometry(name: &str, size: Option<u32>, desc: &MachineDesc) -> Result<Geometry> {
+    if let Some(size) = size
+        && (size == 0 || size > scene::MAX_WINDOW)
+    {
+        bail!("--size {size} is outside 1..={}", scene::MAX_WINDOW);
+    }
+    let opts = LoadOptions {
+        size,
+        ..LoadOptions::default()
+    };
+    // The loader's errors name the scene.
+    let scene = scene::load(name, &opts)?;
+    let p = &scene.pipeline;
+    if p.kind != PipelineKind::OpenGl {
+        bail!(
+            "--scene `{name}`: S3 takes the OpenGL pipeline's geometry; this scene's pipeline.kind is not opengl"
+        );
+    }
+    if p.depth_test != DepthTest::Less {
+        bail!(
+            "--scene `{name}`: S3's depth test is LESS; the scene's pipeline.depth_test is {:?}",
+            p.depth_test
+        );
+    }
+    if p.blend != Blend::None {
+        bail!(
+            "--scene `{name}`: S3 blends only 50/50 without depth writes; the scene's pipeline.blend is {:?}",
+            p.blend
+        );
+    }
+    let options = RenderOptions {
+        cache: CompileCache::from_env(),
+        ..RenderOptions::default()
+    };
+    render_geometry(&scene, desc, options, None, |_, _| {})
+        .map_err(|e| anyhow::anyhow!("--scene `{name}` on {}: {e}", desc.name))
+}
+
+/// The geometry's triangles as S3's trace triangles: the `.tri` fields, all opaque.
+fn trace_triangles(g: &Geometry) -> Vec<TraceTriangle> {
+    g.triangles
+        .iter()
+        .map(|t| TraceTriangle {
+            positions: t.positions,
+            colours: t.colours,
+            mode: Mode::Opaque,
+        })
+        .collect()
+}
+
+fn print_geometry(g: &Geometry) {
+    println!(
+        "scene        {}: {} triangles; geometry on the stream machine {} cycles; {} to S3, {} discarded (clip, zero area, cull), {} left out (behind the eye or out of range)",
+        g.stats.scene,
+        g.stats.triangles,
+        g.stats.cycles,
+        g.triangles.len(),
+        g.discarded,
+        g.unrepresentable
+    );
+}
+
+fn geometry_json(g: &Geometry) -> serde_json::Value {
+    serde_json::json!({
+        "name": g.stats.scene,
+        "machine": g.stats.machine,
+        "width": g.width,
+        "height": g.height,
+        "scene_triangles": g.stats.triangles,
+        "triangles": g.triangles.len(),
+        "discarded": g.discarded,
+        "unrepresentable": g.unrepresentable,
+        "geometry_cycles": g.stats.cycles,
+    })
 }
 
 fn json(c: &S3Config, r: &S3Report, base: Option<u64>) -> serde_json::Value {

@@ -26,6 +26,10 @@
 //! of this: `xyrast` walks the boxes in primitive order, `zcompare` blends, and the merge
 //! stage stays off (see [`kernels::xyrast`]).
 //!
+//! **Geometry only** ([`render_geometry`]): each batch stops after `viewport_cull`, its
+//! triangles' records are stored to DRAM, and the host reads them back as window-space
+//! triangles for another rasterizer (the S3 engine's, `imagine s3 --scene`).
+//!
 //! **Two batches in flight.** The next batch's vertices are loaded while this one is set
 //! up, and its vertex program is deferred to where the host first waits for the machine
 //! in this batch (the host's read-back of `xyprep`'s counts), so the clusters shade while
@@ -76,7 +80,7 @@ use crate::kernels::bump_env;
 use crate::kernels::texture::{self, FragmentProgram};
 use crate::kernels::turbulence;
 use crate::scene::model::{Blend, DepthTest, Object, PipelineKind, Scene, Shader, TriangleId};
-use crate::scene::{MAX_WINDOW, bump_map};
+use crate::scene::{MAX_TRI_COORDINATE, MAX_WINDOW, bump_map};
 use crate::stream::attribution::{self, Attribution, DramActivity, WaitingOn};
 use crate::stream::timeline::{self, ProgramInfo, TimelineInput};
 use crate::stream::{
@@ -1433,8 +1437,39 @@ pub fn render_with(
     desc: &MachineDesc,
     options: RenderOptions,
     on_start: Option<imagine_units::runner::OnStart>,
-    mut progress: impl FnMut(usize, usize),
+    progress: impl FnMut(usize, usize),
 ) -> Result<Frame, RenderError> {
+    run_frame(scene, desc, options, on_start, progress, false).map(|(frame, _)| frame)
+}
+
+/// Runs `scene`'s geometry stage alone on a processor built from `desc`: each batch's
+/// vertex program, `assemble_clip` and `viewport_cull`, whose `clipped`, `attribs` and
+/// `window` records are then stored to DRAM (stream stores, in drawing order) instead of
+/// going on to the rasterizer. The framebuffer is neither cleared nor read back. After the
+/// run the host reads the stored records out of DRAM (the backdoor, as for
+/// [`Frame::triangles`]) and turns them into window-space triangles ([`Geometry`]): the
+/// input of another rasterizer, such as the S3 engine's (`imagine s3 --scene`).
+pub fn render_geometry(
+    scene: &Scene,
+    desc: &MachineDesc,
+    options: RenderOptions,
+    on_start: Option<imagine_units::runner::OnStart>,
+    progress: impl FnMut(usize, usize),
+) -> Result<Geometry, RenderError> {
+    let (_, geometry) = run_frame(scene, desc, options, on_start, progress, true)?;
+    Ok(geometry.expect("a geometry-only run returns its geometry"))
+}
+
+/// The frame ([`render_with`]), or with `geometry_only` the geometry stage alone
+/// ([`render_geometry`]; the frame then has no pixels).
+fn run_frame(
+    scene: &Scene,
+    desc: &MachineDesc,
+    options: RenderOptions,
+    on_start: Option<imagine_units::runner::OnStart>,
+    mut progress: impl FnMut(usize, usize),
+    geometry_only: bool,
+) -> Result<(Frame, Option<Geometry>), RenderError> {
     let host_start = Instant::now();
     let pp = plan_pipeline(scene, desc, &options)?;
     let clusters = desc.cluster.count;
@@ -1457,16 +1492,22 @@ pub fn render_with(
                 .chain(o.passes.iter().copied())
         })
         .collect();
-    eager.extend([k.clear, k.assemble_clip, k.viewport_cull]);
-    // The hardware rasterizer, where there is one, does the rasterizer kernels' work.
-    if desc.rasterizer.is_none() {
-        eager.extend([k.baryprep, k.xyprep, k.xyrast, k.irast]);
+    // A geometry-only run reaches neither the clear nor anything after `viewport_cull`.
+    if !geometry_only {
+        eager.push(k.clear);
     }
-    eager.extend([k.hash, k.zcompare, k.recycle_zc, k.recycle_ap]);
-    eager.extend(k.fragment.iter().flat_map(FragmentKernels::all));
-    eager.extend(k.filter8);
-    if general && let Some((a, b)) = k.merge {
-        eager.extend([a, b]);
+    eager.extend([k.assemble_clip, k.viewport_cull]);
+    if !geometry_only {
+        // The hardware rasterizer, where there is one, does the rasterizer kernels' work.
+        if desc.rasterizer.is_none() {
+            eager.extend([k.baryprep, k.xyprep, k.xyrast, k.irast]);
+        }
+        eager.extend([k.hash, k.zcompare, k.recycle_zc, k.recycle_ap]);
+        eager.extend(k.fragment.iter().flat_map(FragmentKernels::all));
+        eager.extend(k.filter8);
+        if general && let Some((a, b)) = k.merge {
+            eager.extend([a, b]);
+        }
     }
     lib.compile_now(&eager)
         .map_err(|e| RenderError(format!("cannot compile the pipeline: {e}")))?;
@@ -1498,6 +1539,20 @@ pub fn render_with(
         framebuffer: dram.buffer("framebuffer", (fb_pixels * PIXEL_WORDS) as u64)?,
         pixels: pixels as u64,
         interp_records: batch as u64,
+    };
+    let geometry_store = if geometry_only {
+        let triangles: usize = input.batches.iter().map(|b| b.triangles).sum();
+        let mut words = |name: &str, record_words: usize| {
+            dram.buffer(name, (triangles * record_words).max(1) as u64)
+        };
+        Some(GeometryStore {
+            window: words("geometry_window", WINDOW_WORDS)?,
+            clipped: words("geometry_clipped", CLIPPED_WORDS)?,
+            attribs: words("geometry_attribs", pp.varyings.attrib_words())?,
+            stored: 0,
+        })
+    } else {
+        None
     };
     let mut host = StreamHost::new(desc, lib, dram, on_start, options.max_cycles)?;
     processor::processor_mut(host.sim_mut()).set_skip_idle(!options.step_idle);
@@ -1546,16 +1601,18 @@ pub fn render_with(
     let loaded = host.cycles();
 
     // Clear: the machine writes the clear pixel and stores it over the framebuffer.
-    let background = pack_rgb(scene.background);
-    clear_framebuffer(
-        &mut host,
-        k.clear,
-        (&phase_plan, &ps),
-        m.framebuffer,
-        fb_pixels,
-        background,
-    )?;
-    host.drain()?;
+    if !geometry_only {
+        let background = pack_rgb(scene.background);
+        clear_framebuffer(
+            &mut host,
+            k.clear,
+            (&phase_plan, &ps),
+            m.framebuffer,
+            fb_pixels,
+            background,
+        )?;
+        host.drain()?;
+    }
     let cleared = host.cycles();
 
     // The frame. The Perlin marble program's table comes into the SRF first.
@@ -1580,6 +1637,7 @@ pub fn render_with(
         fragment_programs: &pp.fragment_programs,
         current_object: 0,
         first_prim: 0,
+        geometry: geometry_store,
     };
     let batches = input.batches.len();
     let mut run = (&mut host, &mut frame);
@@ -1595,21 +1653,40 @@ pub fn render_with(
     )?;
     host.drain()?;
     let rendered = host.cycles();
+    let geometry_store = frame.geometry.take();
 
     // Read-back: the colour words of the framebuffer.
-    let pixels_out = host.download(m.framebuffer, 0, PIXEL_WORDS as u64, pixels - 1, staging)?;
+    let pixels_out = if geometry_only {
+        Vec::new()
+    } else {
+        host.download(m.framebuffer, 0, PIXEL_WORDS as u64, pixels - 1, staging)?
+    };
     host.drain()?;
     let read = host.cycles();
     host.finish()?;
     let simulate_seconds = sim_start.elapsed().as_secs_f64();
-    let records = processor::read_dram(
-        host.sim(),
-        desc,
-        host.dram.base(m.framebuffer),
-        (pixels - 1) * PIXEL_WORDS,
-    );
+    let records = if geometry_only {
+        Vec::new()
+    } else {
+        processor::read_dram(
+            host.sim(),
+            desc,
+            host.dram.base(m.framebuffer),
+            (pixels - 1) * PIXEL_WORDS,
+        )
+    };
     let triangles = visible_triangles(&records, &input, batch);
     let depths = records.chunks(PIXEL_WORDS).map(|r| r[1]).collect();
+    let geometry = geometry_store.map(|g| {
+        read_geometry(
+            &host,
+            desc,
+            &g,
+            &input,
+            pp.varyings,
+            (scene.width, scene.height),
+        )
+    });
 
     stats.phases = Phases {
         load_cycles: loaded,
@@ -1664,7 +1741,16 @@ pub fn render_with(
         .into_iter()
         .filter(|r| window.contains(&r.cycle))
         .collect();
-    Ok(Frame {
+    let geometry = geometry.map(|(triangles, ids, discarded, unrepresentable)| Geometry {
+        width: scene.width,
+        height: scene.height,
+        triangles,
+        ids,
+        discarded,
+        unrepresentable,
+        stats: stats.clone(),
+    });
+    let frame = Frame {
         width: scene.width,
         height: scene.height,
         pixels: pixels_out,
@@ -1673,7 +1759,8 @@ pub fn render_with(
         depths,
         timeline,
         dram_requests,
-    })
+    };
+    Ok((frame, geometry))
 }
 
 /// Queues the clear of `pixels` framebuffer pixels (whole rows) to `background` and depth
@@ -1750,6 +1837,106 @@ fn visible_triangles(records: &[u32], input: &Inputs, batch: usize) -> Vec<Optio
         .collect()
 }
 
+/// The stored geometry ([`GeometryStore`]) read out of DRAM after the run (the backdoor:
+/// no simulated cycle) and decoded: the window-space triangles with their scene ids, the
+/// discarded count and the count of kept triangles reaching behind the eye.
+fn read_geometry(
+    host: &StreamHost,
+    desc: &MachineDesc,
+    g: &GeometryStore,
+    input: &Inputs,
+    varyings: Varyings,
+    size: (u32, u32),
+) -> (Vec<WindowTriangle>, Vec<TriangleId>, usize, usize) {
+    let n = g.stored as usize;
+    let attrib_words = varyings.attrib_words();
+    let read = |b: Buffer, words: usize| {
+        processor::read_dram(host.sim(), desc, host.dram.base(b), n * words)
+    };
+    let window = read(g.window, WINDOW_WORDS);
+    let clipped = read(g.clipped, CLIPPED_WORDS);
+    let attribs = read(g.attribs, attrib_words);
+    // Scene ids in drawing order: each batch's triangles, numbered within their object.
+    let mut object_triangles = vec![
+        0usize;
+        input
+            .batches
+            .iter()
+            .map(|b| b.object + 1)
+            .max()
+            .unwrap_or(0)
+    ];
+    let ids = input.batches.iter().flat_map(|b| {
+        let first = object_triangles[b.object];
+        object_triangles[b.object] += b.triangles;
+        (first..first + b.triangles).map(move |triangle| TriangleId {
+            object: b.object,
+            triangle,
+        })
+    });
+    let (mut triangles, mut kept_ids) = (Vec::new(), Vec::new());
+    let (mut discarded, mut unrepresentable) = (0, 0);
+    for (((w, c), a), id) in window
+        .chunks(WINDOW_WORDS)
+        .zip(clipped.chunks(CLIPPED_WORDS))
+        .zip(attribs.chunks(attrib_words))
+        .zip(ids)
+    {
+        // Bit 0 of the window record's flags: kept by `viewport_cull`.
+        if w[WINDOW_WORDS - 1] & 1 == 0 {
+            discarded += 1;
+            continue;
+        }
+        match window_triangle(c, a, varyings, size) {
+            Some(t) => {
+                triangles.push(t);
+                kept_ids.push(id);
+            }
+            None => unrepresentable += 1,
+        }
+    }
+    (triangles, kept_ids, discarded, unrepresentable)
+}
+
+/// A kept triangle's window-space form from its `clipped` record (clip x, y, w per
+/// corner) and `attribs` record (clip z, or `z − ζ·w` after the reference depth ζ, then
+/// r, g, b per corner): `viewport_cull`'s transform `((x + w)·W/2, (y + w)·H/2)` divided by
+/// `w` (on the host, in f32), and the window depth `(z/w)·½ + ½` that `irast` interpolates.
+/// `None` when a corner has `w ≤ 0` or lies beyond ±[`MAX_TRI_COORDINATE`] pixels.
+fn window_triangle(
+    clipped: &[u32],
+    attribs: &[u32],
+    varyings: Varyings,
+    size: (u32, u32),
+) -> Option<WindowTriangle> {
+    let f = |w: u32| f32::from_bits(w);
+    let (zeta, attribs) = if varyings.reference_depth {
+        (f(attribs[0]), &attribs[1..])
+    } else {
+        (0.0, attribs)
+    };
+    let (half_w, half_h) = (size.0 as f32 / 2.0, size.1 as f32 / 2.0);
+    let mut t = WindowTriangle {
+        positions: [[0.0; 3]; 3],
+        colours: [[0.0; 3]; 3],
+    };
+    for k in 0..3 {
+        let [x, y, w] = [0, 1, 2].map(|i| f(clipped[3 * k + i]));
+        if w.is_nan() || w <= 0.0 {
+            return None;
+        }
+        let z_ndc = zeta + f(attribs[k]) / w;
+        let (wx, wy) = ((x + w) * half_w / w, (y + w) * half_h / w);
+        // NaN fails the test too.
+        if !(wx.abs() <= MAX_TRI_COORDINATE && wy.abs() <= MAX_TRI_COORDINATE) {
+            return None;
+        }
+        t.positions[k] = [wx, wy, z_ndc * 0.5 + 0.5];
+        t.colours[k] = [0, 1, 2].map(|i| f(attribs[3 + 3 * k + i]));
+    }
+    Some(t)
+}
+
 /// `[r, g, b]` in [0, 1] as an opaque RGBA8 word (red in the low byte), rounded.
 pub fn pack_rgb(c: [f32; 3]) -> u32 {
     let byte = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u32;
@@ -1800,6 +1987,51 @@ struct FrameRun<'a> {
     last_cycles: u64,
     /// The most SRF words fragments held in this batch's passes.
     max_fragment_words: usize,
+    /// Where a geometry-only run stores its triangles' records (`None`: a whole frame).
+    geometry: Option<GeometryStore>,
+}
+
+/// The DRAM buffers of a geometry-only run ([`render_geometry`]): each kept batch
+/// triangle's `window`, `clipped` and `attribs` records, in drawing order (padding
+/// triangles of a batch are not stored).
+struct GeometryStore {
+    window: Buffer,
+    clipped: Buffer,
+    attribs: Buffer,
+    /// Triangles stored so far: where the next batch's go.
+    stored: u64,
+}
+
+/// A window-space triangle of the geometry stage, with per-vertex colour.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WindowTriangle {
+    /// Per corner: x, y in window pixels (origin bottom-left, pixel centres at +½), and the
+    /// window depth `z_ndc·½ + ½` (what the rasterizer's depth test compares).
+    pub positions: [[f32; 3]; 3],
+    /// Per corner: the vertex program's r, g, b (lit or not; before any texture or
+    /// fragment program, which are per fragment).
+    pub colours: [[f32; 3]; 3],
+}
+
+/// What [`render_geometry`] read back: the scene's triangles after its geometry stage.
+#[derive(Clone, Debug)]
+pub struct Geometry {
+    pub width: u32,
+    pub height: u32,
+    /// The triangles the geometry stage kept (not rejected by a clip plane, not
+    /// degenerate, not culled) with every corner in front of the eye, in drawing order.
+    pub triangles: Vec<WindowTriangle>,
+    /// Which scene triangle each of [`Geometry::triangles`] is.
+    pub ids: Vec<TriangleId>,
+    /// Triangles the geometry stage discarded (trivial reject, zero area, culled).
+    pub discarded: usize,
+    /// Kept triangles with no window-space form in the `.tri` range, left out: a corner at
+    /// `w ≤ 0` (this pipeline rasterizes those homogeneously, with no clipping) or beyond
+    /// ±[`MAX_TRI_COORDINATE`] pixels.
+    pub unrepresentable: usize,
+    /// The run's statistics: `cycles` are the geometry's (vertex loads and programs,
+    /// `assemble_clip`, `viewport_cull` and the stores, to the last store's end).
+    pub stats: FrameStats,
 }
 
 impl FrameRun<'_> {
@@ -1969,6 +2201,27 @@ impl FrameRun<'_> {
             self.k.viewport_cull,
             &[("clipped", clipped), ("window", window), ("det", det)],
         )?;
+        if let Some(g) = &mut self.geometry {
+            // Geometry only: the batch's real triangles go to DRAM, and no further.
+            let n = bt.triangles;
+            let attrib_words = self.varyings.attrib_words();
+            for (stream, words, buffer) in [
+                (s.window, WINDOW_WORDS, g.window),
+                (s.clipped, CLIPPED_WORDS, g.clipped),
+                (s.attribs, attrib_words, g.attribs),
+            ] {
+                h.store(
+                    p.first(stream, n),
+                    Layout::records(words),
+                    n,
+                    buffer,
+                    g.stored,
+                );
+            }
+            g.stored += n as u64;
+            h.set_batch(None);
+            return Ok(());
+        }
         self.first_prim = bt.first_prim as u32;
         if s.unit.is_none() {
             let interp = p.first(s.interp, tris);
