@@ -385,7 +385,7 @@ fn shared_edges_at_different_depths_leave_no_crack() {
         g.stats
             .kernels
             .iter()
-            .find(|k| k.name == "subdiv")
+            .find(|k| k.kernel == "subdiv")
             .unwrap()
             .calls
             > 10

@@ -96,7 +96,7 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
             "levels": s.levels,
             "composite_rounds": s.rounds,
             "kernels": s.kernels.iter().map(|k| serde_json::json!({
-                "name": k.name, "calls": k.calls, "cycles": k.cycles, "ops": k.ops,
+                "name": k.kernel, "calls": k.calls, "cycles": k.cycles, "ops": k.ops,
                 "ops_per_cycle": k.ops_per_cycle(),
             })).collect::<Vec<_>>(),
             "reference": {
@@ -146,7 +146,7 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
     for k in &s.kernels {
         println!(
             "    {:<26}{:>7}{:>14}{:>7.1}%{:>11.1}",
-            k.name,
+            k.kernel,
             k.calls,
             k.cycles,
             100.0 * k.cycles as f64 / s.cycles.max(1) as f64,

@@ -1808,21 +1808,7 @@ pub(crate) fn clear_framebuffer(
 /// after the frame, so that it costs no simulated cycle and leaves the read-back phase as
 /// it is.
 fn visible_triangles(records: &[u32], input: &Inputs, batch: usize) -> Vec<Option<TriangleId>> {
-    // Each batch's first triangle within its object.
-    let mut first_triangle = Vec::with_capacity(input.batches.len());
-    let mut object_triangles = vec![
-        0usize;
-        input
-            .batches
-            .iter()
-            .map(|b| b.object + 1)
-            .max()
-            .unwrap_or(0)
-    ];
-    for b in &input.batches {
-        first_triangle.push(object_triangles[b.object]);
-        object_triangles[b.object] += b.triangles;
-    }
+    let first_triangle = batch_first_triangles(input);
     records
         .chunks(PIXEL_WORDS)
         .map(|record| {
@@ -1833,6 +1819,26 @@ fn visible_triangles(records: &[u32], input: &Inputs, batch: usize) -> Vec<Optio
                 object: b.object,
                 triangle: first_triangle[index] + local,
             })
+        })
+        .collect()
+}
+
+/// Each batch's first triangle within its object (batches are in drawing order).
+fn batch_first_triangles(input: &Inputs) -> Vec<usize> {
+    let objects = input
+        .batches
+        .iter()
+        .map(|b| b.object + 1)
+        .max()
+        .unwrap_or(0);
+    let mut object_triangles = vec![0usize; objects];
+    input
+        .batches
+        .iter()
+        .map(|b| {
+            let first = object_triangles[b.object];
+            object_triangles[b.object] += b.triangles;
+            first
         })
         .collect()
 }
@@ -1857,23 +1863,16 @@ fn read_geometry(
     let clipped = read(g.clipped, CLIPPED_WORDS);
     let attribs = read(g.attribs, attrib_words);
     // Scene ids in drawing order: each batch's triangles, numbered within their object.
-    let mut object_triangles = vec![
-        0usize;
-        input
-            .batches
-            .iter()
-            .map(|b| b.object + 1)
-            .max()
-            .unwrap_or(0)
-    ];
-    let ids = input.batches.iter().flat_map(|b| {
-        let first = object_triangles[b.object];
-        object_triangles[b.object] += b.triangles;
-        (first..first + b.triangles).map(move |triangle| TriangleId {
-            object: b.object,
-            triangle,
-        })
-    });
+    let ids = input
+        .batches
+        .iter()
+        .zip(batch_first_triangles(input))
+        .flat_map(|(b, first)| {
+            (first..first + b.triangles).map(move |triangle| TriangleId {
+                object: b.object,
+                triangle,
+            })
+        });
     let (mut triangles, mut kept_ids) = (Vec::new(), Vec::new());
     let (mut discarded, mut unrepresentable) = (0, 0);
     for (((w, c), a), id) in window

@@ -8,7 +8,7 @@ use crate::stream::attribution::{Attribution, WaitingOn};
 use crate::stream::srf::PlanRow;
 
 /// One kernel's share of the frame.
-#[derive(Clone, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct KernelShare {
     pub kernel: String,
     pub calls: u64,
@@ -31,6 +31,11 @@ impl KernelShare {
             }
         };
         &mut shares[i]
+    }
+
+    /// Arithmetic ops per cycle of its calls, across all clusters.
+    pub fn ops_per_cycle(&self) -> f64 {
+        self.ops as f64 / self.cycles.max(1) as f64
     }
 }
 

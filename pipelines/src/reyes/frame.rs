@@ -54,6 +54,7 @@ use crate::opengl::render::{
     Composite, CompositeCounts, CompositeKernels, clear_framebuffer, composite_chunk, pack_rgb,
     plan_composite, plan_phases,
 };
+pub use crate::opengl::stats::KernelShare;
 use crate::opengl::vertex_program::VertexProgram;
 use crate::scene::mat_mul;
 use crate::scene::model::{Blend, Cull, DepthTest, Scene};
@@ -127,23 +128,6 @@ impl From<crate::opengl::render::RenderError> for ReyesError {
     }
 }
 
-/// One kernel's share of a frame.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct KernelShare {
-    pub name: String,
-    pub calls: u64,
-    pub cycles: u64,
-    /// Arithmetic ops issued, across all clusters (the machine's FU ops).
-    pub ops: u64,
-}
-
-impl KernelShare {
-    /// Arithmetic ops per cycle of its calls, across all clusters.
-    pub fn ops_per_cycle(&self) -> f64 {
-        self.ops as f64 / self.cycles.max(1) as f64
-    }
-}
-
 /// What a Reyes frame counted.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ReyesStats {
@@ -185,7 +169,7 @@ impl ReyesStats {
     pub fn kernel_cycles(&self, prefix: &str) -> u64 {
         self.kernels
             .iter()
-            .filter(|k| k.name.starts_with(prefix))
+            .filter(|k| k.kernel.starts_with(prefix))
             .map(|k| k.cycles)
             .sum()
     }
@@ -925,7 +909,7 @@ fn peek(h: &StreamHost, b: StreamBinding) -> Vec<u32> {
         .expect("a planned stream lies in the SRF")
 }
 
-/// Each kernel's calls and cycles from the stream controller's records, by the name the
+/// Each kernel's calls, cycles, stalls and ops from the stream controller's records, by the name the
 /// frame registered it under, in first-call order (the clear is not the frame's).
 fn kernel_shares(h: &StreamHost) -> Vec<KernelShare> {
     let mut shares: Vec<KernelShare> = Vec::new();
@@ -937,19 +921,11 @@ fn kernel_shares(h: &StreamHost) -> Vec<KernelShare> {
         if name == "clear" {
             continue;
         }
-        let i = match shares.iter().position(|s| s.name == name) {
-            Some(i) => i,
-            None => {
-                shares.push(KernelShare {
-                    name: name.into(),
-                    ..KernelShare::default()
-                });
-                shares.len() - 1
-            }
-        };
-        shares[i].calls += 1;
-        shares[i].cycles += st.cycles;
-        shares[i].ops += st.fu_ops.iter().sum::<u64>() * h.clusters() as u64;
+        let share = KernelShare::of(&mut shares, name);
+        share.calls += 1;
+        share.cycles += st.cycles;
+        share.stall_cycles += st.stall_cycles;
+        share.ops += st.fu_ops.iter().sum::<u64>() * h.clusters() as u64;
     }
     shares
 }
