@@ -1788,8 +1788,9 @@ fn s3_bad_input_is_a_clear_error() {
 }
 
 /// `imagine kernel` takes the Reyes pipeline's kernels by their breakdown's names: `shade`
-/// checks against its interpretation, the list names every kernel, and gold8 (whose
-/// scratchpad is too small for `subdiv`) says why it has none.
+/// checks against its interpretation, the list names every kernel, a textured scene's
+/// fragment program checks too, and gold8 (whose scratchpad is too small for `subdiv`)
+/// checks `shade` but refuses `subdiv`, saying why.
 #[test]
 fn kernel_takes_the_reyes_pipelines_kernels() {
     let reyes = [
@@ -1823,20 +1824,39 @@ fn kernel_takes_the_reyes_pipelines_kernels() {
         "{}",
         stdout(&o)
     );
-    let o = imagine(&[
-        "kernel",
-        "check",
-        "shade",
-        "--scene",
-        "TEAPOT-20",
-        "--pipeline",
-        "reyes",
-    ]);
+    for kernel in ["texaddr", "fragment"] {
+        let o = imagine(&[
+            "kernel",
+            "check",
+            kernel,
+            "--scene",
+            "PIN-PATCHES",
+            "--pipeline",
+            "reyes",
+            "--machine",
+            "reyes",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(stdout(&o).contains(&format!("{kernel}: pass on reyes")));
+    }
+    let gold8 = ["--scene", "TEAPOT-20", "--pipeline", "reyes"];
+    let o = imagine(&[&["kernel", "check", "shade"], &gold8[..]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("shade: pass on gold8"));
+    let o = imagine(&[&["kernel", "check", "subdiv"], &gold8[..]].concat());
     assert!(!o.status.success());
     assert!(
         stderr(&o).contains("kernel `subdiv` needs 504 scratchpad words"),
         "{}",
         stderr(&o)
+    );
+    let o = imagine(&[&["kernel", "list"], &gold8[..]].concat());
+    assert!(
+        stdout(&o)
+            .lines()
+            .any(|l| l.contains("subdiv") && l.contains("refused on gold8")),
+        "{}",
+        stdout(&o)
     );
     let o = imagine(&["kernel", "list", "--stop-length", "2"]);
     assert!(stderr(&o).contains("--stop-length is for the Reyes pipeline"));

@@ -1,10 +1,10 @@
 //! The Reyes pipeline: its kernels on the clocked machine against their interpretation,
-//! its refusals, and small frames (coverage with no cracks, counts).
+//! its refusals, and small frames (coverage with no cracks, counts, textures).
 //!
 //! Every frame here is [`W`]×[`W`] pixels, so that the frames' kernels are the same
 //! microcode. The tests that need `subdiv` compiled are `#[ignore]`d: cold, compiling it
-//! takes minutes (warm, from the compile cache under `target/`, the whole file takes about
-//! 2 s). Run them with `cargo test -p imagine-pipelines --test reyes -- --include-ignored`;
+//! takes minutes (warm, from the compile cache under `target/`, the textured frames take
+//! about a minute, the rest seconds). Run them with `cargo test -p imagine-pipelines --test reyes -- --include-ignored`;
 //! they compile every frame kernel once per test process ([`frame_cache`]) before any of
 //! them runs.
 
@@ -12,7 +12,7 @@ use imagine_pipelines::compile::{CompileCache, Compiled};
 use imagine_pipelines::kernel::KernelInputs;
 use imagine_pipelines::kernels::records_to_stream;
 use imagine_pipelines::reyes::frame::{self, BezierPatch, ReyesOptions};
-use imagine_pipelines::reyes::kernels::{self, PATCH_WORDS, STATE_WORDS};
+use imagine_pipelines::reyes::kernels::{self, PATCH_WORDS, Records, STATE_WORDS};
 use imagine_pipelines::run::check;
 use imagine_units::desc::MachineDesc;
 
@@ -45,11 +45,11 @@ fn frame_cache() -> CompileCache {
         };
         use imagine_pipelines::opengl::kernels as gl;
         let all = vec![
-            kernels::subdiv(&desc).unwrap(),
-            kernels::project(&desc).unwrap(),
-            kernels::subdiv_split(&desc).unwrap(),
+            kernels::subdiv(&desc, Records::default()).unwrap(),
+            kernels::project(&desc, Records::default()).unwrap(),
+            kernels::subdiv_split(&desc, Records::default()).unwrap(),
             kernels::shade(&desc, kernels::Shading::Flat).unwrap(),
-            kernels::sample(&desc, W, W, 1.5).unwrap(),
+            kernels::sample(&desc, W, W, 1.5, false).unwrap(),
             gl::hash(&desc, shape).unwrap(),
             gl::zcompare(&desc, shape).unwrap(),
             gl::compact_recycle(&desc, [gl::NULL_DEPTH, 0]).unwrap(),
@@ -104,6 +104,13 @@ fn patch_record(p: &BezierPatch, colour: u32) -> Vec<u32> {
     r
 }
 
+/// A patch record with a place (textured frames): cell `(u, v)` as `u | v << 16`.
+fn placed_record(p: &BezierPatch, colour: u32, place: u32) -> Vec<u32> {
+    let mut r = patch_record(p, colour);
+    r.push(place);
+    r
+}
+
 #[test]
 #[ignore = "compiles `subdiv_split`: minutes cold"]
 fn subdiv_split_machine_equals_interpretation() {
@@ -112,7 +119,7 @@ fn subdiv_split_machine_equals_interpretation() {
     let records: Vec<Vec<u32>> = (0..2 * c)
         .map(|i| patch_record(&grid(i as f32, 1.0, 0.5, 0.25, 0.1), i as u32))
         .collect();
-    let split = kernels::subdiv_split(&desc).unwrap();
+    let split = kernels::subdiv_split(&desc, Records::default()).unwrap();
     let inputs = KernelInputs {
         streams: vec![records_to_stream(&records, c), Vec::new()],
         params: vec![],
@@ -125,6 +132,32 @@ fn subdiv_split_machine_equals_interpretation() {
         r.mismatch.unwrap()
     );
     assert_eq!(r.words, 2 * c * 4 * PATCH_WORDS);
+
+    // With places: each child's is its parent's cell, doubled, plus its quadrant.
+    let placed = Records { places: true };
+    let records: Vec<Vec<u32>> = (0..2 * c)
+        .map(|i| {
+            let place = (i as u32 % 3) | (i as u32 % 2) << 16;
+            placed_record(&grid(i as f32, 1.0, 0.5, 0.25, 0.1), 5, place)
+        })
+        .collect();
+    let split = kernels::subdiv_split(&desc, placed).unwrap();
+    let inputs = KernelInputs {
+        streams: vec![records_to_stream(&records, c), Vec::new()],
+        params: vec![],
+    };
+    let r = check(&split, &compiled(&split, &desc), &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "{}", r.mismatch.unwrap());
+    let out = imagine_pipelines::kernel::interpret(&split, &inputs, &desc).unwrap();
+    let words = placed.patch_words();
+    let children = imagine_pipelines::kernels::stream_to_records(&out[1], 4 * words, c);
+    for (parent, kids) in records.iter().zip(&children) {
+        let (u, v) = (parent[PATCH_WORDS] & 0xFFFF, parent[PATCH_WORDS] >> 16);
+        for (k, kid) in kids.chunks(words).enumerate() {
+            let (row, col) = (k as u32 / 2, k as u32 % 2);
+            assert_eq!(kid[PATCH_WORDS], (2 * u + col) | (2 * v + row) << 16);
+        }
+    }
 }
 
 #[test]
@@ -132,7 +165,7 @@ fn subdiv_split_machine_equals_interpretation() {
 fn subdiv_machine_equals_interpretation() {
     let desc = reyes();
     let c = desc.cluster.count;
-    let k = kernels::subdiv(&desc).unwrap();
+    let k = kernels::subdiv(&desc, Records::default()).unwrap();
     let _ = frame_cache();
     let compiled = compiled(&k, &desc);
     // Patches of different sizes, so the clusters' walks differ; one inactive.
@@ -159,13 +192,34 @@ fn subdiv_machine_equals_interpretation() {
     let r = check(&k, &compiled, &desc, &inputs).unwrap();
     assert!(r.mismatch.is_none(), "{}", r.mismatch.unwrap());
     assert!(r.words > 40 * c * kernels::QUAD_WORDS);
+
+    // With places (a textured frame's records): the same walks, each record one word more.
+    let placed = Records { places: true };
+    let k = kernels::subdiv(&desc, placed).unwrap();
+    let records: Vec<Vec<u32>> = records
+        .iter()
+        .enumerate()
+        .map(|(i, r)| [r.as_slice(), &[i as u32]].concat())
+        .collect();
+    let inputs = KernelInputs {
+        streams: vec![
+            vec![0; placed.state_words() * c],
+            records_to_stream(&records, c),
+            vec![0; 40 * c],
+            Vec::new(),
+            Vec::new(),
+        ],
+        params: vec![(1.5f32 * 1.5).to_bits()],
+    };
+    let r = check(&k, &self::compiled(&k, &desc), &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "with places: {}", r.mismatch.unwrap());
 }
 
 #[test]
 fn project_and_sample_machine_equal_interpretation() {
     let desc = reyes();
     let c = desc.cluster.count;
-    let p = kernels::project(&desc).unwrap();
+    let p = kernels::project(&desc, Records::default()).unwrap();
     let records: Vec<Vec<u32>> = (0..2 * c)
         .map(|i| patch_record(&grid(i as f32, 1.0, 0.5, 0.25, 0.1), i as u32))
         .collect();
@@ -178,12 +232,29 @@ fn project_and_sample_machine_equal_interpretation() {
     let r = check(&p, &compiled(&p, &desc), &desc, &inputs).unwrap();
     assert!(r.mismatch.is_none(), "project: {}", r.mismatch.unwrap());
     assert_eq!(r.words, 2 * c * PATCH_WORDS);
+    // With places: passed through.
+    let placed = Records { places: true };
+    let p = kernels::project(&desc, placed).unwrap();
+    let records: Vec<Vec<u32>> = (0..2 * c)
+        .map(|i| placed_record(&grid(i as f32, 1.0, 0.5, 0.25, 0.1), 3, i as u32 | 7 << 16))
+        .collect();
+    let inputs = KernelInputs {
+        streams: vec![records_to_stream(&records, c), Vec::new()],
+        params: inputs.params.clone(),
+    };
+    let r = check(&p, &compiled(&p, &desc), &desc, &inputs).unwrap();
+    assert!(r.mismatch.is_none(), "project: {}", r.mismatch.unwrap());
+    let out = imagine_pipelines::kernel::interpret(&p, &inputs, &desc).unwrap();
+    let window = imagine_pipelines::kernels::stream_to_records(&out[1], placed.patch_words(), c);
+    for (i, w) in window.iter().enumerate() {
+        assert_eq!(w[PATCH_WORDS], i as u32 | 7 << 16);
+    }
 
     // Quads straight from subdiv's interpretation, so that the sampler sees real ones; at
     // stop length 0.5, whose sampler (2×2 centres a quad) compiles in about a second (that
     // of 1.5, 4×4, in minutes: the frames' tests, ignored, run it).
     let stop = 0.5f32;
-    let s = kernels::subdiv(&desc).unwrap();
+    let s = kernels::subdiv(&desc, Records::default()).unwrap();
     let patches: Vec<Vec<u32>> = (0..c)
         .map(|i| patch_record(&grid(2.0 + 5.0 * i as f32, 3.0, 1.5, 2.0, 0.5), 7))
         .collect();
@@ -215,25 +286,25 @@ fn project_and_sample_machine_equal_interpretation() {
         "shade (flat): {}",
         r.mismatch.unwrap()
     );
-    let lit = kernels::shade(
-        &desc,
-        kernels::Shading::Lit {
-            lights: 2,
-            specular: true,
-            shininess: 12,
-        },
-    )
-    .unwrap();
+    let lit_shading = kernels::Shading::Lit {
+        lights: 2,
+        specular: true,
+        shininess: 12,
+        textured: false,
+    };
+    let lit = kernels::shade(&desc, lit_shading).unwrap();
     // 2/W, 2/H and a perspective projection's P00, P11, P22, P23 (fov 60°, near 1, far
     // 10), padded; per light its eye-space position, d·d and s·s; then the base colour.
-    let mut params: Vec<f32> = vec![2.0 / W as f32, 2.0 / W as f32, 1.732, 1.732, -1.222, -2.222];
-    params.resize(kernels::shade_own_rows(&desc), 0.0);
-    params.extend([3.0, 4.0, 2.0, 0.6, 0.5, 0.4, 0.3, 0.3, 0.3]);
-    params.extend([-5.0, 1.0, -1.0, 0.2, 0.25, 0.3, 0.0, 0.1, 0.2]);
-    params.extend([0.05, 0.05, 0.08]);
+    let own: Vec<f32> = vec![2.0 / W as f32, 2.0 / W as f32, 1.732, 1.732, -1.222, -2.222];
+    let mut lights: Vec<f32> = vec![3.0, 4.0, 2.0, 0.6, 0.5, 0.4, 0.3, 0.3, 0.3];
+    lights.extend([-5.0, 1.0, -1.0, 0.2, 0.25, 0.3, 0.0, 0.1, 0.2]);
+    lights.extend([0.05, 0.05, 0.08]);
+    let mut params: Vec<u32> = own.iter().map(|v| v.to_bits()).collect();
+    params.resize(kernels::shade_own_rows(&desc, lit_shading), 0);
+    params.extend(lights.iter().map(|v| v.to_bits()));
     let inputs = KernelInputs {
         streams: vec![out[3].clone(), vec![]],
-        params: params.iter().map(|v| v.to_bits()).collect(),
+        params,
     };
     let r = check(&lit, &compiled(&lit, &desc), &desc, &inputs).unwrap();
     assert!(r.mismatch.is_none(), "shade (lit): {}", r.mismatch.unwrap());
@@ -246,7 +317,7 @@ fn project_and_sample_machine_equal_interpretation() {
         "lit quads take their own colours: {colours:?}"
     );
 
-    let sampler = kernels::sample(&desc, W, W, stop).unwrap();
+    let sampler = kernels::sample(&desc, W, W, stop, false).unwrap();
     let inputs = KernelInputs {
         streams: vec![shaded[1].clone(), vec![], vec![], vec![], vec![], vec![]],
         params: vec![],
@@ -255,12 +326,104 @@ fn project_and_sample_machine_equal_interpretation() {
     assert!(r.mismatch.is_none(), "sample: {}", r.mismatch.unwrap());
     let golden = imagine_pipelines::kernel::interpret(&sampler, &inputs, &desc).unwrap();
     assert!(golden[1].len() > c, "the quads cover pixels");
+
+    // Textured: `subdiv` with places (interpreted), `shade` writing varyings, `sample`
+    // taking each quad's colour from a stream, both on the machine as interpreted.
+    let placed = Records { places: true };
+    let s = kernels::subdiv(&desc, placed).unwrap();
+    let patches: Vec<Vec<u32>> = (0..c)
+        .map(|i| placed_record(&grid(2.0 + 5.0 * i as f32, 3.0, 1.5, 2.0, 0.5), 7, 0))
+        .collect();
+    let out = imagine_pipelines::kernel::interpret(
+        &s,
+        &KernelInputs {
+            streams: vec![
+                vec![0; placed.state_words() * c],
+                records_to_stream(&patches, c),
+                vec![0; 24 * c],
+                Vec::new(),
+                Vec::new(),
+            ],
+            params: vec![(stop * stop).to_bits()],
+        },
+        &desc,
+    )
+    .unwrap();
+    let textured = kernels::Shading::Lit {
+        lights: 2,
+        specular: true,
+        shininess: 12,
+        textured: true,
+    };
+    let shade = kernels::shade(&desc, textured).unwrap();
+    let split_levels = 1u32;
+    let mut params: Vec<u32> = own.iter().map(|v| v.to_bits()).collect();
+    params.push(split_levels);
+    params.resize(kernels::shade_own_rows(&desc, textured), 0);
+    params.extend(lights.iter().map(|v| v.to_bits()));
+    let inputs = KernelInputs {
+        streams: vec![out[3].clone(), vec![], vec![]],
+        params,
+    };
+    let r = check(&shade, &compiled(&shade, &desc), &desc, &inputs).unwrap();
+    assert!(
+        r.mismatch.is_none(),
+        "shade (textured): {}",
+        r.mismatch.unwrap()
+    );
+    let shaded = imagine_pipelines::kernel::interpret(&shade, &inputs, &desc).unwrap();
+    // Each quad's (s, t) is its cell's centre: inside the patch's parameter square at
+    // the level the record says, plus the breadth-first one.
+    let quads =
+        imagine_pipelines::kernels::stream_to_records(&out[3], placed.subdiv_quad_words(), c);
+    let varyings =
+        imagine_pipelines::kernels::stream_to_records(&shaded[2], kernels::SHADE_VARYINGS, c);
+    let mut cells = std::collections::BTreeSet::new();
+    for (q, v) in quads.iter().zip(&varyings) {
+        if q[kernels::Q_FLAGS] & kernels::FLAG_QUAD == 0 {
+            continue;
+        }
+        let place = q[kernels::SUBDIV_QUAD_WORDS];
+        let side = 2f32.powi(-((q[kernels::Q_LEVEL] + split_levels) as i32));
+        let (u, v_) = ((place & 0xFFFF) as f32, (place >> 16) as f32);
+        assert_eq!(
+            [f32::from_bits(v[3]), f32::from_bits(v[4])],
+            [(u + 0.5) * side, (v_ + 0.5) * side]
+        );
+        assert!((0.0..=1.0).contains(&f32::from_bits(v[0])));
+        cells.insert(place);
+    }
+    assert!(cells.len() > 8, "quads have their own places: {cells:?}");
+    let colours: Vec<u32> = (0..varyings.len() as u32)
+        .map(|i| 0xFF00_0000 | i)
+        .collect();
+    let sampler = kernels::sample(&desc, W, W, stop, true).unwrap();
+    let inputs = KernelInputs {
+        streams: vec![
+            shaded[1].clone(),
+            colours,
+            vec![],
+            vec![],
+            vec![],
+            vec![],
+            vec![],
+        ],
+        params: vec![],
+    };
+    let r = check(&sampler, &compiled(&sampler, &desc), &desc, &inputs).unwrap();
+    assert!(
+        r.mismatch.is_none(),
+        "sample (colours): {}",
+        r.mismatch.unwrap()
+    );
 }
 
 #[test]
 fn subdiv_needs_the_reyes_scratchpad_and_a_good_stop_length() {
     let gold8 = MachineDesc::resolve("gold8").unwrap();
-    let e = kernels::subdiv(&gold8).unwrap_err().to_string();
+    let e = kernels::subdiv(&gold8, Records::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("subdiv") && e.contains("scratchpad"), "{e}");
     for bad in [0.0, -1.0, f32::NAN, f32::INFINITY, 100.0] {
         let e = frame::check_stop_length(bad).unwrap_err().to_string();
@@ -313,9 +476,9 @@ fn shared_edges_at_different_depths_leave_no_crack() {
     });
     let (w, h) = (W, W);
     let m = window_to_clip(w, h);
+    // As many iterations a call as the SRF holds (`iterations_for`).
     let options = ReyesOptions {
         cache: frame_cache(),
-        iterations: Some(64),
         ..ReyesOptions::default()
     };
     let f = frame::render_patches(
@@ -448,4 +611,56 @@ fn a_walk_deeper_than_the_stack_is_an_error() {
         e.contains("`subdiv`") && e.contains("scratchpad.words") && e.contains("7 frames"),
         "{e}"
     );
+}
+
+/// PIN-PATCHES (a lit material with two point-sampled textures, modulated) through Reyes
+/// at W×W, against the same scene with its textures taken away: the textured frame's
+/// walks carry places, its quads go through the fragment program, yet its quads, levels
+/// and depths are the untextured frame's exactly (texturing changes no geometry); no
+/// channel of a pixel is brighter than untextured beyond rounding (modulating by texels of
+/// at most 1); and the red bands show (pixels whose red is over twice their green).
+#[test]
+#[ignore = "compiles the textured `subdiv` and `sample`: minutes cold"]
+fn textured_quads_take_their_texels_and_keep_their_geometry() {
+    use imagine_pipelines::scene::{LoadOptions, load};
+    let desc = reyes();
+    let scene = |textured: bool| {
+        let mut s = load(
+            "PIN-PATCHES",
+            &LoadOptions {
+                size: Some(W),
+                subdivisions: None,
+                filter: None,
+            },
+        )
+        .unwrap();
+        if !textured {
+            s.materials[0].textures.clear();
+        }
+        s
+    };
+    let options = ReyesOptions {
+        cache: frame_cache(),
+        ..ReyesOptions::default()
+    };
+    let plain = frame::render(&scene(false), &desc, &options).unwrap_or_else(|e| panic!("{e}"));
+    let textured = frame::render(&scene(true), &desc, &options).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(textured.stats.quads, plain.stats.quads);
+    assert_eq!(textured.stats.levels, plain.stats.levels);
+    assert_eq!(textured.depth, plain.depth);
+    assert!(textured.stats.texel_words > 0 && plain.stats.texel_words == 0);
+    let channel = |w: u32, c: u32| (w >> (8 * c)) & 0xFF;
+    let mut red = 0;
+    for (&t, &p) in textured.colour.iter().zip(&plain.colour) {
+        for c in 0..3 {
+            assert!(
+                channel(t, c) <= channel(p, c) + 1,
+                "{t:08x} brighter than {p:08x}"
+            );
+        }
+        if channel(t, 0) > 2 * channel(t, 1) {
+            red += 1;
+        }
+    }
+    assert!(red > 0, "no band shows");
 }

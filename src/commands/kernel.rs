@@ -308,6 +308,9 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
                     }
                     Err(e) => println!("  cannot be built: {e}"),
                 }
+                for (name, why) in &p.refused {
+                    list_line(name, &format!("refused on {}: {why}", desc.name));
+                }
             }
         }
         KernelCommand::Show {
@@ -396,6 +399,22 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
                 .collect::<Result<Vec<_>>>()?;
             let mut results = Vec::new();
             let mut failed = false;
+            // Kernels the machine cannot run are named (and fail `check all`) first.
+            if name == "all" {
+                for (kernel, why) in &p.refused {
+                    failed = true;
+                    if json {
+                        results.push(serde_json::json!({
+                            "kernel": kernel,
+                            "machine": desc.name,
+                            "pass": false,
+                            "refused": why,
+                        }));
+                    } else {
+                        println!("{kernel}: REFUSED on {}: {why}", desc.name);
+                    }
+                }
+            }
             for (e, kernel) in kernels {
                 let compiled = cache.compile(&kernel, &desc)?;
                 let inputs = e.inputs(&kernel, &desc, rows, seed);
@@ -510,6 +529,9 @@ struct Pipeline {
     reyes: bool,
     specialised: bool,
     kernels: Result<Vec<(String, Kernel)>, String>,
+    /// The Reyes pipeline's kernels the machine cannot run, each with why (the others
+    /// are in `kernels`).
+    refused: Vec<(String, String)>,
 }
 
 impl Pipeline {
@@ -537,16 +559,29 @@ impl Pipeline {
         if reyes && a.no_specialize {
             bail!("--no-specialize is for the OpenGL pipeline");
         }
+        let mut refused = Vec::new();
         let kernels = if reyes {
             let stop = a.stop_length.unwrap_or(scene.pipeline.stop_length);
             frame::check_stop_length(stop).context("--stop-length")?;
             ShadeSetup::of(&scene, desc.cluster.count)
                 .map_err(|e| e.to_string())
-                .and_then(|shading| {
-                    frame::frame_kernels(desc, scene.width, scene.height, stop, &shading)
-                        .map_err(|e| e.to_string())
+                .map(|shading| {
+                    let all = frame::frame_kernel_results(
+                        desc,
+                        scene.width,
+                        scene.height,
+                        stop,
+                        &shading,
+                    );
+                    let mut built = Vec::new();
+                    for (name, k) in all {
+                        match k {
+                            Ok(k) => built.push((name.to_string(), k)),
+                            Err(e) => refused.push((name.to_string(), e.to_string())),
+                        }
+                    }
+                    built
                 })
-                .map(|ks| ks.into_iter().map(|(n, k)| (n.to_string(), k)).collect())
         } else {
             let options = RenderOptions {
                 specialise: !a.no_specialize,
@@ -559,6 +594,7 @@ impl Pipeline {
             reyes,
             specialised: !a.no_specialize,
             kernels,
+            refused,
         })
     }
 
@@ -642,6 +678,9 @@ impl Pipeline {
             .collect();
         if !kinds.is_empty() {
             return Ok(kinds);
+        }
+        if let Some((_, why)) = self.refused.iter().find(|(n, _)| n == name) {
+            bail!("kernel `{name}` of {}: {why}", self.title(desc));
         }
         let library: Vec<&str> = library().iter().map(|lk| lk.name).collect();
         let pipeline = match &self.kernels {

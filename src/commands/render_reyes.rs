@@ -95,6 +95,7 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
             "quads_per_visible_pixel": s.quads_per_visible_pixel(),
             "levels": s.levels,
             "composite_rounds": s.rounds,
+            "texel_words": s.texel_words,
             "kernels": s.kernels.iter().map(|k| serde_json::json!({
                 "name": k.kernel, "calls": k.calls, "cycles": k.cycles, "ops": k.ops,
                 "ops_per_cycle": k.ops_per_cycle(),
@@ -134,6 +135,12 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
         "  fragments   {} sampled, {} pixels visible, {} composite rounds",
         s.fragments, s.visible_pixels, s.rounds
     );
+    if s.texel_words > 0 {
+        println!(
+            "  texels      {} words gathered (the fragment program's, per quad record)",
+            s.texel_words
+        );
+    }
     let levels: Vec<String> = s
         .levels
         .iter()

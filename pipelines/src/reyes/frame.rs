@@ -43,12 +43,14 @@ use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
 
 use super::kernels::{
-    self, FLAG_QUAD, FRAME_WORDS, MAX_STOP_LENGTH, PATCH_WORDS, Q_FLAGS, Q_LEVEL, QUAD_WORDS,
-    STACK_FRAMES, STATE_WORDS, SUBDIV_QUAD_WORDS, Shading, stamp,
+    self, FLAG_QUAD, MAX_PLACE_LEVEL, MAX_STOP_LENGTH, Q_FLAGS, Q_LEVEL, QUAD_WORDS,
+    SHADE_VARYINGS, STACK_FRAMES, Shading, stamp,
 };
 use crate::compile::CompileCache;
 use crate::kernel::{Kernel, MachineRequirementError};
 use crate::kernels::stream_to_records;
+use crate::kernels::texture::FragmentProgram;
+use crate::opengl::fragment_program::{self, TextureMemory};
 use crate::opengl::kernels::{self as gl, FrameShape, NULL_DEPTH, PIXEL_WORDS};
 use crate::opengl::render::{
     Composite, CompositeCounts, CompositeKernels, clear_framebuffer, composite_chunk, pack_rgb,
@@ -57,7 +59,7 @@ use crate::opengl::render::{
 pub use crate::opengl::stats::KernelShare;
 use crate::opengl::vertex_program::VertexProgram;
 use crate::scene::mat_mul;
-use crate::scene::model::{Blend, Cull, DepthTest, Scene};
+use crate::scene::model::{Blend, Cull, DepthTest, Filter, Scene};
 use crate::stream::{
     DramMap, HostError, KernelLibrary, Layout, Lifetime, PARAMS, PlanError, SrfPlanner, StreamHost,
     live,
@@ -155,6 +157,9 @@ pub struct ReyesStats {
     pub readback_cycles: u64,
     /// Composite rounds (a round per `hash` call).
     pub rounds: u64,
+    /// Texel words gathered from DRAM (textured frames: the fragment program's, per
+    /// quad record `shade` wrote).
+    pub texel_words: u64,
 }
 
 impl ReyesStats {
@@ -216,6 +221,16 @@ pub struct ShadeSetup {
     /// parameters and its input (the scene's OpenGL state, as the OpenGL pipeline hands
     /// them to the same kernel).
     pub perlight: Option<(VertexProgram, Vec<u32>, Vec<u32>)>,
+    /// Textured: the material's fragment program and the scene's textures in DRAM.
+    pub texturing: Option<Texturing>,
+}
+
+/// A textured frame's fragment program (the OpenGL pipeline's, run on quads) and where
+/// its textures lie.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texturing {
+    pub program: FragmentProgram,
+    pub memory: TextureMemory,
 }
 
 impl ShadeSetup {
@@ -225,12 +240,15 @@ impl ShadeSetup {
             shading: Shading::Flat,
             params: Vec::new(),
             perlight: None,
+            texturing: None,
         }
     }
 
     /// The shading of `scene`'s patch objects on a machine of `clusters` clusters: their
     /// material's, which they must share, with one camera. `lit` and `unlit` materials are
-    /// built; the textured, marble and bump-mapped shaders are not (an error).
+    /// built, and `lit` ones with point-sampled or bilinear textures; mipmapped textures
+    /// (no screen-space derivatives on quads), textured `unlit` materials and the marble
+    /// and bump-mapped shaders are not (an error).
     pub fn of(scene: &Scene, clusters: usize) -> Result<ShadeSetup, ReyesError> {
         let Some(first) = scene.objects.first() else {
             return Ok(ShadeSetup::flat());
@@ -245,11 +263,16 @@ impl ShadeSetup {
             }
         }
         let material = &scene.materials[first.material];
-        if !material.textures.is_empty() {
+        let mipmapped = material
+            .textures
+            .iter()
+            .map(|&t| &scene.textures[t])
+            .find(|t| t.filter == Filter::Trilinear);
+        if let Some(t) = mipmapped {
             return Err(ReyesError(format!(
-                "material `{}`: the Reyes pipeline does not texture quads yet (lit and unlit \
-                 materials only)",
-                material.name
+                "material `{}`: texture `{}` is mipmapped (`trilinear`): the Reyes pipeline's \
+                 quads have no screen-space derivatives; use `nearest` or `linear`",
+                material.name, t.name
             )));
         }
         let program = VertexProgram::for_object(scene, first, false).map_err(ReyesError)?;
@@ -261,6 +284,12 @@ impl ShadeSetup {
         } = program
         else {
             return match program {
+                VertexProgram::Unlit { .. } if !material.textures.is_empty() => {
+                    Err(ReyesError(format!(
+                        "material `{}`: the Reyes pipeline textures lit materials only",
+                        material.name
+                    )))
+                }
                 VertexProgram::Unlit { .. } => Ok(ShadeSetup::flat()),
                 _ => Err(ReyesError(format!(
                     "material `{}`: the Reyes pipeline shades lit and unlit materials only",
@@ -290,11 +319,24 @@ impl ShadeSetup {
         ]
         .map(f32::to_bits)
         .to_vec();
+        let texturing = (!material.textures.is_empty()).then(|| {
+            let memory = TextureMemory::new(scene);
+            Texturing {
+                program: fragment_program::for_material(
+                    scene,
+                    &material.textures,
+                    material.texture_mode,
+                    &memory,
+                ),
+                memory,
+            }
+        });
         Ok(ShadeSetup {
             shading: Shading::Lit {
                 lights,
                 specular,
                 shininess,
+                textured: texturing.is_some(),
             },
             params,
             perlight: Some((
@@ -302,20 +344,27 @@ impl ShadeSetup {
                 VertexProgram::perlight_params(scene, first),
                 program.light_words(scene, clusters),
             )),
+            texturing,
         })
     }
 }
 
 /// Quads per cluster per `subdiv` call that keep a call's streams within the SRF space a
 /// kernel's output gets here (an eighth of the SRF): the quads (32 words each as `subdiv`
-/// writes them, 20 as `shade` does), and their
+/// writes them, 20 as `shade` does, and in a textured frame ([`ShadeSetup::texturing`]) a
+/// place, the varyings, the texel addresses and weights and the colour), and their
 /// fragments, at most about `(L + 1)²` per quad of side `L`. At most 64.
-pub fn iterations_for(desc: &MachineDesc, stop: f32) -> usize {
+pub fn iterations_for(desc: &MachineDesc, stop: f32, shading: &ShadeSetup) -> usize {
     let c = desc.cluster.count.max(1);
     let share = desc.srf.words / 8;
     let per_quad = (f64::from(stop) + 1.0).powi(2).ceil() as usize;
     let by_fragments = share / (c * per_quad);
-    let by_quads = share * 2 / (c * (SUBDIV_QUAD_WORDS + QUAD_WORDS));
+    let quad_words = shading.shading.records().subdiv_quad_words()
+        + QUAD_WORDS
+        + shading.texturing.as_ref().map_or(0, |t| {
+            SHADE_VARYINGS + t.program.direct_fetches() + t.program.direct_weights() + 1
+        });
+    let by_quads = share * 2 / (c * quad_words);
     by_fragments.min(by_quads).min(65).saturating_sub(1).max(1)
 }
 
@@ -357,7 +406,8 @@ fn frame_shape(desc: &MachineDesc, width: u32, height: u32) -> FrameShape {
 }
 
 /// A frame's kernels by the names it calls them under (its kernel breakdown's): for a
-/// `width × height` window, stop length `stop` and `shading` (`perlight` only when lit).
+/// `width × height` window, stop length `stop` and `shading` (`perlight` only when lit,
+/// `texaddr` and `fragment` only when textured).
 pub fn frame_kernels(
     desc: &MachineDesc,
     width: u32,
@@ -365,34 +415,59 @@ pub fn frame_kernels(
     stop: f32,
     shading: &ShadeSetup,
 ) -> Result<Vec<(&'static str, Kernel)>, MachineRequirementError> {
+    frame_kernel_results(desc, width, height, stop, shading)
+        .into_iter()
+        .map(|(name, k)| Ok((name, k?)))
+        .collect()
+}
+
+/// [`frame_kernels`], each kernel built or refused on its own (`subdiv` needs a larger
+/// scratchpad than gold8's; the others do not).
+pub fn frame_kernel_results(
+    desc: &MachineDesc,
+    width: u32,
+    height: u32,
+    stop: f32,
+    shading: &ShadeSetup,
+) -> Vec<(&'static str, Result<Kernel, MachineRequirementError>)> {
     let shape = frame_shape(desc, width, height);
+    let records = shading.shading.records();
     let mut k = vec![
-        ("project", kernels::project(desc)?),
-        ("subdiv_split", kernels::subdiv_split(desc)?),
-        ("subdiv", kernels::subdiv(desc)?),
+        ("project", kernels::project(desc, records)),
+        ("subdiv_split", kernels::subdiv_split(desc, records)),
+        ("subdiv", kernels::subdiv(desc, records)),
     ];
     if let Some((program, ..)) = &shading.perlight {
-        k.push((
-            "perlight",
-            program.perlight(desc).expect("a lit program has perlight"),
-        ));
+        let perlight = program.perlight(desc).expect("a lit program has perlight");
+        k.push(("perlight", Ok(perlight)));
+    }
+    k.push(("shade", kernels::shade(desc, shading.shading)));
+    if let Some(t) = &shading.texturing {
+        // The fragment program on quads: `varyings` records of r, g, b, s, t, no
+        // derivatives (nothing mipmapped).
+        k.extend([
+            ("texaddr", t.program.texaddr(SHADE_VARYINGS, SHADE_VARYINGS)),
+            ("fragment", t.program.fragment(SHADE_VARYINGS)),
+        ]);
     }
     k.extend([
-        ("shade", kernels::shade(desc, shading.shading)?),
-        ("sample", kernels::sample(desc, width, height, stop)?),
-        ("hash", gl::hash(desc, shape)?),
-        ("zcompare", gl::zcompare(desc, shape)?),
+        (
+            "sample",
+            kernels::sample(desc, width, height, stop, shading.texturing.is_some()),
+        ),
+        ("hash", gl::hash(desc, shape)),
+        ("zcompare", gl::zcompare(desc, shape)),
         (
             "compact_recycle:z,colour",
-            gl::compact_recycle(desc, [NULL_DEPTH, 0])?,
+            gl::compact_recycle(desc, [NULL_DEPTH, 0]),
         ),
         (
             "compact_recycle:addr,prim",
-            gl::compact_recycle(desc, [shape.trash(), 0])?,
+            gl::compact_recycle(desc, [shape.trash(), 0]),
         ),
-        ("clear", gl::clear(desc)?),
+        ("clear", gl::clear(desc)),
     ]);
-    Ok(k)
+    k
 }
 
 /// Renders a scene's patch objects through the Reyes pipeline on `desc`.
@@ -429,7 +504,7 @@ pub fn render_patches(
     let c = desc.cluster.count;
     let iterations = options
         .iterations
-        .unwrap_or_else(|| iterations_for(desc, options.stop_length));
+        .unwrap_or_else(|| iterations_for(desc, options.stop_length, shading));
     if iterations == 0 {
         return Err(ReyesError(
             "iterations per `subdiv` call must be at least 1".into(),
@@ -438,6 +513,17 @@ pub fn render_patches(
     let levels = options
         .split_levels
         .unwrap_or_else(|| split_levels_for(width, height)) as usize;
+    let records = shading.shading.records();
+    let (patch_words, state_words) = (records.patch_words(), records.state_words());
+    // The deepest quad: the breadth-first levels, then a full stack and its child.
+    if records.places && levels + STACK_FRAMES + 1 > MAX_PLACE_LEVEL {
+        return Err(ReyesError(format!(
+            "kernel `shade`: {levels} breadth-first levels and a stack of {STACK_FRAMES} \
+             frames reach level {}, deeper than the {MAX_PLACE_LEVEL} a quad's place (its \
+             texture coordinates) can name",
+            levels + STACK_FRAMES + 1
+        )));
+    }
 
     // The kernels, registered by name and compiled up front.
     let mut lib = KernelLibrary::new(desc, options.cache.clone());
@@ -448,6 +534,7 @@ pub fn render_patches(
         ids.insert(name, lib.register(name, kernel));
     }
     let id = |name: &str| ids[name];
+    let (texaddr, fragment) = (ids.get("texaddr").copied(), ids.get("fragment").copied());
     let (project, split, subdiv, shade, sample, clear) = (
         id("project"),
         id("subdiv_split"),
@@ -466,6 +553,7 @@ pub fn render_patches(
     };
     let mut eager = vec![project, subdiv, shade, sample, clear];
     eager.extend(perlight);
+    eager.extend(texaddr.into_iter().chain(fragment));
     eager.extend([ck.hash, ck.zcompare, ck.recycle_zc, ck.recycle_ap]);
     if levels > 0 {
         eager.push(split);
@@ -482,13 +570,13 @@ pub fn render_patches(
     let chunk_records = CHUNK_ROWS * c;
     let patch_in = pl.stream(
         "patch_in",
-        Layout::records(PATCH_WORDS),
+        Layout::records(patch_words),
         chunk_records,
         live("project", "project"),
     );
     let patch_out = pl.stream(
         "patch_out",
-        Layout::records(4 * PATCH_WORDS),
+        Layout::records(4 * patch_words),
         chunk_records,
         live("project", "project"),
     );
@@ -500,14 +588,14 @@ pub fn render_patches(
         live("project", "project"),
     );
     let walk_live = live("subdiv", "composite");
-    let walk = pl.stream("walk", Layout::records(PATCH_WORDS), c, walk_live);
-    let state = pl.buffers::<2>("state", Layout::records(STATE_WORDS), c, walk_live);
+    let walk = pl.stream("walk", Layout::records(patch_words), c, walk_live);
+    let state = pl.buffers::<2>("state", Layout::records(state_words), c, walk_live);
     let tickets = pl.stream("tickets", words, iterations * c, walk_live);
     let stop_params = pl.stream("stop2", words, c, Lifetime::Always);
     let quad_records = (iterations + 1) * c;
     let quads = pl.stream(
         "quads",
-        Layout::records(SUBDIV_QUAD_WORDS),
+        Layout::records(records.subdiv_quad_words()),
         quad_records,
         walk_live,
     );
@@ -523,9 +611,12 @@ pub fn render_patches(
     });
     let own_params: Vec<u32> = match shading.shading {
         Shading::Flat => Vec::new(),
-        Shading::Lit { .. } => {
+        Shading::Lit { textured, .. } => {
             let mut p = shading.params.clone();
-            p.resize(kernels::shade_own_rows(desc), 0);
+            if textured {
+                p.push(levels as u32);
+            }
+            p.resize(kernels::shade_own_rows(desc, shading.shading), 0);
             p
         }
     };
@@ -552,6 +643,20 @@ pub fn render_patches(
         perlight_in.max(c),
         live("project", "project"),
     );
+    // A textured frame's fragment program on the quads: `shade`'s varyings, the texel
+    // addresses (each texel gathered over its address) and bilinear weights, and the
+    // colours `sample` takes.
+    let textured = shading.texturing.as_ref().map(|t| {
+        let mut per_quad = |name: &str, words: usize| {
+            (words > 0).then(|| pl.stream(name, Layout::records(words), quad_records, walk_live))
+        };
+        (
+            per_quad("varyings", SHADE_VARYINGS).expect("varyings"),
+            per_quad("texels", t.program.direct_fetches()),
+            per_quad("weights", t.program.direct_weights()),
+            per_quad("colours", 1).expect("colours"),
+        )
+    });
     let covered = pl.stream("covered", words, quad_records, walk_live);
     let frag_live = live("sample", "composite");
     let [f_addr, f_z, f_colour, f_prim] = ["frag_addr", "frag_z", "frag_colour", "frag_prim"]
@@ -597,8 +702,11 @@ pub fn render_patches(
         for (p, _, colour) in &patches[a..e] {
             upload.extend(p.iter().flatten().map(|v| v.to_bits()));
             upload.extend([*colour, 1]);
+            if records.places {
+                upload.push(0); // the patch's place: cell (0, 0) at level 0
+            }
         }
-        upload.resize(upload.len().next_multiple_of(c * PATCH_WORDS), 0);
+        upload.resize(upload.len().next_multiple_of(c * patch_words), 0);
     }
     let mut dram = DramMap::new(desc);
     let input = dram.buffer("patches", upload.len().max(1) as u64)?;
@@ -617,10 +725,16 @@ pub fn render_patches(
         };
         window.push(dram.buffer(
             &format!("window[{l}]"),
-            (records * PATCH_WORDS).max(1) as u64,
+            (records * patch_words).max(1) as u64,
         )?);
     }
-    let zeros = dram.buffer("walk_zeros", (STATE_WORDS * c) as u64)?;
+    let zeros = dram.buffer("walk_zeros", (state_words * c) as u64)?;
+    // The textures' words, read-only (what a texture cache may hold).
+    let texture_words = shading
+        .texturing
+        .as_ref()
+        .map_or(0, |t| t.memory.words.len().max(1) as u64);
+    let textures = dram.read_only_buffer("textures", texture_words.max(1))?;
     let pixels = (width * height) as usize + 1;
     let fb_pixels = pixels.div_ceil(c) * c;
     let framebuffer = dram.buffer("framebuffer", (fb_pixels * PIXEL_WORDS) as u64)?;
@@ -635,6 +749,9 @@ pub fn render_patches(
     // Load, then clear.
     let staging = phase_plan.whole(ps.staging);
     h.upload(&upload, input, 0, staging);
+    if let Some(t) = &shading.texturing {
+        h.upload(&t.memory.words, textures, 0, staging);
+    }
     h.drain()?;
     let loaded = h.cycles();
     clear_framebuffer(
@@ -686,11 +803,11 @@ pub fn render_patches(
             h.load(
                 input,
                 (run_first + first) as u64,
-                Layout::records(PATCH_WORDS),
+                Layout::records(patch_words),
                 n,
                 from,
             );
-            let out = plan.words(patch_out, n * PATCH_WORDS);
+            let out = plan.words(patch_out, n * patch_words);
             h.call(project, &[("patches", from), ("window", out), (PARAMS, pb)])?;
             let idx: Vec<u32> = (first..first + n)
                 .map(|i| {
@@ -707,7 +824,7 @@ pub fn render_patches(
                 out,
                 ib,
                 trash + 1,
-                Layout::records(PATCH_WORDS),
+                Layout::records(patch_words),
                 n,
                 window[0],
             );
@@ -724,7 +841,7 @@ pub fn render_patches(
             h.load(
                 window[l],
                 (r0 * c) as u64,
-                Layout::records(PATCH_WORDS),
+                Layout::records(patch_words),
                 n,
                 from,
             );
@@ -732,7 +849,7 @@ pub fn render_patches(
             h.call(split, &[("patches", from), ("children", out)])?;
             h.store(
                 out,
-                Layout::records(4 * PATCH_WORDS),
+                Layout::records(4 * patch_words),
                 n,
                 window[l + 1],
                 (r0 * c) as u64,
@@ -760,12 +877,12 @@ pub fn render_patches(
         h.load(
             zeros,
             0,
-            Layout::records(STATE_WORDS),
+            Layout::records(state_words),
             c,
             plan.first(state[0], c),
         );
         let walk_b = plan.first(walk, c);
-        h.load(top, (g * c) as u64, Layout::records(PATCH_WORDS), c, walk_b);
+        h.load(top, (g * c) as u64, Layout::records(patch_words), c, walk_b);
         let mut cur = 0;
         let mut calls = 0u64;
         loop {
@@ -788,9 +905,10 @@ pub fn render_patches(
                 let first = g * c;
                 return Err(ReyesError(format!(
                     "kernel `subdiv`: a patch of group {g} (patches {first}..{}) needs a \
-                     deeper stack than the {STACK_FRAMES} frames of {FRAME_WORDS} words that \
+                     deeper stack than the {STACK_FRAMES} frames of {} words that \
                      `scratchpad.words` = {} holds; raise the stop length or the scratchpad",
                     (first + c).min(real[levels]),
+                    records.frame_words(),
                     desc.scratchpad.words
                 )));
             }
@@ -801,8 +919,35 @@ pub fn render_patches(
             if shading.shading != Shading::Flat {
                 streams.push((PARAMS, shade_b));
             }
+            if let Some((varyings, ..)) = textured {
+                streams.push(("varyings", plan.first(varyings, quad_records)));
+            }
             h.call(shade, &streams)?;
-            for r in stream_to_records(&peek(&h, quad_stream), SUBDIV_QUAD_WORDS, c) {
+            if let (Some((varyings, texels, weights, colours)), Some(t)) =
+                (textured, &shading.texturing)
+            {
+                // The fragment program, as the OpenGL pipeline runs it on fragments.
+                let fp = &t.program;
+                let varyings = plan.first(varyings, quad_records);
+                let texels = texels.map(|s| plan.first(s, quad_records));
+                let weights = weights.map(|s| plan.first(s, quad_records));
+                let mut bindings = vec![("varyings", varyings)];
+                bindings.extend(texels.map(|b| ("addr", b)));
+                bindings.extend(weights.map(|b| ("weights", b)));
+                h.call(texaddr.expect("a textured frame's texaddr"), &bindings)?;
+                if let Some(index) = texels {
+                    let n = quad_records * fp.direct_fetches();
+                    h.gather(textures, index, texture_words, Layout::words(), n, index);
+                    stats.texel_words += n as u64;
+                }
+                let mut bindings = vec![("varyings", varyings)];
+                bindings.extend(texels.map(|b| ("texels", b)));
+                bindings.extend(weights.map(|b| ("weights", b)));
+                bindings.push(("colour", plan.first(colours, quad_records)));
+                h.call(fragment.expect("a textured frame's fragment"), &bindings)?;
+            }
+            let quad_words = records.subdiv_quad_words();
+            for r in stream_to_records(&peek(&h, quad_stream), quad_words, c) {
                 if r[Q_FLAGS] & FLAG_QUAD != 0 {
                     stats.quads += 1;
                     let level = r[Q_LEVEL] as usize + levels;
@@ -817,17 +962,18 @@ pub fn render_patches(
             while r0 <= iterations {
                 let n = piece_rows.min(iterations + 1 - r0) * c;
                 let outs = [f_addr, f_z, f_colour, f_prim].map(|s| plan.whole(s));
-                let call = h.call(
-                    sample,
-                    &[
-                        ("quads", plan.slice(shaded, r0 * c, n)),
-                        ("addr", outs[0]),
-                        ("z", outs[1]),
-                        ("colour", outs[2]),
-                        ("prim", outs[3]),
-                        ("covered", plan.slice(covered, r0 * c, n)),
-                    ],
-                )?;
+                let mut bindings = vec![("quads", plan.slice(shaded, r0 * c, n))];
+                if let Some((.., colours)) = textured {
+                    bindings.push(("colours", plan.slice(colours, r0 * c, n)));
+                }
+                bindings.extend([
+                    ("addr", outs[0]),
+                    ("z", outs[1]),
+                    ("colour", outs[2]),
+                    ("prim", outs[3]),
+                    ("covered", plan.slice(covered, r0 * c, n)),
+                ]);
+                let call = h.call(sample, &bindings)?;
                 h.wait(call)?;
                 // Whole rows of fragments (the null row `sample` ends with pads the last).
                 let len = h.written(call, "addr")? / c * c;
@@ -847,8 +993,7 @@ pub fn render_patches(
                 }
                 r0 += n / c;
             }
-            let quad_words = peek(&h, quad_stream);
-            let quad_recs = stream_to_records(&quad_words, SUBDIV_QUAD_WORDS, c);
+            let quad_recs = stream_to_records(&peek(&h, quad_stream), quad_words, c);
             for (r, &n) in quad_recs
                 .iter()
                 .zip(&peek(&h, plan.first(covered, quad_records)))

@@ -78,6 +78,44 @@ pub const Q_COLOUR: usize = 19;
 /// [`QUAD_WORDS`]-word records without them.
 pub const SUBDIV_QUAD_WORDS: usize = QUAD_WORDS + 12;
 pub const Q_CORNERS: usize = QUAD_WORDS;
+
+/// The shape of a frame's patch, stack-frame and `subdiv` quad records. With `places`
+/// (frames whose material is textured) each of them carries one more word, last: its
+/// *place*, where it lies in its patch's parameter square, `u_i | v_i << 16` with `(u_i,
+/// v_i)` its cell on the grid of `2^level` cells a side (a root patch is cell (0, 0) at
+/// level 0; child (row, col) of cell `(u, v)` is `(2u + col, 2v + row)`), from which
+/// [`shade`] finds the texture coordinates `(s, t) = (u, v)` of the quad's centre. Without
+/// them the records and every kernel's microcode are those of an untextured frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Records {
+    pub places: bool,
+}
+
+impl Records {
+    /// Words of a patch record: [`PATCH_WORDS`], then the place.
+    pub const fn patch_words(self) -> usize {
+        PATCH_WORDS + self.places as usize
+    }
+
+    /// Words of a stack frame: [`FRAME_WORDS`], then the place.
+    pub const fn frame_words(self) -> usize {
+        FRAME_WORDS + self.places as usize
+    }
+
+    /// Words of a cluster's saved walk ([`STATE_WORDS`] with these frames).
+    pub const fn state_words(self) -> usize {
+        STACK_FRAMES * self.frame_words() + 3
+    }
+
+    /// Words of a quad record as `subdiv` writes it: [`SUBDIV_QUAD_WORDS`], then the place.
+    pub const fn subdiv_quad_words(self) -> usize {
+        SUBDIV_QUAD_WORDS + self.places as usize
+    }
+}
+
+/// The deepest level a place can name: 15 bits a coordinate (a level-15 cell is a
+/// 32,768th of its patch's side, far below a pixel for any patch a window can hold).
+pub const MAX_PLACE_LEVEL: usize = 15;
 /// Bits of a quad record's flags.
 pub const FLAG_QUAD: u32 = 1;
 pub const FLAG_OVERFLOW: u32 = 2;
@@ -88,6 +126,8 @@ const F_EDGES: usize = 48;
 const F_MASK: usize = 60;
 const F_NEXT: usize = 61;
 const F_LEVEL: usize = 62;
+/// A frame's place, in frames of [`Records::places`].
+const F_PLACE: usize = FRAME_WORDS;
 /// Frames of the stack: 7 live frames and a spare that takes the writes of iterations
 /// that push nothing (`8 × 63 = 504` of 512 words).
 pub const STACK_FRAMES: usize = 7;
@@ -154,7 +194,7 @@ fn finish(b: KernelBuilder) -> Kernel {
 /// (params `m0..m15`, row-major) to window space: `x = (x_c/w_c + 1)·W/2`, `y = (y_c/w_c
 /// + 1)·H/2`, `z = (z_c/w_c + 1)/2`, one reciprocal of `w` per point. The colour and the
 /// active word pass through. Points with `w ≤ 0` (behind the eye) are not clipped.
-pub fn project(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+pub fn project(_desc: &MachineDesc, records: Records) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("project");
     let input = b.input("patches");
     let output = b.output("window");
@@ -163,7 +203,9 @@ pub fn project(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let half_h = b.param_f32("half_height");
     let (one, half) = (b.f32(1.0), b.f32(0.5));
     b.begin_loop(LoopSpec::OverStream(input));
-    let words: Vec<Value> = (0..PATCH_WORDS).map(|_| b.read_f32(input)).collect();
+    let words: Vec<Value> = (0..records.patch_words())
+        .map(|_| b.read_f32(input))
+        .collect();
     for k in 0..16 {
         let p = [words[3 * k], words[3 * k + 1], words[3 * k + 2]];
         let clip: [Value; 4] = std::array::from_fn(|row| {
@@ -183,10 +225,22 @@ pub fn project(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
             b.write(output, v);
         }
     }
-    b.write(output, words[COLOUR_AT]);
-    b.write(output, words[ACTIVE_AT]);
+    for &w in &words[COLOUR_AT..] {
+        b.write(output, w);
+    }
     b.end_loop();
     Ok(finish(b))
+}
+
+/// The place of child `(row, col)` of `place` (see [`Records`]): `place << 1 | col |
+/// row << 16`, `row` and `col` 0 or 1.
+fn child_place(b: &mut KernelBuilder, place: Value, row: Value, col: Value) -> Value {
+    let one = b.i32(1);
+    let sixteen = b.i32(16);
+    let doubled = b.shl(place, one);
+    let with_col = b.or(doubled, col);
+    let row_bit = b.shl(row, sixteen);
+    b.or(with_col, row_bit)
 }
 
 /// `subdiv_split`: every patch split into its four children (de Casteljau halving in u
@@ -195,7 +249,10 @@ pub fn project(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
 /// stack frames (and the clusters get more, smaller patches to share). Edges are not
 /// frozen here: a patch side already shorter than the stop length is split too (both
 /// patches that share it split it the same way, so no crack opens; only quads are spent).
-pub fn subdiv_split(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+pub fn subdiv_split(
+    _desc: &MachineDesc,
+    records: Records,
+) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("subdiv_split");
     let input = b.input("patches");
     let output = b.output("children");
@@ -203,7 +260,7 @@ pub fn subdiv_split(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementErr
     let (zero, one) = (b.i32(0), b.i32(1));
     let halves = [b.ine(zero, zero), b.ieq(one, one)];
     b.begin_loop(LoopSpec::OverStream(input));
-    let words: Vec<Value> = (0..PATCH_WORDS).map(|_| b.read(input)).collect();
+    let words: Vec<Value> = (0..records.patch_words()).map(|_| b.read(input)).collect();
     let net: [P3; 16] =
         std::array::from_fn(|k| std::array::from_fn(|c| b.cast(words[3 * k + c], Ty::F32)));
     for row in 0..2 {
@@ -216,6 +273,12 @@ pub fn subdiv_split(_desc: &MachineDesc) -> Result<Kernel, MachineRequirementErr
             }
             b.write(output, words[COLOUR_AT]);
             b.write(output, words[ACTIVE_AT]);
+            if records.places {
+                let place = b.cast(words[PATCH_WORDS], Ty::I32);
+                let bits = [zero, one];
+                let child = child_place(&mut b, place, bits[row], bits[col]);
+                b.write(output, child);
+            }
         }
     }
     b.end_loop();
@@ -398,10 +461,11 @@ fn quad_words(b: &mut KernelBuilder, c: [P3; 4], edges: &[[Value; 3]; 4]) -> Vec
 /// cluster per iteration plus one for the root (flag bit 0 marks a finished quad; the
 /// others are the walk's inner nodes and idle clusters), and `state`, the walk to resume.
 /// Param: `stop2`, the stop length squared.
-pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+pub fn subdiv(desc: &MachineDesc, records: Records) -> Result<Kernel, MachineRequirementError> {
+    let frame_words = records.frame_words();
     Needs::new("subdiv", desc).scratchpad_words(
-        SLOTS * FRAME_WORDS,
-        &format!("a depth-first stack of {STACK_FRAMES} frames of {FRAME_WORDS} words and a spare"),
+        SLOTS * frame_words,
+        &format!("a depth-first stack of {STACK_FRAMES} frames of {frame_words} words and a spare"),
         false,
     )?;
     let mut b = KernelBuilder::new("subdiv");
@@ -413,13 +477,16 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let stop2 = b.param_f32("stop2");
     let half = b.f32(0.5);
     let (zero, one, three) = (b.i32(0), b.i32(1), b.i32(3));
-    let frame = b.i32(FRAME_WORDS as i32);
-    let spare = b.i32((STACK_FRAMES * FRAME_WORDS) as i32);
+    let frame = b.i32(frame_words as i32);
+    let spare = b.i32((STACK_FRAMES * frame_words) as i32);
     let max_depth = b.i32(STACK_FRAMES as i32);
 
     // ---- Before the loop: the patch's root, then the saved walk back into the
     // scratchpad word by word (the root's frame over slot 0 where the walk is fresh).
-    let patch: Vec<Value> = (0..PATCH_WORDS).map(|_| b.read(patches)).collect();
+    let patch: Vec<Value> = (0..records.patch_words())
+        .map(|_| b.read(patches))
+        .collect();
+    let root_place = records.places.then(|| b.cast(patch[PATCH_WORDS], Ty::I32));
     let saved_depth = b.read_i32(resume);
     let saved_flags = b.read_i32(resume);
     let saved_colour = b.read(resume);
@@ -452,26 +519,30 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     for v in rc.into_iter().flatten() {
         b.write(quads, v);
     }
+    if let Some(place) = root_place {
+        b.write(quads, place);
+    }
     let root_frame = negate(&mut b, rt.done);
     let root_depth = b.select(start, root_frame, zero);
     let depth0 = b.select(fresh, root_depth, saved_depth);
     let colour0 = b.select(fresh, patch[COLOUR_AT], saved_colour);
     let overflow0 = b.select(fresh, zero, saved_overflow);
     for slot in 0..STACK_FRAMES {
-        for i in 0..FRAME_WORDS {
+        for i in 0..frame_words {
             let w = b.read(resume);
             let w = if slot == 0 {
                 let r = match i {
                     _ if i < F_EDGES => root[i / 3][i % 3],
                     _ if i < F_MASK => rt.edges[(i - F_EDGES) / 3][(i - F_EDGES) % 3],
                     F_MASK => rt.mask,
+                    F_PLACE => root_place.expect("a frame with a place"),
                     _ => zero, // next child 0, level 0
                 };
                 b.select(fresh, r, w)
             } else {
                 w
             };
-            b.sp_write((slot * FRAME_WORDS + i) as u16, None, w);
+            b.sp_write((slot * frame_words + i) as u16, None, w);
         }
     }
 
@@ -494,6 +565,10 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let parent_mask = b.cast(parent_mask, Ty::I32);
     let level = b.sp_read(F_LEVEL as u16, Some(base));
     let level = b.cast(level, Ty::I32);
+    let place = records.places.then(|| {
+        let w = b.sp_read(F_PLACE as u16, Some(base));
+        b.cast(w, Ty::I32)
+    });
     let net: [P3; 16] = std::array::from_fn(|k| {
         std::array::from_fn(|c| {
             let w = b.sp_read((3 * k + c) as u16, Some(base));
@@ -576,6 +651,10 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     b.sp_write(F_MASK as u16, Some(target), t.mask);
     b.sp_write(F_NEXT as u16, Some(target), zero);
     b.sp_write(F_LEVEL as u16, Some(target), child_level);
+    let child_place = place.map(|p| child_place(&mut b, p, row_bit, col_bit));
+    if let Some(p) = child_place {
+        b.sp_write(F_PLACE as u16, Some(target), p);
+    }
     // The depth: a finished last child pops its parent; a pushed child adds a frame.
     let popped = b.isub(depth, one);
     let grown = b.iadd(depth, one);
@@ -594,9 +673,12 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     for &w in &qw {
         b.write(quads, w);
     }
-    // The corners, for `shade`.
+    // The corners (and the place), for `shade`.
     for v in cc.into_iter().flatten() {
         b.write(quads, v);
+    }
+    if let Some(p) = child_place {
+        b.write(quads, p);
     }
     b.end_loop();
 
@@ -605,7 +687,7 @@ pub fn subdiv(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let flags = b.or(overflow, started);
     b.write(state, flags);
     b.write(state, colour);
-    for i in 0..STACK_FRAMES * FRAME_WORDS {
+    for i in 0..STACK_FRAMES * frame_words {
         let w = b.sp_read(i as u16, None);
         b.write(state, w);
     }
@@ -619,21 +701,47 @@ pub enum Shading {
     Flat,
     /// OpenGL's fixed-function lighting of the vertex program ([`crate::opengl::vertex_program`]):
     /// `lights` lights, the specular term when `specular`, to the integer power `shininess`.
+    /// With `textured`, the lit colour and the quad's texture coordinates go to the
+    /// material's fragment program instead (a `varyings` record per quad, as `irast`
+    /// writes one per fragment), which colours the quad.
     Lit {
         lights: usize,
         specular: bool,
         shininess: u32,
+        textured: bool,
     },
 }
 
-/// A lit [`shade`]'s own parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃`.
-pub const SHADE_OWN_PARAMS: usize = 6;
+impl Shading {
+    /// Whether the quads go through a fragment program (their records carry places).
+    pub fn textured(self) -> bool {
+        matches!(self, Shading::Lit { textured: true, .. })
+    }
 
-/// Rows of a lit [`shade`]'s own parameters: [`SHADE_OWN_PARAMS`] padded so that
-/// `perlight`'s words after them start on an SRF block.
-pub fn shade_own_rows(desc: &MachineDesc) -> usize {
-    SHADE_OWN_PARAMS.next_multiple_of(crate::stream::srf::block_rows(desc))
+    /// The records of a frame shaded so.
+    pub fn records(self) -> Records {
+        Records {
+            places: self.textured(),
+        }
+    }
 }
+
+/// A lit [`shade`]'s own parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃`, and when
+/// textured the frame's breadth-first levels (an int32: `subdiv`'s levels count from the
+/// patches it walks, places from the scene's patches).
+pub fn shade_own_params(shading: Shading) -> usize {
+    6 + usize::from(shading.textured())
+}
+
+/// Rows of a lit [`shade`]'s own parameters: [`shade_own_params`] padded so that
+/// `perlight`'s words after them start on an SRF block.
+pub fn shade_own_rows(desc: &MachineDesc, shading: Shading) -> usize {
+    shade_own_params(shading).next_multiple_of(crate::stream::srf::block_rows(desc))
+}
+
+/// The words of a textured quad's `varyings` record: r, g, b (the lit colour, clamped),
+/// s, t.
+pub const SHADE_VARYINGS: usize = 5;
 
 /// A lit [`shade`]'s parameters.
 struct ShadeParams {
@@ -646,6 +754,8 @@ struct ShadeParams {
     base: [Value; 3],
     specular: bool,
     shininess: u32,
+    /// Textured: the frame's breadth-first levels.
+    split_levels: Option<Value>,
 }
 
 /// `shade`: per quad record of `subdiv` ([`SUBDIV_QUAD_WORDS`]), the record `sample`
@@ -664,8 +774,15 @@ struct ShadeParams {
 /// [`add_light`](crate::opengl::vertex_program::add_light) sums them, clamped to [0, 1]
 /// and packed as RGBA8 rounded to nearest, alpha 1.
 ///
-/// Parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃` (padded to [`shade_own_rows`]),
-/// then `perlight`'s words (the
+/// **Textured** lit quads (records with places, [`Records`]) write a colour word of 0 and,
+/// on `varyings`, the clamped lit colour and the texture coordinates of the quad's
+/// centre in its patch's parameter square: a place `(u_i, v_i)` at level `l` (the record's
+/// level plus the frame's breadth-first levels) is the cell of side `2^-l` whose centre is
+/// `s = (u_i + ½)·2^-l`, `t = (v_i + ½)·2^-l` (exact in fp32), the parameters at which
+/// the OpenGL pipeline's tessellation gives a patch's vertices their texture coordinates.
+///
+/// Parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃` (and when textured the frame's
+/// breadth-first levels; padded to [`shade_own_rows`]), then `perlight`'s words (the
 /// lights in eye space and their colour products, and `base`): the vertex program's
 /// `perlight` runs on the machine to write them.
 pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequirementError> {
@@ -676,6 +793,7 @@ pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequ
     let mut b = KernelBuilder::new("shade");
     let quads = b.input("quads");
     let shaded = b.output("shaded");
+    let varyings = shading.textured().then(|| b.output("varyings"));
     let (zero, one) = (b.f32(0.0), b.f32(1.0));
     let lit = match shading {
         Shading::Flat => None,
@@ -683,10 +801,12 @@ pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequ
             lights,
             specular,
             shininess,
+            textured,
         } => {
             let [two_over_w, two_over_h, p00, p11, p22, p23] =
                 ["two_over_w", "two_over_h", "p00", "p11", "p22", "p23"].map(|n| b.param_f32(n));
-            for i in SHADE_OWN_PARAMS..shade_own_rows(desc) {
+            let split_levels = textured.then(|| b.param("split_levels", Ty::I32));
+            for i in shade_own_params(shading)..shade_own_rows(desc, shading) {
                 b.param_f32(&format!("pad{i}"));
             }
             let (lights, base) = light_params(&mut b, lights, specular);
@@ -702,11 +822,14 @@ pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequ
                 base,
                 specular,
                 shininess,
+                split_levels,
             })
         }
     };
     b.begin_loop(LoopSpec::OverStream(quads));
-    let rec: Vec<Value> = (0..SUBDIV_QUAD_WORDS).map(|_| b.read(quads)).collect();
+    let rec: Vec<Value> = (0..shading.records().subdiv_quad_words())
+        .map(|_| b.read(quads))
+        .collect();
     for &w in &rec[..Q_COLOUR] {
         b.write(shaded, w);
     }
@@ -772,12 +895,51 @@ pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequ
                 v.colour = add_light(&mut b, &v, light, p.shininess, zero, one);
             }
             let [r, g, bl] = v.colour;
-            crate::kernels::texture::pack(&mut b, [r, g, bl, one])
+            match (varyings, p.split_levels) {
+                (Some(out), Some(split_levels)) => {
+                    for c in v.colour {
+                        let above_zero = b.fmax(c, zero);
+                        let clamped = b.fmin(above_zero, one);
+                        b.write(out, clamped);
+                    }
+                    let place = b.cast(rec[SUBDIV_QUAD_WORDS], Ty::I32);
+                    for t in place_centre(&mut b, place, rec[Q_LEVEL], split_levels) {
+                        b.write(out, t);
+                    }
+                    b.word(0)
+                }
+                _ => crate::kernels::texture::pack(&mut b, [r, g, bl, one]),
+            }
         }
     };
     b.write(shaded, colour);
     b.end_loop();
     Ok(finish(b))
+}
+
+/// The centre `(u, v)` of the cell `place` names at `level + split_levels` (see
+/// [`Records`]): `((u_i + ½)·2^-l, (v_i + ½)·2^-l)`, `2^-l` built from its exponent bits.
+fn place_centre(
+    b: &mut KernelBuilder,
+    place: Value,
+    level: Value,
+    split_levels: Value,
+) -> [Value; 2] {
+    let level = b.cast(level, Ty::I32);
+    let l = b.iadd(level, split_levels);
+    let bias = b.i32(127);
+    let exponent = b.isub(bias, l);
+    let mantissa_bits = b.i32(23);
+    let bits = b.shl(exponent, mantissa_bits);
+    let cell = b.cast(bits, Ty::F32);
+    let (mask, sixteen, half) = (b.i32(0xFFFF), b.i32(16), b.f32(0.5));
+    let u_i = b.and(place, mask);
+    let v_i = b.shr(place, sixteen);
+    [u_i, v_i].map(|i| {
+        let f = b.itof(i);
+        let centre = b.fadd(f, half);
+        b.fmul(centre, cell)
+    })
 }
 
 /// `sample`: each quad's pixel centres against its four edges, flat: for every centre of
@@ -792,15 +954,20 @@ pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequ
 /// 0`: of two quads that share the edge (exactly opposite equations) just one takes it. A
 /// zero-length edge (`A = B = 0`, `E = 0` everywhere) takes every centre: the quad is
 /// bounded by its other edges.
+///
+/// With `colours` (textured frames) each quad's colour is the next word of the `colours`
+/// input (the fragment program's, one per quad record) instead of its record's.
 pub fn sample(
     _desc: &MachineDesc,
     width: u32,
     height: u32,
     stop: f32,
+    colours: bool,
 ) -> Result<Kernel, MachineRequirementError> {
     let n = stamp(stop);
     let mut b = KernelBuilder::new("sample");
     let quads = b.input("quads");
+    let colours = colours.then(|| b.input("colours"));
     let addr_out = b.output("addr");
     let z_out = b.output("z");
     let colour_out = b.output("colour");
@@ -824,7 +991,10 @@ pub fn sample(
         std::array::from_fn(|k| std::array::from_fn(|i| b.cast(rec[Q_EDGES + 3 * k + i], Ty::F32)));
     let bx: [Value; 4] = std::array::from_fn(|i| b.cast(rec[Q_BOX + i], Ty::F32));
     let z = rec[Q_DEPTH];
-    let colour = rec[Q_COLOUR];
+    let colour = match colours {
+        Some(c) => b.read(c),
+        None => rec[Q_COLOUR],
+    };
     // Per axis: the first centre X0 + 0.5 ≥ lo − margin (X0 = ceil(lo − margin − 0.5)),
     // the box's widened bounds.
     let axis = |b: &mut KernelBuilder, lo: Value, hi: Value| {

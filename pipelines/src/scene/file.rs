@@ -105,6 +105,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("TEAPOT-30", include_str!("../../../scenes/TEAPOT-30.toml")),
     ("TEAPOT-40", include_str!("../../../scenes/TEAPOT-40.toml")),
     ("TEAPOT-64", include_str!("../../../scenes/TEAPOT-64.toml")),
+    (
+        "PIN-PATCHES",
+        include_str!("../../../scenes/PIN-PATCHES.toml"),
+    ),
 ];
 
 /// The source tree's `scenes/` directory, where built-in scenes find their assets.
