@@ -729,12 +729,15 @@ pub fn render_patches(
         )?);
     }
     let zeros = dram.buffer("walk_zeros", (state_words * c) as u64)?;
-    // The textures' words, read-only (what a texture cache may hold).
-    let texture_words = shading
-        .texturing
-        .as_ref()
-        .map_or(0, |t| t.memory.words.len().max(1) as u64);
-    let textures = dram.read_only_buffer("textures", texture_words.max(1))?;
+    // A textured frame's textures, read-only (what a texture cache may hold); none in an
+    // untextured frame, whose DRAM is laid out as it was before textures.
+    let textures = match &shading.texturing {
+        Some(t) => {
+            let words = t.memory.words.len().max(1) as u64;
+            Some((dram.read_only_buffer("textures", words)?, words))
+        }
+        None => None,
+    };
     let pixels = (width * height) as usize + 1;
     let fb_pixels = pixels.div_ceil(c) * c;
     let framebuffer = dram.buffer("framebuffer", (fb_pixels * PIXEL_WORDS) as u64)?;
@@ -750,7 +753,8 @@ pub fn render_patches(
     let staging = phase_plan.whole(ps.staging);
     h.upload(&upload, input, 0, staging);
     if let Some(t) = &shading.texturing {
-        h.upload(&t.memory.words, textures, 0, staging);
+        let (buffer, _) = textures.expect("a textured frame's texture buffer");
+        h.upload(&t.memory.words, buffer, 0, staging);
     }
     h.drain()?;
     let loaded = h.cycles();
@@ -937,7 +941,8 @@ pub fn render_patches(
                 h.call(texaddr.expect("a textured frame's texaddr"), &bindings)?;
                 if let Some(index) = texels {
                     let n = quad_records * fp.direct_fetches();
-                    h.gather(textures, index, texture_words, Layout::words(), n, index);
+                    let (buffer, words) = textures.expect("a textured frame's texture buffer");
+                    h.gather(buffer, index, words, Layout::words(), n, index);
                     stats.texel_words += n as u64;
                 }
                 let mut bindings = vec![("varyings", varyings)];
