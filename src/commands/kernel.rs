@@ -513,11 +513,21 @@ impl Entry {
     }
 
     /// `rows` iterations of inputs: the library kernel's own valid ones, or random words
-    /// of the types a pipeline kernel reads.
+    /// of the types a pipeline kernel reads — but for the Reyes `subdiv`'s saved walks
+    /// (`resume`), zeros: random words there are stack depths and scratchpad addresses no
+    /// walk leaves, where zeros are fresh walks, which take their (random) patches.
     fn inputs(&self, kernel: &Kernel, desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
         match &self.source {
             Source::Library(lk) => (lk.inputs)(desc, rows, seed),
-            Source::Pipeline(_) => random_inputs(kernel, desc, rows, seed),
+            Source::Pipeline(_) => {
+                let mut inputs = random_inputs(kernel, desc, rows, seed);
+                if kernel.name == "subdiv"
+                    && let Some(s) = kernel.streams.iter().position(|s| s.name == "resume")
+                {
+                    inputs.streams[s].fill(0);
+                }
+                inputs
+            }
         }
     }
 }

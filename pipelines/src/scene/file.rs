@@ -24,7 +24,10 @@
 //! * `stitch = true` (patches only, an addition to the format; default false) sends each
 //!   row of a diced patch as a strip joined to the next by two degenerate triangles, as the
 //!   papers did: TEAPOT-N's `56·N·(N + 1)` triangles (see `bpt`).
-//! * `cage` is refused: Catmull-Clark limit surfaces are not supported yet.
+//! * `cage = "x.obj"` (a closed polygon mesh) is its Catmull-Clark limit surface as
+//!   bicubic Bezier patches, a patch per quad after one Catmull-Clark step (see `cage`),
+//!   diced by `tessellate` (and `stitch`) for OpenGL like `.bpt` patches; `basis` is
+//!   refused with it.
 //! * `shader = "marble"` (MARBLE's procedural shader, per fragment; no textures, and the
 //!   mesh needs normals, as for `lit`) takes three optional keys: `frequency` (default 4)
 //!   and `turbulence_scale` (default 5), in `sin(x·frequency +
@@ -61,6 +64,7 @@ use glam::{DMat4, DVec3};
 use serde::Deserialize;
 
 use super::bpt::{self, Basis};
+use super::cage;
 use super::model::{self, Mesh, Noise, Space};
 use super::obj::{self, AssetError};
 use super::{IDENTITY, MAX_WINDOW, SceneError, primitives, window_to_clip};
@@ -109,6 +113,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "PIN-PATCHES",
         include_str!("../../../scenes/PIN-PATCHES.toml"),
     ),
+    ("SPOT-CAGE", include_str!("../../../scenes/SPOT-CAGE.toml")),
 ];
 
 /// The source tree's `scenes/` directory, where built-in scenes find their assets.
@@ -1275,11 +1280,13 @@ impl Cx {
             if o.basis.is_some() {
                 return Err(self.err(&key("basis"), "only for `patches`"));
             }
-            if o.tessellate.is_some() {
-                return Err(self.err(&key("tessellate"), "only for `patches`"));
-            }
-            if o.stitch.is_some() {
-                return Err(self.err(&key("stitch"), "only for `patches`"));
+            if o.cage.is_none() {
+                if o.tessellate.is_some() {
+                    return Err(self.err(&key("tessellate"), "only for `patches` and `cage`"));
+                }
+                if o.stitch.is_some() {
+                    return Err(self.err(&key("stitch"), "only for `patches` and `cage`"));
+                }
             }
         }
         let mut space = Space::World;
@@ -1294,15 +1301,25 @@ impl Cx {
             })?;
             let mesh = obj::parse(&text, lit).map_err(|e| self.asset(&key("mesh"), &path, e))?;
             (file.clone(), mesh)
-        } else if let Some(file) = &o.patches {
-            let (path, bytes) = self.read(&key("patches"), file)?;
+        } else if let Some((file, source)) = o
+            .patches
+            .as_ref()
+            .map(|f| (f, "patches"))
+            .or(o.cage.as_ref().map(|f| (f, "cage")))
+        {
+            let (path, bytes) = self.read(&key(source), file)?;
             let text = String::from_utf8(bytes).map_err(|_| {
                 self.err(
-                    &key("patches"),
+                    &key(source),
                     format!("`{}` is not UTF-8 text", path.display()),
                 )
             })?;
-            let patches = bpt::parse(&text).map_err(|e| self.asset(&key("patches"), &path, e))?;
+            let patches = if source == "cage" {
+                cage::patches(&text)
+            } else {
+                bpt::parse(&text)
+            }
+            .map_err(|e| self.asset(&key(source), &path, e))?;
             let n = o.tessellate.unwrap_or(20);
             if !(1..=MAX_TESSELLATE).contains(&n) {
                 return Err(self.err(
@@ -1313,17 +1330,13 @@ impl Cx {
             let stitch = o.stitch.unwrap_or(false);
             let per_row = 2 * u64::from(n) + 2 * u64::from(stitch);
             room("tessellate", patches.len() as u64 * per_row * u64::from(n))?;
+            // A cage's patches are Bezier; `basis` is for `.bpt` files.
             let basis = match o.basis.unwrap_or(BasisFile::Bezier) {
                 BasisFile::Bezier => Basis::Bezier,
                 BasisFile::Bspline => Basis::BSpline,
             };
             bezier = patches.iter().map(|p| bpt::to_bezier(p, basis)).collect();
             (file.clone(), bpt::tessellate(&patches, basis, n, stitch))
-        } else if o.cage.is_some() {
-            return Err(self.err(
-                &key("cage"),
-                "Catmull-Clark control cages are not supported yet",
-            ));
         } else {
             let p = o.primitive.as_ref().expect("one source");
             let pkey = |k: &str| key(&format!("primitive.{k}"));
@@ -1719,7 +1732,7 @@ mod tests {
             (format!("{WINDOW}[[material]]\nname = \"m\"\nshader = \"unlit\"\ntextures = [\"t\"]\n{BALL}"), vec!["`material[0].textures`", "`t`"]),
             ("[window]\nwidth = 0\nheight = 1\n[[object]]\nprimitive = { kind = \"icosphere\", subdivisions = 0 }\n".into(), vec!["`window.width`", "1..=4096"]),
             (WINDOW.into(), vec!["no [[object]]"]),
-            (format!("{WINDOW}[[object]]\ncage = \"a.obj\"\n"), vec!["`object[0].cage`", "not supported yet"]),
+            (format!("{WINDOW}[[object]]\ncage = \"a.obj\"\n"), vec!["`object[0].cage`", "a.obj"]),
             (format!("{WINDOW}[[object]]\nprimitive = {{ kind = \"icosphere\" }}\n"), vec!["`object[0].primitive.subdivisions`", "missing"]),
             (format!("{WINDOW}[[object]]\nprimitive = {{ kind = \"rate\", size = 3 }}\n"), vec!["`object[0].primitive.size`", "power of two"]),
             (format!("{WINDOW}[pipeline]\ncull = \"sideways\"\n{BALL}"), vec!["pipeline.cull", "sideways"]),

@@ -24,6 +24,7 @@
 
 pub mod bpt;
 pub mod bump_map;
+pub mod cage;
 pub mod file;
 pub mod mipmap;
 pub mod model;
