@@ -12,7 +12,7 @@ use imagine_pipelines::compile::{CompileCache, Compiled};
 use imagine_pipelines::kernel::KernelInputs;
 use imagine_pipelines::kernels::records_to_stream;
 use imagine_pipelines::reyes::frame::{self, BezierPatch, ReyesOptions};
-use imagine_pipelines::reyes::kernels::{self, PATCH_WORDS, Records, STATE_WORDS};
+use imagine_pipelines::reyes::kernels::{self, PATCH_WORDS, Records};
 use imagine_pipelines::run::check;
 use imagine_units::desc::MachineDesc;
 
@@ -111,6 +111,27 @@ fn placed_record(p: &BezierPatch, colour: u32, place: u32) -> Vec<u32> {
     r
 }
 
+/// `subdiv`'s inputs for fresh walks of `patches` (a record per cluster, with `records`'
+/// shape), `iterations` quads a cluster, at stop length `stop`.
+fn walk_inputs(
+    records: Records,
+    patches: &[Vec<u32>],
+    iterations: usize,
+    stop: f32,
+    c: usize,
+) -> KernelInputs {
+    KernelInputs {
+        streams: vec![
+            vec![0; records.state_words() * c],
+            records_to_stream(patches, c),
+            vec![0; iterations * c],
+            Vec::new(),
+            Vec::new(),
+        ],
+        params: vec![(stop * stop).to_bits()],
+    }
+}
+
 #[test]
 #[ignore = "compiles `subdiv_split`: minutes cold"]
 fn subdiv_split_machine_equals_interpretation() {
@@ -179,16 +200,7 @@ fn subdiv_machine_equals_interpretation() {
         })
         .collect();
     records.push(vec![0; PATCH_WORDS]);
-    let inputs = KernelInputs {
-        streams: vec![
-            vec![0; STATE_WORDS * c],
-            records_to_stream(&records, c),
-            vec![0; 40 * c],
-            Vec::new(),
-            Vec::new(),
-        ],
-        params: vec![(1.5f32 * 1.5).to_bits()],
-    };
+    let inputs = walk_inputs(Records::default(), &records, 40, 1.5, c);
     let r = check(&k, &compiled, &desc, &inputs).unwrap();
     assert!(r.mismatch.is_none(), "{}", r.mismatch.unwrap());
     assert!(r.words > 40 * c * kernels::QUAD_WORDS);
@@ -201,16 +213,7 @@ fn subdiv_machine_equals_interpretation() {
         .enumerate()
         .map(|(i, r)| [r.as_slice(), &[i as u32]].concat())
         .collect();
-    let inputs = KernelInputs {
-        streams: vec![
-            vec![0; placed.state_words() * c],
-            records_to_stream(&records, c),
-            vec![0; 40 * c],
-            Vec::new(),
-            Vec::new(),
-        ],
-        params: vec![(1.5f32 * 1.5).to_bits()],
-    };
+    let inputs = walk_inputs(placed, &records, 40, 1.5, c);
     let r = check(&k, &self::compiled(&k, &desc), &desc, &inputs).unwrap();
     assert!(r.mismatch.is_none(), "with places: {}", r.mismatch.unwrap());
 }
@@ -260,16 +263,7 @@ fn project_and_sample_machine_equal_interpretation() {
         .collect();
     let out = imagine_pipelines::kernel::interpret(
         &s,
-        &KernelInputs {
-            streams: vec![
-                vec![0; STATE_WORDS * c],
-                records_to_stream(&patches, c),
-                vec![0; 24 * c],
-                Vec::new(),
-                Vec::new(),
-            ],
-            params: vec![(stop * stop).to_bits()],
-        },
+        &walk_inputs(Records::default(), &patches, 24, stop, c),
         &desc,
     )
     .unwrap();
@@ -336,16 +330,7 @@ fn project_and_sample_machine_equal_interpretation() {
         .collect();
     let out = imagine_pipelines::kernel::interpret(
         &s,
-        &KernelInputs {
-            streams: vec![
-                vec![0; placed.state_words() * c],
-                records_to_stream(&patches, c),
-                vec![0; 24 * c],
-                Vec::new(),
-                Vec::new(),
-            ],
-            params: vec![(stop * stop).to_bits()],
-        },
+        &walk_inputs(placed, &patches, 24, stop, c),
         &desc,
     )
     .unwrap();
