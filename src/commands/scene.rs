@@ -326,8 +326,15 @@ pub fn describe(s: &Scene) -> Description {
             Space::Window => "window",
         };
         let m = &o.mesh;
+        // Patch objects (`.bpt` patches and Catmull-Clark cages): their Bezier patches,
+        // which the Reyes pipeline subdivides and the mesh dices.
+        let patches = if o.patches.is_empty() {
+            String::new()
+        } else {
+            format!("{} Bezier patches diced into ", count(o.patches.len()))
+        };
         lines.push(format!(
-            "{}: {} vertices, {} triangles{}, material {}, {space} space",
+            "{}: {patches}{} vertices, {} triangles{}, material {}, {space} space",
             o.name,
             count(m.positions.len()),
             count(m.triangles.len()),
@@ -335,7 +342,8 @@ pub fn describe(s: &Scene) -> Description {
             s.materials[o.material].name
         ));
         js.push(json!({
-            "name": o.name, "vertices": m.positions.len(), "triangles": m.triangles.len(),
+            "name": o.name, "patches": o.patches.len(),
+            "vertices": m.positions.len(), "triangles": m.triangles.len(),
             "separate": m.separate, "material": s.materials[o.material].name, "space": space,
             "normals": !m.normals.is_empty(), "colours": !m.colours.is_empty(),
             "texcoords": !m.texcoords.is_empty(), "model": o.model,
