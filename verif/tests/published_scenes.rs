@@ -68,6 +68,14 @@ fn published_scenes_have_the_published_counts() {
     assert!(wrong.is_empty(), "{wrong:#?}");
 }
 
+/// The pixels `scene` shows after the depth test (the f64 reference) and how far that is
+/// from `published`, as a fraction.
+fn visible_against(scene: &Scene, published: f64) -> (usize, f64) {
+    let (_, shown) = reference_model::render_visible(scene).unwrap();
+    let visible = shown.iter().filter(|t| t.is_some()).count();
+    (visible, visible as f64 / published - 1.0)
+}
+
 /// Table 8.1's TEAPOT-N (Owens et al. 2002; the thesis's ch. 8): 28 patches diced N × N and
 /// sent as stitched strips, `56·N·(N + 1)` triangles, and about 137k visible fragments
 /// (pixels showing the teapot after the depth test) whatever N, within 10 %.
@@ -78,9 +86,7 @@ fn teapot_n_has_the_published_triangles_and_visible_fragments() {
         let scene = load(&format!("TEAPOT-{n}"), &LoadOptions::default()).unwrap();
         assert_eq!((scene.width, scene.height), (720, 720));
         assert_eq!(scene.triangles(), 56 * n * (n + 1), "TEAPOT-{n}");
-        let (_, shown) = reference_model::render_visible(&scene).unwrap();
-        let visible = shown.iter().filter(|t| t.is_some()).count();
-        let off = visible as f64 / 137_000.0 - 1.0;
+        let (visible, off) = visible_against(&scene, 137_000.0);
         println!(
             "TEAPOT-{n}: {visible} visible fragments ({:+.1} %)",
             100.0 * off
@@ -103,9 +109,7 @@ fn pin_patches_has_twelve_patches_and_the_published_fragments() {
     assert_eq!((scene.width, scene.height), (720, 720));
     assert_eq!(scene.objects[0].patches.len(), 12);
     assert_eq!(scene.triangles(), 12 * 58 * 58 * 2);
-    let (_, shown) = reference_model::render_visible(&scene).unwrap();
-    let visible = shown.iter().filter(|t| t.is_some()).count();
-    let off = visible as f64 / 91_600.0 - 1.0;
+    let (visible, off) = visible_against(&scene, 91_600.0);
     assert!(
         off.abs() <= 0.10,
         "{visible} visible fragments, 91.6k published"
@@ -121,9 +125,7 @@ fn spot_cage_has_its_patches_and_the_published_fragments() {
     let scene = load("SPOT-CAGE", &LoadOptions::default()).unwrap();
     assert_eq!(scene.objects[0].patches.len(), 160 * 4 + 16 * 5 + 4 * 3);
     assert_eq!(scene.triangles(), 732 * 8 * 8 * 2);
-    let (_, shown) = reference_model::render_visible(&scene).unwrap();
-    let visible = shown.iter().filter(|t| t.is_some()).count();
-    let off = visible as f64 / 93_700.0 - 1.0;
+    let (visible, off) = visible_against(&scene, 93_700.0);
     assert!(
         off.abs() <= 0.10,
         "{visible} visible fragments, 93.7k published"

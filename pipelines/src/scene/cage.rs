@@ -105,8 +105,8 @@ pub fn parse(text: &str) -> Result<Cage, AssetError> {
     Ok(cage)
 }
 
-/// Checks that `cage` is a closed, consistently oriented 2-manifold of polygons with
-/// finite positions.
+/// Checks that `cage` is a closed, consistently oriented 2-manifold of polygons (its
+/// positions `parse` checked line by line).
 fn check(cage: &Cage) -> Result<(), AssetError> {
     let err = |m: String| Err(AssetError::new(None, m));
     if cage.faces.is_empty() {
@@ -117,13 +117,6 @@ fn check(cage: &Cage) -> Result<(), AssetError> {
             "{} faces: a cage may have at most {MAX_CAGE_FACES}",
             cage.faces.len()
         ));
-    }
-    if let Some(i) = cage
-        .positions
-        .iter()
-        .position(|p| p.iter().any(|c| !c.is_finite()))
-    {
-        return err(format!("vertex {} is not finite", i + 1));
     }
     let mut directed: HashMap<(usize, usize), usize> = HashMap::new();
     for (f, face) in cage.faces.iter().enumerate() {
