@@ -321,6 +321,94 @@ fn project_and_sample_machine_equal_interpretation() {
     let golden = imagine_pipelines::kernel::interpret(&sampler, &inputs, &desc).unwrap();
     assert!(golden[1].len() > c, "the quads cover pixels");
 
+    // Marble: `shade` writes each quad's centre and normal in object space, on the
+    // machine as interpreted, and they are the f64 inverse of its window-space corners.
+    let marble = kernels::Shading::Marble;
+    let shade = kernels::shade(&desc, marble).unwrap();
+    // Object space to eye space: a rotation about y, a scale of 2 and a translation.
+    let (sin, cos) = (0.6f64, 0.8f64);
+    let model_view = [
+        [2.0 * cos, 0.0, 2.0 * sin, 0.5],
+        [0.0, 2.0, 0.0, -0.25],
+        [-2.0 * sin, 0.0, 2.0 * cos, -4.0],
+    ];
+    // Its inverse: the transposed rotation over the scale, after the translation.
+    let to_object: [[f64; 4]; 3] = std::array::from_fn(|r| {
+        let column: [f64; 3] = std::array::from_fn(|i| model_view[i][r] / 4.0);
+        let t = -(0..3).map(|i| column[i] * model_view[i][3]).sum::<f64>();
+        [column[0], column[1], column[2], t]
+    });
+    let mut params: Vec<u32> = own.iter().map(|v| v.to_bits()).collect();
+    params.extend(to_object.iter().flatten().map(|&v| (v as f32).to_bits()));
+    params.resize(kernels::shade_own_rows(&desc, marble), 0);
+    let inputs = KernelInputs {
+        streams: vec![out[3].clone(), vec![], vec![]],
+        params,
+    };
+    let r = check(&shade, &compiled(&shade, &desc), &desc, &inputs).unwrap();
+    assert!(
+        r.mismatch.is_none(),
+        "shade (marble): {}",
+        r.mismatch.unwrap()
+    );
+    let shaded = imagine_pipelines::kernel::interpret(&shade, &inputs, &desc).unwrap();
+    let quads =
+        imagine_pipelines::kernels::stream_to_records(&out[3], kernels::SUBDIV_QUAD_WORDS, c);
+    let varyings =
+        imagine_pipelines::kernels::stream_to_records(&shaded[2], marble.varyings_words(), c);
+    let to_eye_space = |x: f64, y: f64, z: f64| {
+        let p: Vec<f64> = own.iter().map(|&v| f64::from(v)).collect();
+        let (xn, yn, zn) = (x * p[0] - 1.0, y * p[1] - 1.0, 2.0 * z - 1.0);
+        let w = p[5] / (zn + p[4]);
+        [xn * w / p[2], yn * w / p[3], -w]
+    };
+    let apply = |v: [f64; 3]| -> [f64; 3] {
+        std::array::from_fn(|r| {
+            (0..3).map(|i| to_object[r][i] * v[i]).sum::<f64>() + to_object[r][3]
+        })
+    };
+    let mut checked = 0;
+    for (q, v) in quads.iter().zip(&varyings) {
+        if q[kernels::Q_FLAGS] & kernels::FLAG_QUAD == 0 {
+            continue;
+        }
+        let corner = |k: usize| {
+            let w = |i: usize| f64::from(f32::from_bits(q[kernels::Q_CORNERS + 3 * k + i]));
+            apply(to_eye_space(w(0), w(1), w(2)))
+        };
+        let corners: [[f64; 3]; 4] = std::array::from_fn(corner);
+        let centre: [f64; 3] =
+            std::array::from_fn(|i| corners.iter().map(|c| c[i]).sum::<f64>() / 4.0);
+        let got: Vec<f64> = v[3..9]
+            .iter()
+            .map(|&w| f64::from(f32::from_bits(w)))
+            .collect();
+        for i in 0..3 {
+            assert!(
+                (got[i] - centre[i]).abs() < 1e-4,
+                "object-space centre {:?}, f64 {centre:?}",
+                &got[..3]
+            );
+        }
+        // The normal: along the diagonals' cross product, facing the eye.
+        let d1: [f64; 3] = std::array::from_fn(|i| corners[2][i] - corners[0][i]);
+        let d2: [f64; 3] = std::array::from_fn(|i| corners[3][i] - corners[1][i]);
+        let cross = [
+            d1[1] * d2[2] - d1[2] * d2[1],
+            d1[2] * d2[0] - d1[0] * d2[2],
+            d1[0] * d2[1] - d1[1] * d2[0],
+        ];
+        let n = &got[3..6];
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let cosine = dot(n, &cross).abs() / (dot(n, n) * dot(&cross, &cross)).sqrt();
+        assert!(cosine > 0.999, "normal {n:?} against {cross:?}");
+        let eye: Vec<f64> = to_object.iter().map(|r| r[3]).collect();
+        let to_eye: Vec<f64> = (0..3).map(|i| eye[i] - got[i]).collect();
+        assert!(dot(n, &to_eye) >= 0.0, "the normal faces the eye");
+        checked += 1;
+    }
+    assert!(checked > 8, "{checked} marble quads");
+
     // Textured: `subdiv` with places (interpreted), `shade` writing varyings, `sample`
     // taking each quad's colour from a stream, both on the machine as interpreted.
     let placed = Records { places: true };
@@ -417,6 +505,62 @@ fn subdiv_needs_the_reyes_scratchpad_and_a_good_stop_length() {
             "{bad}: {e}"
         );
     }
+}
+
+/// What quads are shaded with: SPOT-CAGE is marble, its `shade` taking the inverse of the
+/// model-view matrix; one marble frame has one object space, and mipmapped textures are
+/// refused naming the texture.
+#[test]
+fn the_shading_setup_takes_marble_and_refuses_what_quads_cannot_draw() {
+    use imagine_pipelines::scene::model::Filter;
+    use imagine_pipelines::scene::{LoadOptions, load, mat_mul};
+    let spot = load("SPOT-CAGE", &LoadOptions::default()).unwrap();
+    let setup = frame::ShadeSetup::of(&spot, 8).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(setup.shading, kernels::Shading::Marble);
+    assert!(setup.perlight.is_none());
+    let t = setup.texturing.as_ref().expect("marble's fragment program");
+    assert_eq!(t.kernel_name(), "marble");
+    assert_eq!(
+        t.marble_params.len(),
+        imagine_pipelines::kernels::turbulence::SCALAR_PARAMS
+    );
+    // The transform's rows times the model-view are the identity's rows.
+    assert_eq!(setup.params.len(), 6 + kernels::TO_OBJECT_WORDS);
+    let to_object: Vec<f64> = setup.params[6..]
+        .iter()
+        .map(|&w| f64::from(f32::from_bits(w)))
+        .collect();
+    let object = &spot.objects[0];
+    let mv = mat_mul(&spot.camera_for(object).view, &object.model);
+    for r in 0..3 {
+        for c in 0..4 {
+            let product: f64 = (0..4)
+                .map(|k| to_object[4 * r + k] * f64::from(mv[4 * k + c]))
+                .sum();
+            let identity = if r == c { 1.0 } else { 0.0 };
+            assert!((product - identity).abs() < 1e-5, "({r}, {c}): {product}");
+        }
+    }
+
+    let mut two = spot.clone();
+    let mut moved = two.objects[0].clone();
+    moved.name = "moved".into();
+    moved.model[3] += 1.0;
+    two.objects.push(moved);
+    let e = frame::ShadeSetup::of(&two, 8).unwrap_err().to_string();
+    assert!(
+        e.contains("`spot`") && e.contains("`moved`") && e.contains("marble"),
+        "{e}"
+    );
+
+    let mut pin = load("PIN-PATCHES", &LoadOptions::default()).unwrap();
+    assert!(frame::ShadeSetup::of(&pin, 8).unwrap().shading.textured());
+    pin.textures[0].filter = Filter::Trilinear;
+    let e = frame::ShadeSetup::of(&pin, 8).unwrap_err().to_string();
+    assert!(
+        e.contains(&format!("`{}`", pin.textures[0].name)) && e.contains("mipmapped"),
+        "{e}"
+    );
 }
 
 /// Two patches that share a curved edge, one five times wider than the other (so their

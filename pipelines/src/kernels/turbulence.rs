@@ -651,6 +651,12 @@ pub fn perm_stream(table: impl IntoIterator<Item = u32>, clusters: usize) -> Vec
         .collect()
 }
 
+/// The `perm` stream of Perlin's permutation ([`PERLIN_PERMUTATION`]) for `clusters`
+/// clusters, as the pipelines' marble programs read it.
+pub fn perlin_perm_stream(clusters: usize) -> Vec<u32> {
+    perm_stream(PERLIN_PERMUTATION.map(u32::from), clusters)
+}
+
 /// The table a `perm` stream holds (each word is there once per cluster).
 pub fn table_of(perm: &[u32], clusters: usize) -> Vec<u32> {
     perm.iter().step_by(clusters.max(1)).copied().collect()

@@ -884,7 +884,10 @@ pub fn kernel_description(name: &str) -> String {
         "project" => "patch (Reyes): its 16 control points to window space",
         "subdiv_split" => "patch (Reyes): its four children, a breadth-first level",
         "subdiv" => "iteration (Reyes): one quad of each cluster's depth-first walk",
-        "shade" => "quad (Reyes): its colour from the material, lit at its centre",
+        "shade" => {
+            "quad (Reyes): its colour from the material, lit at its centre (marble: its \
+             object-space centre and normal, for the marble kernel)"
+        }
         "sample" => "quad (Reyes): the pixel centres of its box against its four edges",
         _ => "a kernel of the OpenGL pipeline",
     };
@@ -1518,8 +1521,7 @@ fn run_frame(
     let fb_pixels = pixels.div_ceil(clusters) * clusters;
     let shaded_words = pp.varyings.shaded_words();
     // The marble program's permutation table, each word once per cluster.
-    let perm_words =
-        turbulence::perm_stream(turbulence::PERLIN_PERMUTATION.map(u32::from), clusters);
+    let perm_words = turbulence::perlin_perm_stream(clusters);
     let m = Memory {
         textures: dram.read_only_buffer("textures", pp.textures.words.len().max(1) as u64)?,
         perm: dram.buffer("perm", perm_words.len() as u64)?,

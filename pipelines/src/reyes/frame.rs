@@ -36,6 +36,7 @@
 //! The depths and visible pixels come from the framebuffer through the DRAM's backdoor
 //! after the read-back.
 
+use glam::DMat4;
 use imagine_units::desc::MachineDesc;
 use imagine_units::limits::MAX_RUN_CYCLES;
 use imagine_units::machine::StreamBinding;
@@ -43,13 +44,13 @@ use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
 
 use super::kernels::{
-    self, FLAG_QUAD, MAX_PLACE_LEVEL, MAX_STOP_LENGTH, Q_FLAGS, Q_LEVEL, QUAD_WORDS,
-    SHADE_VARYINGS, STACK_FRAMES, Shading, stamp,
+    self, FLAG_QUAD, MAX_PLACE_LEVEL, MAX_STOP_LENGTH, Q_FLAGS, Q_LEVEL, QUAD_WORDS, STACK_FRAMES,
+    Shading, stamp,
 };
 use crate::compile::CompileCache;
 use crate::kernel::{Kernel, MachineRequirementError};
-use crate::kernels::stream_to_records;
 use crate::kernels::texture::FragmentProgram;
+use crate::kernels::{stream_to_records, turbulence};
 use crate::opengl::fragment_program::{self, TextureMemory};
 use crate::opengl::kernels::{self as gl, FrameShape, NULL_DEPTH, PIXEL_WORDS};
 use crate::opengl::render::{
@@ -59,7 +60,7 @@ use crate::opengl::render::{
 pub use crate::opengl::stats::KernelShare;
 use crate::opengl::vertex_program::VertexProgram;
 use crate::scene::mat_mul;
-use crate::scene::model::{Blend, Cull, DepthTest, Filter, Scene};
+use crate::scene::model::{Blend, Cull, DepthTest, Filter, Scene, Shader};
 use crate::stream::{
     DramMap, HostError, KernelLibrary, Layout, Lifetime, PARAMS, PlanError, SrfPlanner, StreamHost,
     live,
@@ -221,16 +222,41 @@ pub struct ShadeSetup {
     /// parameters and its input (the scene's OpenGL state, as the OpenGL pipeline hands
     /// them to the same kernel).
     pub perlight: Option<(VertexProgram, Vec<u32>, Vec<u32>)>,
-    /// Textured: the material's fragment program and the scene's textures in DRAM.
+    /// Textured or marble: the material's fragment program and what it reads.
     pub texturing: Option<Texturing>,
 }
 
-/// A textured frame's fragment program (the OpenGL pipeline's, run on quads) and where
-/// its textures lie.
+/// A textured or marble frame's fragment program (the OpenGL pipeline's, run on quads),
+/// where its textures lie, and a marble's parameters.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Texturing {
     pub program: FragmentProgram,
     pub memory: TextureMemory,
+    /// Marble: [`fragment_program::marble_params`] (empty otherwise).
+    pub marble_params: Vec<u32>,
+}
+
+impl Texturing {
+    /// The name the frame registers the program's colour kernel under: `fragment`, or for
+    /// marble the kernel's own (`marble`, `marble_ward`).
+    pub fn kernel_name(&self) -> &'static str {
+        self.program
+            .marble
+            .map_or("fragment", turbulence::fragment_name)
+    }
+
+    /// The program's colour kernel, reading `shade`'s `varyings` records of
+    /// `varyings_words` (no derivatives: nothing mipmapped).
+    fn kernel(
+        &self,
+        desc: &MachineDesc,
+        varyings_words: usize,
+    ) -> Result<Kernel, MachineRequirementError> {
+        match self.program.marble {
+            Some(noise) => turbulence::build_fragment(desc, varyings_words, noise),
+            None => self.program.fragment(varyings_words),
+        }
+    }
 }
 
 impl ShadeSetup {
@@ -245,10 +271,11 @@ impl ShadeSetup {
     }
 
     /// The shading of `scene`'s patch objects on a machine of `clusters` clusters: their
-    /// material's, which they must share, with one camera. `lit` and `unlit` materials are
-    /// built, and `lit` ones with point-sampled or bilinear textures; mipmapped textures
-    /// (no screen-space derivatives on quads), textured `unlit` materials and the marble
-    /// and bump-mapped shaders are not (an error).
+    /// material's, which they must share, with one camera (and for marble one model
+    /// matrix). `lit`, `unlit` and `marble` materials are built, and `lit` ones with
+    /// point-sampled or bilinear textures; mipmapped textures (no screen-space derivatives
+    /// on quads), textured `unlit` materials and the bump-mapped shader are not (an
+    /// error).
     pub fn of(scene: &Scene, clusters: usize) -> Result<ShadeSetup, ReyesError> {
         let Some(first) = scene.objects.first() else {
             return Ok(ShadeSetup::flat());
@@ -276,28 +303,25 @@ impl ShadeSetup {
             )));
         }
         let program = VertexProgram::for_object(scene, first, false).map_err(ReyesError)?;
-        let VertexProgram::Lit {
-            lights,
-            specular,
-            shininess,
-            ..
-        } = program
-        else {
-            return match program {
-                VertexProgram::Unlit { .. } if !material.textures.is_empty() => {
-                    Err(ReyesError(format!(
-                        "material `{}`: the Reyes pipeline textures lit materials only",
-                        material.name
-                    )))
-                }
-                VertexProgram::Unlit { .. } => Ok(ShadeSetup::flat()),
-                _ => Err(ReyesError(format!(
-                    "material `{}`: the Reyes pipeline shades lit and unlit materials only",
+        match program {
+            VertexProgram::Lit { .. } | VertexProgram::Marble { .. } => {}
+            VertexProgram::Unlit { .. } if !material.textures.is_empty() => {
+                return Err(ReyesError(format!(
+                    "material `{}`: the Reyes pipeline textures lit materials only",
                     material.name
-                ))),
-            };
-        };
-        let p = scene.camera_for(first).projection;
+                )));
+            }
+            VertexProgram::Unlit { .. } => return Ok(ShadeSetup::flat()),
+            _ => {
+                return Err(ReyesError(format!(
+                    "material `{}`: the Reyes pipeline shades lit, unlit and marble materials \
+                     only",
+                    material.name
+                )));
+            }
+        }
+        let camera = scene.camera_for(first);
+        let p = camera.projection;
         // `shade` inverts a symmetric perspective projection (row-major): only P₀₀, P₁₁,
         // P₂₂ and P₂₃ and the last row `0 0 −1 0`.
         let symmetric = [1, 2, 3, 4, 6, 7, 8, 9, 12, 13, 15]
@@ -309,7 +333,7 @@ impl ShadeSetup {
                 "the Reyes shader needs the camera's symmetric perspective projection".into(),
             ));
         }
-        let params = [
+        let mut params = [
             2.0 / scene.width as f32,
             2.0 / scene.height as f32,
             p[0],
@@ -319,6 +343,35 @@ impl ShadeSetup {
         ]
         .map(f32::to_bits)
         .to_vec();
+        if let Shader::Marble(marble) = material.shader {
+            if let Some(o) = scene.objects.iter().find(|o| o.model != first.model) {
+                return Err(ReyesError(format!(
+                    "objects `{}` and `{}`: the Reyes pipeline's marble shades in one object \
+                     space per frame (one model matrix)",
+                    first.name, o.name
+                )));
+            }
+            params.extend(to_object(&mat_mul(&camera.view, &first.model)));
+            return Ok(ShadeSetup {
+                shading: Shading::Marble,
+                params,
+                perlight: None,
+                texturing: Some(Texturing {
+                    program: FragmentProgram::marble(marble.noise),
+                    memory: TextureMemory::new(scene),
+                    marble_params: fragment_program::marble_params(scene, first, &marble),
+                }),
+            });
+        }
+        let VertexProgram::Lit {
+            lights,
+            specular,
+            shininess,
+            ..
+        } = program
+        else {
+            unreachable!("lit or marble, checked above");
+        };
         let texturing = (!material.textures.is_empty()).then(|| {
             let memory = TextureMemory::new(scene);
             Texturing {
@@ -329,6 +382,7 @@ impl ShadeSetup {
                     &memory,
                 ),
                 memory,
+                marble_params: Vec::new(),
             }
         });
         Ok(ShadeSetup {
@@ -349,10 +403,22 @@ impl ShadeSetup {
     }
 }
 
+/// The top three rows of the inverse of `model_view` (row-major), computed in f64 and
+/// rounded: what a marble [`kernels::shade`] takes eye space to object space with.
+fn to_object(model_view: &[f32; 16]) -> Vec<u32> {
+    let m = DMat4::from_cols_array(&model_view.map(f64::from)).transpose();
+    let rows = m.inverse().transpose().to_cols_array();
+    rows[..kernels::TO_OBJECT_WORDS]
+        .iter()
+        .map(|&x| (x as f32).to_bits())
+        .collect()
+}
+
 /// Quads per cluster per `subdiv` call that keep a call's streams within the SRF space a
 /// kernel's output gets here (an eighth of the SRF): the quads (32 words each as `subdiv`
-/// writes them, 20 as `shade` does, and in a textured frame ([`ShadeSetup::texturing`]) a
-/// place, the varyings, the texel addresses and weights and the colour), and their
+/// writes them, 20 as `shade` does, and in a frame with a fragment program
+/// ([`ShadeSetup::texturing`]) a place, the varyings, the texel addresses and weights and
+/// the colour), and their
 /// fragments, at most about `(L + 1)²` per quad of side `L`. At most 64.
 pub fn iterations_for(desc: &MachineDesc, stop: f32, shading: &ShadeSetup) -> usize {
     let c = desc.cluster.count.max(1);
@@ -362,7 +428,10 @@ pub fn iterations_for(desc: &MachineDesc, stop: f32, shading: &ShadeSetup) -> us
     let quad_words = shading.shading.records().subdiv_quad_words()
         + QUAD_WORDS
         + shading.texturing.as_ref().map_or(0, |t| {
-            SHADE_VARYINGS + t.program.direct_fetches() + t.program.direct_weights() + 1
+            shading.shading.varyings_words()
+                + t.program.direct_fetches()
+                + t.program.direct_weights()
+                + 1
         });
     let by_quads = share * 2 / (c * quad_words);
     by_fragments.min(by_quads).min(65).saturating_sub(1).max(1)
@@ -407,7 +476,7 @@ fn frame_shape(desc: &MachineDesc, width: u32, height: u32) -> FrameShape {
 
 /// A frame's kernels by the names it calls them under (its kernel breakdown's): for a
 /// `width × height` window, stop length `stop` and `shading` (`perlight` only when lit,
-/// `texaddr` and `fragment` only when textured).
+/// `texaddr` and `fragment` only when textured, `marble` or `marble_ward` for marble).
 pub fn frame_kernels(
     desc: &MachineDesc,
     width: u32,
@@ -443,12 +512,13 @@ pub fn frame_kernel_results(
     }
     k.push(("shade", kernels::shade(desc, shading.shading)));
     if let Some(t) = &shading.texturing {
-        // The fragment program on quads: `varyings` records of r, g, b, s, t, no
-        // derivatives (nothing mipmapped).
-        k.extend([
-            ("texaddr", t.program.texaddr(SHADE_VARYINGS, SHADE_VARYINGS)),
-            ("fragment", t.program.fragment(SHADE_VARYINGS)),
-        ]);
+        // The fragment program on quads: `shade`'s `varyings` records (r, g, b, then s, t
+        // or the object-space position and normal), no derivatives (nothing mipmapped).
+        let words = shading.shading.varyings_words();
+        if !t.program.units.is_empty() {
+            k.push(("texaddr", t.program.texaddr(words, words)));
+        }
+        k.push((t.kernel_name(), t.kernel(desc, words)));
     }
     k.extend([
         (
@@ -534,7 +604,8 @@ pub fn render_patches(
         ids.insert(name, lib.register(name, kernel));
     }
     let id = |name: &str| ids[name];
-    let (texaddr, fragment) = (ids.get("texaddr").copied(), ids.get("fragment").copied());
+    let texaddr = ids.get("texaddr").copied();
+    let fragment = (shading.texturing.as_ref()).map(|t| ids[t.kernel_name()]);
     let (project, split, subdiv, shade, sample, clear) = (
         id("project"),
         id("subdiv_split"),
@@ -611,9 +682,9 @@ pub fn render_patches(
     });
     let own_params: Vec<u32> = match shading.shading {
         Shading::Flat => Vec::new(),
-        Shading::Lit { textured, .. } => {
+        Shading::Lit { .. } | Shading::Marble => {
             let mut p = shading.params.clone();
-            if textured {
+            if shading.shading.textured() {
                 p.push(levels as u32);
             }
             p.resize(kernels::shade_own_rows(desc, shading.shading), 0);
@@ -643,20 +714,32 @@ pub fn render_patches(
         perlight_in.max(c),
         live("project", "project"),
     );
-    // A textured frame's fragment program on the quads: `shade`'s varyings, the texel
-    // addresses (each texel gathered over its address) and bilinear weights, and the
-    // colours `sample` takes.
+    // A textured or marble frame's fragment program on the quads: `shade`'s varyings,
+    // the texel addresses (each texel gathered over its address) and bilinear weights,
+    // and the colours `sample` takes; a marble's parameters and (Perlin's noise) his
+    // permutation table, each word once per cluster.
     let textured = shading.texturing.as_ref().map(|t| {
         let mut per_quad = |name: &str, words: usize| {
             (words > 0).then(|| pl.stream(name, Layout::records(words), quad_records, walk_live))
         };
         (
-            per_quad("varyings", SHADE_VARYINGS).expect("varyings"),
+            per_quad("varyings", shading.shading.varyings_words()).expect("varyings"),
             per_quad("texels", t.program.direct_fetches()),
             per_quad("weights", t.program.direct_weights()),
             per_quad("colours", 1).expect("colours"),
         )
     });
+    let marble_noise = shading.texturing.as_ref().and_then(|t| t.program.marble);
+    let marble_params = marble_noise.map(|_| {
+        let n = turbulence::SCALAR_PARAMS * c;
+        pl.stream("marble_params", words, n, Lifetime::Always)
+    });
+    let perm_words = marble_noise
+        .filter(|n| n.uses_table())
+        .map(|_| turbulence::perlin_perm_stream(c));
+    let perm = perm_words
+        .as_ref()
+        .map(|w| pl.stream("perm", words, w.len(), Lifetime::Always));
     let covered = pl.stream("covered", words, quad_records, walk_live);
     let frag_live = live("sample", "composite");
     let [f_addr, f_z, f_colour, f_prim] = ["frag_addr", "frag_z", "frag_colour", "frag_prim"]
@@ -730,13 +813,18 @@ pub fn render_patches(
     }
     let zeros = dram.buffer("walk_zeros", (state_words * c) as u64)?;
     // A textured frame's textures, read-only (what a texture cache may hold); none in an
-    // untextured frame, whose DRAM is laid out as it was before textures.
+    // untextured frame, whose DRAM is laid out as it was before textures. A Perlin
+    // marble's permutation table, as the OpenGL frame holds it.
+    let perm_buffer = match &perm_words {
+        Some(w) => Some(dram.read_only_buffer("perm", w.len() as u64)?),
+        None => None,
+    };
     let textures = match &shading.texturing {
-        Some(t) => {
-            let words = t.memory.words.len().max(1) as u64;
+        Some(t) if !t.memory.words.is_empty() => {
+            let words = t.memory.words.len() as u64;
             Some((dram.read_only_buffer("textures", words)?, words))
         }
-        None => None,
+        _ => None,
     };
     let pixels = (width * height) as usize + 1;
     let fb_pixels = pixels.div_ceil(c) * c;
@@ -752,9 +840,11 @@ pub fn render_patches(
     // Load, then clear.
     let staging = phase_plan.whole(ps.staging);
     h.upload(&upload, input, 0, staging);
-    if let Some(t) = &shading.texturing {
-        let (buffer, _) = textures.expect("a textured frame's texture buffer");
+    if let (Some(t), Some((buffer, _))) = (&shading.texturing, textures) {
         h.upload(&t.memory.words, buffer, 0, staging);
+    }
+    if let (Some(w), Some(buffer)) = (&perm_words, perm_buffer) {
+        h.upload(w, buffer, 0, staging);
     }
     h.drain()?;
     let loaded = h.cycles();
@@ -768,6 +858,14 @@ pub fn render_patches(
     )?;
     h.drain()?;
     let cleared = h.cycles();
+
+    // A marble's parameters and table (loaded once, as the OpenGL frame loads it).
+    if let (Some(t), Some(params)) = (&shading.texturing, marble_params) {
+        h.write_params(plan.whole(params), &t.marble_params);
+    }
+    if let (Some(w), Some(buffer), Some(perm)) = (&perm_words, perm_buffer, perm) {
+        h.load(buffer, 0, Layout::words(), w.len(), plan.whole(perm));
+    }
 
     // The shader's parameters: its own, then the lights `perlight` writes from the OpenGL
     // state.
@@ -935,10 +1033,12 @@ pub fn render_patches(
                 let varyings = plan.first(varyings, quad_records);
                 let texels = texels.map(|s| plan.first(s, quad_records));
                 let weights = weights.map(|s| plan.first(s, quad_records));
-                let mut bindings = vec![("varyings", varyings)];
-                bindings.extend(texels.map(|b| ("addr", b)));
-                bindings.extend(weights.map(|b| ("weights", b)));
-                h.call(texaddr.expect("a textured frame's texaddr"), &bindings)?;
+                if let Some(texaddr) = texaddr {
+                    let mut bindings = vec![("varyings", varyings)];
+                    bindings.extend(texels.map(|b| ("addr", b)));
+                    bindings.extend(weights.map(|b| ("weights", b)));
+                    h.call(texaddr, &bindings)?;
+                }
                 if let Some(index) = texels {
                     let n = quad_records * fp.direct_fetches();
                     let (buffer, words) = textures.expect("a textured frame's texture buffer");
@@ -946,10 +1046,12 @@ pub fn render_patches(
                     stats.texel_words += n as u64;
                 }
                 let mut bindings = vec![("varyings", varyings)];
+                bindings.extend(perm.map(|s| ("perm", plan.whole(s))));
+                bindings.extend(marble_params.map(|s| (PARAMS, plan.whole(s))));
                 bindings.extend(texels.map(|b| ("texels", b)));
                 bindings.extend(weights.map(|b| ("weights", b)));
                 bindings.push(("colour", plan.first(colours, quad_records)));
-                h.call(fragment.expect("a textured frame's fragment"), &bindings)?;
+                h.call(fragment.expect("a fragment program's kernel"), &bindings)?;
             }
             let quad_words = records.subdiv_quad_words();
             for r in stream_to_records(&peek(&h, quad_stream), quad_words, c) {

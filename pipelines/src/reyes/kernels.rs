@@ -710,12 +710,32 @@ pub enum Shading {
         shininess: u32,
         textured: bool,
     },
+    /// The marble shader ([`crate::kernels::turbulence::build_fragment`], the OpenGL
+    /// pipeline's fragment program for `shader = "marble"`), which lights the quad
+    /// itself: `shade` writes the quad's centre and normal in object space as a
+    /// `varyings` record ([`crate::kernels::turbulence::MARBLE_RECORD_WORDS`]), as
+    /// `irast` writes one per fragment.
+    Marble,
 }
 
 impl Shading {
     /// Whether the quads go through a fragment program (their records carry places).
     pub fn textured(self) -> bool {
         matches!(self, Shading::Lit { textured: true, .. })
+    }
+
+    /// Whether a fragment program colours the quads (from `shade`'s `varyings`).
+    pub fn fragment_program(self) -> bool {
+        self.textured() || self == Shading::Marble
+    }
+
+    /// Words of a `varyings` record `shade` writes per quad ([`Shading::fragment_program`]).
+    pub fn varyings_words(self) -> usize {
+        match self {
+            Shading::Marble => crate::kernels::turbulence::MARBLE_RECORD_WORDS,
+            _ if self.textured() => SHADE_VARYINGS,
+            _ => 0,
+        }
     }
 
     /// The records of a frame shaded so.
@@ -726,12 +746,21 @@ impl Shading {
     }
 }
 
-/// A lit [`shade`]'s own parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃`, and when
-/// textured the frame's breadth-first levels (an int32: `subdiv`'s levels count from the
-/// patches it walks, places from the scene's patches).
+/// A lit or marble [`shade`]'s own parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃`;
+/// when textured the frame's breadth-first levels (an int32: `subdiv`'s levels count from
+/// the patches it walks, places from the scene's patches); for marble the inverse of the
+/// model-view matrix, its top three rows ([`TO_OBJECT_WORDS`]).
 pub fn shade_own_params(shading: Shading) -> usize {
-    6 + usize::from(shading.textured())
+    match shading {
+        Shading::Flat => 0,
+        Shading::Lit { textured, .. } => 6 + usize::from(textured),
+        Shading::Marble => 6 + TO_OBJECT_WORDS,
+    }
 }
+
+/// Words of the eye-to-object transform a marble [`shade`] takes: the inverse model-view
+/// matrix's top three rows, row-major (its last row is `0 0 0 1`).
+pub const TO_OBJECT_WORDS: usize = 12;
 
 /// Rows of a lit [`shade`]'s own parameters: [`shade_own_params`] padded so that
 /// `perlight`'s words after them start on an SRF block.
@@ -743,19 +772,27 @@ pub fn shade_own_rows(desc: &MachineDesc, shading: Shading) -> usize {
 /// s, t.
 pub const SHADE_VARYINGS: usize = 5;
 
-/// A lit [`shade`]'s parameters.
+/// A lit or marble [`shade`]'s parameters: the camera's, then the shader's.
 struct ShadeParams {
     two_over: [Value; 2],
     inv_p00: Value,
     inv_p11: Value,
     p22: Value,
     p23: Value,
-    lights: Vec<crate::opengl::vertex_program::LightParams>,
-    base: [Value; 3],
-    specular: bool,
-    shininess: u32,
-    /// Textured: the frame's breadth-first levels.
-    split_levels: Option<Value>,
+    shader: ShaderParams,
+}
+
+enum ShaderParams {
+    Lit {
+        lights: Vec<crate::opengl::vertex_program::LightParams>,
+        base: [Value; 3],
+        specular: bool,
+        shininess: u32,
+        /// Textured: the frame's breadth-first levels.
+        split_levels: Option<Value>,
+    },
+    /// The inverse model-view matrix's top three rows.
+    Marble { to_object: [Value; TO_OBJECT_WORDS] },
 }
 
 /// `shade`: per quad record of `subdiv` ([`SUBDIV_QUAD_WORDS`]), the record `sample`
@@ -781,51 +818,70 @@ struct ShadeParams {
 /// `s = (u_i + ½)·2^-l`, `t = (v_i + ½)·2^-l` (exact in fp32), the parameters at which
 /// the OpenGL pipeline's tessellation gives a patch's vertices their texture coordinates.
 ///
-/// Parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃` (and when textured the frame's
-/// breadth-first levels; padded to [`shade_own_rows`]), then `perlight`'s words (the
-/// lights in eye space and their colour products, and `base`): the vertex program's
-/// `perlight` runs on the machine to write them.
+/// **Marble** quads write a colour word of 0 and, on `varyings`, white (which the marble
+/// program drops) and the quad's centre and normal in object space: the eye-space corners
+/// go through the inverse model-view matrix (a parameter: the host inverts the matrix
+/// once per frame), and the centre and the normal facing the eye (the inverse applied to
+/// the eye-space origin) are found from them as lit quads' are in eye space. The normal
+/// is not normalised: the marble program does that.
+///
+/// Parameters: `2/W`, `2/H`, `P₀₀`, `P₁₁`, `P₂₂`, `P₂₃` (when textured the frame's
+/// breadth-first levels, for marble the inverse model-view's top rows; padded to
+/// [`shade_own_rows`]), then when lit `perlight`'s words (the lights in eye space and
+/// their colour products, and `base`): the vertex program's `perlight` runs on the
+/// machine to write them.
 pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequirementError> {
-    use crate::kernels::dot;
     use crate::kernels::vertex::normalize;
     use crate::opengl::vertex_program::{LitVertex, add_light, light_params};
 
     let mut b = KernelBuilder::new("shade");
     let quads = b.input("quads");
     let shaded = b.output("shaded");
-    let varyings = shading.textured().then(|| b.output("varyings"));
+    let varyings = shading.fragment_program().then(|| b.output("varyings"));
     let (zero, one) = (b.f32(0.0), b.f32(1.0));
-    let lit = match shading {
-        Shading::Flat => None,
-        Shading::Lit {
-            lights,
-            specular,
-            shininess,
-            textured,
-        } => {
-            let [two_over_w, two_over_h, p00, p11, p22, p23] =
-                ["two_over_w", "two_over_h", "p00", "p11", "p22", "p23"].map(|n| b.param_f32(n));
-            let split_levels = textured.then(|| b.param("split_levels", Ty::I32));
-            for i in shade_own_params(shading)..shade_own_rows(desc, shading) {
-                b.param_f32(&format!("pad{i}"));
-            }
-            let (lights, base) = light_params(&mut b, lights, specular);
-            // The projection's reciprocals, once per call.
-            let (inv_p00, inv_p11) = (b.fdiv(one, p00), b.fdiv(one, p11));
-            Some(ShadeParams {
-                two_over: [two_over_w, two_over_h],
-                inv_p00,
-                inv_p11,
-                p22,
-                p23,
-                lights,
-                base,
-                specular,
-                shininess,
-                split_levels,
-            })
+    let params = (shading != Shading::Flat).then(|| {
+        let [two_over_w, two_over_h, p00, p11, p22, p23] =
+            ["two_over_w", "two_over_h", "p00", "p11", "p22", "p23"].map(|n| b.param_f32(n));
+        let split_levels = shading.textured().then(|| b.param("split_levels", Ty::I32));
+        let to_object = (shading == Shading::Marble)
+            .then(|| std::array::from_fn(|i| b.param_f32(&format!("to_object{i}"))));
+        for i in shade_own_params(shading)..shade_own_rows(desc, shading) {
+            b.param_f32(&format!("pad{i}"));
         }
-    };
+        let shader = match (shading, to_object) {
+            (
+                Shading::Lit {
+                    lights,
+                    specular,
+                    shininess,
+                    ..
+                },
+                _,
+            ) => {
+                let (lights, base) = light_params(&mut b, lights, specular);
+                ShaderParams::Lit {
+                    lights,
+                    base,
+                    specular,
+                    shininess,
+                    split_levels,
+                }
+            }
+            (_, to_object) => ShaderParams::Marble {
+                to_object: to_object.expect("a marble shade's transform"),
+            },
+        };
+        // The projection's reciprocals, once per call.
+        let (inv_p00, inv_p11) = (b.fdiv(one, p00), b.fdiv(one, p11));
+        ShadeParams {
+            two_over: [two_over_w, two_over_h],
+            inv_p00,
+            inv_p11,
+            p22,
+            p23,
+            shader,
+        }
+    });
     b.begin_loop(LoopSpec::OverStream(quads));
     let rec: Vec<Value> = (0..shading.records().subdiv_quad_words())
         .map(|_| b.read(quads))
@@ -833,7 +889,7 @@ pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequ
     for &w in &rec[..Q_COLOUR] {
         b.write(shaded, w);
     }
-    let colour = match &lit {
+    let colour = match &params {
         None => rec[Q_COLOUR],
         Some(p) => {
             let eye: [[Value; 3]; 4] = std::array::from_fn(|k| {
@@ -853,68 +909,113 @@ pub fn shade(desc: &MachineDesc, shading: Shading) -> Result<Kernel, MachineRequ
                 let yw = b.fmul(yn, w);
                 [b.fmul(xw, p.inv_p00), b.fmul(yw, p.inv_p11), ze]
             });
-            let quarter = b.f32(0.25);
-            let position: [Value; 3] = std::array::from_fn(|i| {
-                let s01 = b.fadd(eye[0][i], eye[1][i]);
-                let s23 = b.fadd(eye[2][i], eye[3][i]);
-                let s = b.fadd(s01, s23);
-                b.fmul(s, quarter)
-            });
-            let d1: [Value; 3] = std::array::from_fn(|i| b.fsub(eye[2][i], eye[0][i]));
-            let d2: [Value; 3] = std::array::from_fn(|i| b.fsub(eye[3][i], eye[1][i]));
-            let cross: [Value; 3] = std::array::from_fn(|i| {
-                let (j, k) = ((i + 1) % 3, (i + 2) % 3);
-                let u = b.fmul(d1[j], d2[k]);
-                let v = b.fmul(d1[k], d2[j]);
-                b.fsub(u, v)
-            });
-            let to_eye = position.map(|c| b.fneg(c));
-            // Facing the eye: flipped where it points away; the direction to the eye where
-            // the quad has no area.
-            let facing = dot(&mut b, cross, to_eye);
-            let away = b.flt(facing, zero);
-            let area = dot(&mut b, cross, cross);
-            let none = b.feq(area, zero);
-            let normal = std::array::from_fn(|i| {
-                let flipped = b.fneg(cross[i]);
-                let n = b.select(away, flipped, cross[i]);
-                b.select(none, to_eye[i], n)
-            });
-            let unit_n = normalize(&mut b, normal);
-            let e = p.specular.then(|| normalize(&mut b, to_eye));
-            let mut v = LitVertex {
-                clip: [zero; 4],
-                colour: p.base,
-                eye_pos: position,
-                unit_n,
-                e,
-                vertex_colour: None,
-                extras: Vec::new(),
-            };
-            for &light in &p.lights {
-                v.colour = add_light(&mut b, &v, light, p.shininess, zero, one);
-            }
-            let [r, g, bl] = v.colour;
-            match (varyings, p.split_levels) {
-                (Some(out), Some(split_levels)) => {
-                    for c in v.colour {
-                        let above_zero = b.fmax(c, zero);
-                        let clamped = b.fmin(above_zero, one);
-                        b.write(out, clamped);
+            match &p.shader {
+                ShaderParams::Lit {
+                    lights,
+                    base,
+                    specular,
+                    shininess,
+                    split_levels,
+                } => {
+                    let (position, normal, to_eye) = facing_quad(&mut b, eye, None, zero);
+                    let unit_n = normalize(&mut b, normal);
+                    let e = specular.then(|| normalize(&mut b, to_eye));
+                    let mut v = LitVertex {
+                        clip: [zero; 4],
+                        colour: *base,
+                        eye_pos: position,
+                        unit_n,
+                        e,
+                        vertex_colour: None,
+                        extras: Vec::new(),
+                    };
+                    for &light in lights {
+                        v.colour = add_light(&mut b, &v, light, *shininess, zero, one);
                     }
-                    let place = b.cast(rec[SUBDIV_QUAD_WORDS], Ty::I32);
-                    for t in place_centre(&mut b, place, rec[Q_LEVEL], split_levels) {
-                        b.write(out, t);
+                    let [r, g, bl] = v.colour;
+                    match (varyings, split_levels) {
+                        (Some(out), Some(split_levels)) => {
+                            for c in v.colour {
+                                let above_zero = b.fmax(c, zero);
+                                let clamped = b.fmin(above_zero, one);
+                                b.write(out, clamped);
+                            }
+                            let place = b.cast(rec[SUBDIV_QUAD_WORDS], Ty::I32);
+                            for t in place_centre(&mut b, place, rec[Q_LEVEL], *split_levels) {
+                                b.write(out, t);
+                            }
+                            b.word(0)
+                        }
+                        _ => crate::kernels::texture::pack(&mut b, [r, g, bl, one]),
+                    }
+                }
+                ShaderParams::Marble { to_object } => {
+                    let m = to_object;
+                    let row = |b: &mut KernelBuilder, r: usize, v: [Value; 3]| {
+                        let x = b.fmul(m[4 * r], v[0]);
+                        let y = b.fmul(m[4 * r + 1], v[1]);
+                        let z = b.fmul(m[4 * r + 2], v[2]);
+                        let xy = b.fadd(x, y);
+                        let xyz = b.fadd(xy, z);
+                        b.fadd(xyz, m[4 * r + 3])
+                    };
+                    let object = eye.map(|v| std::array::from_fn(|r| row(&mut b, r, v)));
+                    let eye_at = [m[3], m[7], m[11]];
+                    let (position, normal, _) = facing_quad(&mut b, object, Some(eye_at), zero);
+                    let out = varyings.expect("a marble shade's varyings");
+                    for w in [one, one, one].into_iter().chain(position).chain(normal) {
+                        b.write(out, w);
                     }
                     b.word(0)
                 }
-                _ => crate::kernels::texture::pack(&mut b, [r, g, bl, one]),
             }
         }
     };
     b.write(shaded, colour);
     b.end_loop();
     Ok(finish(b))
+}
+
+/// A quad's centre (the mean of its `corners`), its normal (the cross product of its
+/// diagonals) turned to face the eye at `eye` (the origin when `None`), and the direction
+/// to the eye: flipped where it points away, the direction to the eye where the quad has
+/// no area.
+fn facing_quad(
+    b: &mut KernelBuilder,
+    corners: [[Value; 3]; 4],
+    eye: Option<[Value; 3]>,
+    zero: Value,
+) -> ([Value; 3], [Value; 3], [Value; 3]) {
+    use crate::kernels::dot;
+    let quarter = b.f32(0.25);
+    let position: [Value; 3] = std::array::from_fn(|i| {
+        let s01 = b.fadd(corners[0][i], corners[1][i]);
+        let s23 = b.fadd(corners[2][i], corners[3][i]);
+        let s = b.fadd(s01, s23);
+        b.fmul(s, quarter)
+    });
+    let d1: [Value; 3] = std::array::from_fn(|i| b.fsub(corners[2][i], corners[0][i]));
+    let d2: [Value; 3] = std::array::from_fn(|i| b.fsub(corners[3][i], corners[1][i]));
+    let cross: [Value; 3] = std::array::from_fn(|i| {
+        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+        let u = b.fmul(d1[j], d2[k]);
+        let v = b.fmul(d1[k], d2[j]);
+        b.fsub(u, v)
+    });
+    let to_eye: [Value; 3] = std::array::from_fn(|i| match eye {
+        None => b.fneg(position[i]),
+        Some(e) => b.fsub(e[i], position[i]),
+    });
+    let facing = dot(b, cross, to_eye);
+    let away = b.flt(facing, zero);
+    let area = dot(b, cross, cross);
+    let none = b.feq(area, zero);
+    let normal = std::array::from_fn(|i| {
+        let flipped = b.fneg(cross[i]);
+        let n = b.select(away, flipped, cross[i]);
+        b.select(none, to_eye[i], n)
+    });
+    (position, normal, to_eye)
 }
 
 /// The centre `(u, v)` of the cell `place` names at `level + split_levels` (see
