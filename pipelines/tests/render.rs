@@ -567,6 +567,21 @@ fn every_frame_cycle_is_attributed_once() {
         let csv = s.batches_csv();
         let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
         assert!(header.contains(&"waiting_gather_cycles"), "{header:?}");
+        // Table 5.3's model on the batches: depth counts with the interpolants, and what
+        // the frame held lies within its SRF plan.
+        let m = &s.srf_model;
+        assert_eq!(m.interpolants, 1 + s.specialisation.interpolants.len());
+        assert!(
+            0 < m.measured_words && m.measured_words <= m.plan_words,
+            "{}: {m:?}",
+            scene.name
+        );
+        let peak = imagine_pipelines::opengl::srf_model::ModelBatch {
+            triangles: m.peak_batch_triangles as f64,
+            interpolants: m.interpolants as f64,
+            fragments_per_triangle: m.peak_batch_fragments_per_triangle,
+        };
+        assert!(m.barycentric_words > 0.0 && peak.barycentric() == m.barycentric_words);
 
         // The timeline, read back as plain JSON: its kernel slices ran the breakdown's
         // cycles, and the kernel calls and the waits cover the frame once.

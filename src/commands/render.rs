@@ -407,6 +407,19 @@ fn print_stats(f: &Frame, m: &Metrics, desc: &MachineDesc, host: &HostTimes) {
         of_peak(s.srf_words_per_cycle, srf_peak),
         desc.srf.words_per_cycle
     );
+    let model = &s.srf_model;
+    println!(
+        "SRF model          Table 5.3 at its largest batch (i = {}, t = {}, f = {:.1}): \
+         barycentric {:.0} words, scanline {:.0}; measured (barycentric) {} words of \
+         interpolation records and fragments at once, plan {} words",
+        model.interpolants,
+        model.peak_batch_triangles,
+        model.peak_batch_fragments_per_triangle,
+        model.barycentric_words,
+        model.scanline_words,
+        model.measured_words,
+        model.plan_words
+    );
     let lrf_words = s.lrf_reads_per_cycle + s.lrf_writes_per_cycle;
     println!(
         "LRF                {:.1} words/cycle ({:.1} read, {:.1} written; {:.1} % of the {} \

@@ -5,5 +5,6 @@ pub mod fragment_program;
 pub mod kernels;
 pub mod mergefrag;
 pub mod render;
+pub mod srf_model;
 pub mod stats;
 pub mod vertex_program;

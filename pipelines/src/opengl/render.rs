@@ -72,6 +72,7 @@ use super::kernels::{
     self, CLIPPED_WORDS, FrameShape, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS, Varyings, WINDOW_WORDS,
 };
 use super::mergefrag::{self, GROUP};
+use super::srf_model::SrfModelReport;
 use super::stats::{BatchRow, Phases, Specialisation, TextureCacheReport};
 use super::vertex_program::{self, VertexProgram};
 use crate::compile::CompileCache;
@@ -3019,5 +3020,12 @@ fn finish_stats(
         words_per_vertex: pp.words_per_vertex(),
         words_per_fragment: 4,
     };
+    // Table 5.3's `i` counts depth with the interpolants.
+    s.srf_model = SrfModelReport::of(
+        &s.batch_rows,
+        1 + pp.interpolants().len(),
+        pp.varyings.interp_words(),
+        s.srf_peak_words,
+    );
     segments
 }

@@ -4,6 +4,7 @@
 use imagine_units::memory::TextureCacheStats;
 use serde::Serialize;
 
+use super::srf_model::SrfModelReport;
 use crate::stream::attribution::{Attribution, WaitingOn};
 use crate::stream::srf::PlanRow;
 
@@ -190,6 +191,9 @@ pub struct FrameStats {
     /// The SRF plan of a batch, and the most words it holds at once.
     pub srf_plan: Vec<PlanRow>,
     pub srf_peak_words: usize,
+    /// Table 5.3's model of the rasterizers' peak SRF words on this frame's batches, next
+    /// to the fragment words the frame held.
+    pub srf_model: SrfModelReport,
     /// Host time: all of it, compiling, and simulating.
     pub host_seconds: f64,
     pub compile_seconds: f64,
