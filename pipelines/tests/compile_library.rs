@@ -1,10 +1,19 @@
 //! Every library kernel compiles for gold1, gold8 and gold32, and its machine output equals
-//! the interpreter's word for word (what `imagine kernel check` runs).
+//! the interpreter's word for word (what `imagine kernel check` runs). Compiled through the
+//! tests' compile cache under `target/tmp` (keyed by the compiler's fingerprint, so an
+//! edited compiler compiles afresh): a second run, or the release run after the debug one,
+//! does not compile again.
 
-use imagine_pipelines::compile::{Report, compile};
+use imagine_pipelines::compile::{CompileCache, CompileError, Compiled, Report};
+use imagine_pipelines::kernel::Kernel;
 use imagine_pipelines::kernels::library;
 use imagine_pipelines::run::check;
 use imagine_units::desc::MachineDesc;
+
+/// `kernel` compiled for `desc` through the tests' compile cache.
+fn compile(kernel: &Kernel, desc: &MachineDesc) -> Result<Compiled, CompileError> {
+    CompileCache::at(concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache")).compile(kernel, desc)
+}
 
 /// Every library kernel but Ward's noise's ([`ward_kernels`]).
 fn check_all(machine: &str) {

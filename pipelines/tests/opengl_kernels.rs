@@ -1,11 +1,20 @@
-//! The OpenGL pipeline's kernels compile on every machine shape.
+//! The OpenGL pipeline's kernels compile on every machine shape (through the tests'
+//! compile cache under `target/tmp`, keyed by the compiler's fingerprint).
 
-use imagine_pipelines::compile::compile;
+use imagine_pipelines::compile::{CompileCache, CompileError, Compiled};
 use imagine_pipelines::kernels::{records_to_stream, stream_to_records};
 use imagine_pipelines::opengl::kernels::{self, FrameShape, Varyings};
 use imagine_pipelines::opengl::vertex_program::VertexProgram;
 use imagine_pipelines::scene::model::{Blend, Cull, DepthTest};
 use imagine_units::desc::MachineDesc;
+
+/// `kernel` compiled for `desc` through the tests' compile cache.
+fn compile(
+    kernel: &imagine_pipelines::kernel::Kernel,
+    desc: &MachineDesc,
+) -> Result<Compiled, CompileError> {
+    CompileCache::at(concat!(env!("CARGO_TARGET_TMPDIR"), "/compile-cache")).compile(kernel, desc)
+}
 
 // One test per machine, so that the test threads compile them side by side.
 #[test]
