@@ -74,6 +74,19 @@ fn compiled(k: &imagine_pipelines::kernel::Kernel, desc: &MachineDesc) -> Compil
     cache().compile(k, desc).unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// `k` on the machine equals its interpretation on `inputs` word for word (`what` names it
+/// in the failure); the interpretation's streams.
+fn machine_as_interpreted(
+    k: &imagine_pipelines::kernel::Kernel,
+    inputs: &KernelInputs,
+    desc: &MachineDesc,
+    what: &str,
+) -> Vec<Vec<u32>> {
+    let r = check(k, &compiled(k, desc), desc, inputs).unwrap();
+    assert!(r.mismatch.is_none(), "{what}: {}", r.mismatch.unwrap());
+    imagine_pipelines::kernel::interpret(k, inputs, desc).unwrap()
+}
+
 /// A bilinear-ish Bezier patch: the grid `x0 + col·dx`, `y0 + row·dy`, with the inner
 /// points lifted in z by `bulge` (window space when the matrix is the identity).
 fn grid(x0: f32, y0: f32, dx: f32, dy: f32, bulge: f32) -> BezierPatch {
@@ -245,9 +258,7 @@ fn project_and_sample_machine_equal_interpretation() {
         streams: vec![records_to_stream(&records, c), Vec::new()],
         params: inputs.params.clone(),
     };
-    let r = check(&p, &compiled(&p, &desc), &desc, &inputs).unwrap();
-    assert!(r.mismatch.is_none(), "project: {}", r.mismatch.unwrap());
-    let out = imagine_pipelines::kernel::interpret(&p, &inputs, &desc).unwrap();
+    let out = machine_as_interpreted(&p, &inputs, &desc, "project");
     let window = imagine_pipelines::kernels::stream_to_records(&out[1], placed.patch_words(), c);
     for (i, w) in window.iter().enumerate() {
         assert_eq!(w[PATCH_WORDS], i as u32 | 7 << 16);
@@ -274,12 +285,7 @@ fn project_and_sample_machine_equal_interpretation() {
         streams: vec![out[3].clone(), vec![]],
         params: vec![],
     };
-    let r = check(&flat, &compiled(&flat, &desc), &desc, &inputs).unwrap();
-    assert!(
-        r.mismatch.is_none(),
-        "shade (flat): {}",
-        r.mismatch.unwrap()
-    );
+    machine_as_interpreted(&flat, &inputs, &desc, "shade (flat)");
     let lit_shading = kernels::Shading::Lit {
         lights: 2,
         specular: true,
@@ -300,9 +306,7 @@ fn project_and_sample_machine_equal_interpretation() {
         streams: vec![out[3].clone(), vec![]],
         params,
     };
-    let r = check(&lit, &compiled(&lit, &desc), &desc, &inputs).unwrap();
-    assert!(r.mismatch.is_none(), "shade (lit): {}", r.mismatch.unwrap());
-    let shaded = imagine_pipelines::kernel::interpret(&lit, &inputs, &desc).unwrap();
+    let shaded = machine_as_interpreted(&lit, &inputs, &desc, "shade (lit)");
     let colours: std::collections::BTreeSet<u32> = shaded_quads(&shaded[1], &desc)
         .map(|r| r[kernels::Q_COLOUR])
         .collect();
@@ -316,9 +320,7 @@ fn project_and_sample_machine_equal_interpretation() {
         streams: vec![shaded[1].clone(), vec![], vec![], vec![], vec![], vec![]],
         params: vec![],
     };
-    let r = check(&sampler, &compiled(&sampler, &desc), &desc, &inputs).unwrap();
-    assert!(r.mismatch.is_none(), "sample: {}", r.mismatch.unwrap());
-    let golden = imagine_pipelines::kernel::interpret(&sampler, &inputs, &desc).unwrap();
+    let golden = machine_as_interpreted(&sampler, &inputs, &desc, "sample");
     assert!(golden[1].len() > c, "the quads cover pixels");
 
     // Marble: `shade` writes each quad's centre and normal in object space, on the
@@ -345,13 +347,7 @@ fn project_and_sample_machine_equal_interpretation() {
         streams: vec![out[3].clone(), vec![], vec![]],
         params,
     };
-    let r = check(&shade, &compiled(&shade, &desc), &desc, &inputs).unwrap();
-    assert!(
-        r.mismatch.is_none(),
-        "shade (marble): {}",
-        r.mismatch.unwrap()
-    );
-    let shaded = imagine_pipelines::kernel::interpret(&shade, &inputs, &desc).unwrap();
+    let shaded = machine_as_interpreted(&shade, &inputs, &desc, "shade (marble)");
     let quads =
         imagine_pipelines::kernels::stream_to_records(&out[3], kernels::SUBDIV_QUAD_WORDS, c);
     let varyings =
@@ -438,13 +434,7 @@ fn project_and_sample_machine_equal_interpretation() {
         streams: vec![out[3].clone(), vec![], vec![]],
         params,
     };
-    let r = check(&shade, &compiled(&shade, &desc), &desc, &inputs).unwrap();
-    assert!(
-        r.mismatch.is_none(),
-        "shade (textured): {}",
-        r.mismatch.unwrap()
-    );
-    let shaded = imagine_pipelines::kernel::interpret(&shade, &inputs, &desc).unwrap();
+    let shaded = machine_as_interpreted(&shade, &inputs, &desc, "shade (textured)");
     // Each quad's (s, t) is its cell's centre: inside the patch's parameter square at
     // the level the record says, plus the breadth-first one.
     let quads =
@@ -483,12 +473,7 @@ fn project_and_sample_machine_equal_interpretation() {
         ],
         params: vec![],
     };
-    let r = check(&sampler, &compiled(&sampler, &desc), &desc, &inputs).unwrap();
-    assert!(
-        r.mismatch.is_none(),
-        "sample (colours): {}",
-        r.mismatch.unwrap()
-    );
+    machine_as_interpreted(&sampler, &inputs, &desc, "sample (colours)");
 }
 
 #[test]
