@@ -5,7 +5,8 @@
 //! |---|---|---|
 //! | [`project`] | patch: its 16 control points to window space | patches ([`PATCH_WORDS`]) → patches |
 //! | [`subdiv_split`] | patch: its four children (a breadth-first level) | patches → 4 patches |
-//! | [`subdiv`] | iteration: one quad of a depth-first walk of each cluster's patch | resume ([`STATE_WORDS`]), patches, tickets → quads ([`QUAD_WORDS`]), state |
+//! | [`subdiv`] | iteration: one quad of a depth-first walk of each cluster's patch | resume ([`STATE_WORDS`]), patches, tickets → quads ([`SUBDIV_QUAD_WORDS`]), state |
+//! | [`shade`] | quad: its colour from the material ([`Shading`]) | quads → shaded ([`QUAD_WORDS`]), varyings (textured, marble) |
 //! | [`sample`] | quad: the pixel centres of its box against its four edges | quads → addr, z, colour (conditional), covered |
 //!
 //! **Records.** A patch record is the 16 Bezier control points, row by row with u fastest
@@ -41,8 +42,9 @@
 //!   cull mode is not applied to quads).
 //! * *Depth per sample*: the quad's, the mean of its corners' window depths (flat, as the
 //!   colour).
-//! * *Colour of a flat quad*: its patch's colour (the material's diffuse colour); the
-//!   shader stage is not built yet.
+//! * *Colour of a quad*: one per quad, flat ([`shade`]): its patch's colour for an unlit
+//!   material, lit at its centre for a lit one, or the material's fragment program's on
+//!   the quad's `varyings` record (textured, marble).
 //! * *Patch-to-cluster mapping*: patch `p` of a group of `C` runs in cluster `p mod C`,
 //!   one patch per cluster until it is done (the walk's stack is the cluster's).
 //! * *Stack*: depth-first, in the scratchpad: a frame per quad with children left to
