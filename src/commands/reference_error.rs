@@ -7,7 +7,7 @@ use std::time::Instant;
 use anyhow::Result;
 use imagine_pipelines::opengl::render::Frame;
 use imagine_pipelines::reyes::frame::ReyesFrame;
-use imagine_pipelines::scene::bpt::{self, Basis};
+use imagine_pipelines::scene::bpt::densely_diced;
 use imagine_pipelines::scene::model::{Scene, TriangleId};
 use imagine_verif::image::{Image, Metrics, compare_coverage, compare_frames};
 use imagine_verif::reference_model as reference;
@@ -52,24 +52,6 @@ pub fn measure(scene: &Scene, frame: &Frame) -> Result<ReferenceError> {
 /// teapot's largest patch spans about 250 pixels, so its triangles are about 4 pixels
 /// across and the flat triangles lie within a small fraction of a pixel of the surface.
 pub const REFERENCE_DICE: u32 = 64;
-
-/// The scene with every patch object's mesh replaced by its patches diced `n × n` (from
-/// the same Bezier nets the Reyes pipeline subdivides), normals from the patches.
-pub fn densely_diced(scene: &Scene, n: u32) -> Scene {
-    let mut dense = scene.clone();
-    for object in &mut dense.objects {
-        if object.patches.is_empty() {
-            continue;
-        }
-        let patches: Vec<bpt::Patch> = object
-            .patches
-            .iter()
-            .map(|p| p.map(|q| q.map(f64::from)))
-            .collect();
-        object.mesh = bpt::tessellate(&patches, Basis::Bezier, n, false);
-    }
-    dense
-}
 
 /// A Reyes frame's error against the reference renderer drawing the scene's patches
 /// diced [`REFERENCE_DICE`]² each (the limit surface, within a small fraction of a pixel):

@@ -18,7 +18,7 @@
 
 use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::reyes::frame::{ReyesFrame, ReyesOptions, render};
-use imagine_pipelines::scene::bpt::{self, Basis};
+use imagine_pipelines::scene::bpt::densely_diced;
 use imagine_pipelines::scene::model::Scene;
 use imagine_pipelines::scene::{LoadOptions, load};
 use imagine_units::desc::MachineDesc;
@@ -46,16 +46,7 @@ fn spot_through_reyes() -> (ReyesFrame, Scene) {
         ..ReyesOptions::default()
     };
     let frame = render(&scene, &desc, &options).unwrap_or_else(|e| panic!("{e}"));
-    let mut dense = scene;
-    for o in &mut dense.objects {
-        let patches: Vec<bpt::Patch> = o
-            .patches
-            .iter()
-            .map(|p| p.map(|q| q.map(f64::from)))
-            .collect();
-        o.mesh = bpt::tessellate(&patches, Basis::Bezier, 64, false);
-    }
-    (frame, dense)
+    (frame, densely_diced(&scene, 64))
 }
 
 /// Every pixel `covers` marks whose eight neighbours it marks too (inside the silhouette)

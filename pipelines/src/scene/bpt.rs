@@ -9,7 +9,7 @@
 //! al. 2002 and the thesis's Table 8.1. The stitch triangles have zero area: the pipeline
 //! assembles and culls them, as it would a strip's, and they draw nothing.
 
-use super::model::Mesh;
+use super::model::{Mesh, Scene};
 use super::obj::AssetError;
 
 /// What the 16 points of a patch are.
@@ -195,6 +195,25 @@ fn normal(p: &Patch, b: Basis, u: f64, v: f64, scale: f64) -> [f64; 3] {
         }
     }
     [0.0, 0.0, 1.0]
+}
+
+/// `scene` with every patch object's mesh replaced by its patches diced `n × n` (from the
+/// same Bezier nets the Reyes pipeline subdivides), normals from the patches: the limit
+/// surface the reference renderer draws a Reyes frame's patches as.
+pub fn densely_diced(scene: &Scene, n: u32) -> Scene {
+    let mut dense = scene.clone();
+    for object in &mut dense.objects {
+        if object.patches.is_empty() {
+            continue;
+        }
+        let patches: Vec<Patch> = object
+            .patches
+            .iter()
+            .map(|p| p.map(|q| q.map(f64::from)))
+            .collect();
+        object.mesh = tessellate(&patches, Basis::Bezier, n, false);
+    }
+    dense
 }
 
 /// Dices each patch into `n × n` quads: `(n + 1)²` vertices per patch (u fastest), quads
