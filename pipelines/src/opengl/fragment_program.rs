@@ -29,6 +29,8 @@
 
 use glam::{DMat3, DMat4, DVec3};
 
+use imagine_units::desc::TextureCacheDesc;
+
 use crate::kernels::bump_env::Maps;
 use crate::kernels::texture::{FragmentProgram, Unit};
 use crate::scene::model::{Filter, Marble, Object, Scene, Shader, Texture, TextureMode};
@@ -47,11 +49,23 @@ pub struct TextureMemory {
 }
 
 impl TextureMemory {
-    /// Lays out `scene`'s textures (their pyramids built here, at load time).
-    pub fn new(scene: &Scene) -> TextureMemory {
+    /// Lays out `scene`'s textures (their pyramids built here, at load time). Without a
+    /// texture cache they are packed one after another. With one (`cache`), texture `k` of
+    /// `n` starts `k·⌊words / n⌋` words (whole lines) past a multiple of the cache's size:
+    /// a fragment samples all its textures at about the same coordinates, and packed
+    /// textures whose sizes are multiples of the cache's (a mipmapped 256² takes 2·256²
+    /// words) would put those texels on the same sets of a direct-mapped cache, evicting
+    /// one another (PIN-8 on gold32combo+tc1: 83.9 % hits packed, 96.4 % staggered).
+    pub fn new(scene: &Scene, cache: Option<&TextureCacheDesc>) -> TextureMemory {
         let mut base = Vec::new();
         let mut words: Vec<u32> = Vec::new();
-        for t in &scene.textures {
+        let n = scene.textures.len();
+        for (k, t) in scene.textures.iter().enumerate() {
+            if let Some(c) = cache {
+                let step = c.words / n / c.line_words * c.line_words;
+                let pad = (k * step + c.words - words.len() % c.words) % c.words;
+                words.resize(words.len() + pad, 0);
+            }
             let start = words.len();
             base.push(start as u32);
             let a0 = (t.width * t.height) as usize;
@@ -171,4 +185,44 @@ pub fn marble_params(scene: &Scene, object: &Object, marble: &Marble) -> Vec<u32
     .chain([mean(m.ambient), mean(m.specular)])
     .map(|x| (x as f32).to_bits())
     .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn with_a_texture_cache_the_textures_start_on_sets_spread_over_it() {
+        let scene = crate::scene::file::load("PIN-8", &Default::default()).expect("PIN-8");
+        let packed = TextureMemory::new(&scene, None);
+        let n = scene.textures.len();
+        assert_eq!(n, 5);
+        for k in 1..n {
+            assert_eq!(
+                packed.base[k] % 16384,
+                0,
+                "PIN-8's pyramids are whole 16K-word blocks"
+            );
+        }
+        let cache = TextureCacheDesc {
+            words: 16384,
+            line_words: 2,
+            hit_words_per_cycle: 1,
+        };
+        let staggered = TextureMemory::new(&scene, Some(&cache));
+        let step = 16384 / 5 / 2 * 2;
+        for (k, &base) in staggered.base.iter().enumerate() {
+            assert_eq!(base as usize % 16384, k * step, "texture {k}");
+            // The texels are the packed layout's, moved.
+            let size = |m: &TextureMemory| {
+                m.base.get(k + 1).map_or(m.words.len(), |&b| b as usize) - m.base[k] as usize
+            };
+            let at = packed.base[k] as usize;
+            let texels = &packed.words[at..at + size(&packed)];
+            assert_eq!(
+                &staggered.words[base as usize..base as usize + texels.len()],
+                texels
+            );
+        }
+    }
 }

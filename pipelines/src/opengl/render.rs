@@ -1264,7 +1264,7 @@ pub fn plan_pipeline(
         .collect::<Result<_, _>>()
         .map_err(|e| RenderError(format!("scene `{}`: {e}", scene.name)))?;
     let extras = vertex_program::extra_words(scene);
-    let textures = TextureMemory::new(scene);
+    let textures = TextureMemory::new(scene, desc.texture_cache.as_ref());
     let fragment_programs: Vec<Option<FragmentProgram>> = scene
         .objects
         .iter()

@@ -358,7 +358,7 @@ impl ShadeSetup {
                 perlight: None,
                 texturing: Some(Texturing {
                     program: FragmentProgram::marble(marble.noise),
-                    memory: TextureMemory::new(scene),
+                    memory: TextureMemory::new(scene, None),
                     marble_params: fragment_program::marble_params(scene, first, &marble),
                 }),
             });
@@ -373,7 +373,7 @@ impl ShadeSetup {
             unreachable!("lit or marble, checked above");
         };
         let texturing = (!material.textures.is_empty()).then(|| {
-            let memory = TextureMemory::new(scene);
+            let memory = TextureMemory::new(scene, None);
             Texturing {
                 program: fragment_program::for_material(
                     scene,
