@@ -6,6 +6,7 @@ use imagine_pipelines::opengl::render::{RenderOptions, render_with};
 use imagine_pipelines::scene::model::{Cull, DepthTest, Scene};
 use imagine_pipelines::scene::{self, LoadOptions, parse_tri, window_scene};
 use imagine_units::desc::MachineDesc;
+use std::path::Path;
 
 /// Render options with a compile cache under the target directory, so that the tests share
 /// the kernels they compile (and a re-run compiles nothing).
@@ -775,5 +776,34 @@ fn the_batch_size_is_asked_for_and_changes_no_pixel() {
     for f in [&from_scene, &from_options, &largest] {
         assert_eq!(f.pixels, default.pixels, "the same image, bit for bit");
         assert_ne!(f.stats.cycles, default.stats.cycles);
+    }
+}
+
+/// The largest batch a machine takes leaves its fragment streams room for a one-pixel tile
+/// of it, a fragment of every triangle: MARBLE's and VERONA's strips meet at their poles,
+/// and on gold16 their largest batches by the SRF alone (304 and 224 triangles) left room
+/// for 64 fragments, so a tile split down to one pixel was refused.
+#[test]
+fn the_largest_batch_leaves_room_for_a_one_pixel_tile() {
+    use imagine_pipelines::opengl::render::plan_pipeline;
+    let machines = Path::new(env!("CARGO_MANIFEST_DIR")).join("../machines");
+    for machine in ["gold16", "gold32"] {
+        let desc = MachineDesc::load(&machines.join(format!("{machine}.toml"))).unwrap();
+        for name in ["MARBLE", "VERONA"] {
+            let scene = scene::load(name, &LoadOptions::default()).unwrap();
+            let huge = RenderOptions {
+                batch: Some(65_536),
+                ..cached()
+            };
+            let plan = plan_pipeline(&scene, &desc, &huge).unwrap();
+            let c = desc.cluster.count;
+            assert!(plan.batch > 8 * c, "{machine} {name}: {}", plan.batch);
+            assert!(
+                plan.fragment_capacity() >= plan.batch + c,
+                "{machine} {name}: a batch of {} and room for {} fragments",
+                plan.batch,
+                plan.fragment_capacity()
+            );
+        }
     }
 }

@@ -586,10 +586,23 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         }),
     };
     let plan = p.place()?;
-    if plan.capacity(streams.addr) < 4 * c {
+    // Splitting a tile ends at one pixel, which may hold a fragment of every triangle of
+    // the batch (and, walked in primitive order, needs an iteration for each): a batch
+    // whose streams cannot take that is too large, not a frame to refuse.
+    let fragments = plan.capacity(streams.addr);
+    if fragments < (b + c).max(4 * c) {
         return Err(PlanError(format!(
-            "machine `{}`: the SRF ({} words) leaves no room for fragments",
-            desc.name, desc.srf.words
+            "machine `{}`: the SRF ({} words) leaves room for {fragments} fragments, fewer \
+             than a one-pixel tile of a batch of {b} triangles may have ({})",
+            desc.name,
+            desc.srf.words,
+            b + c
+        )));
+    }
+    if !hardware && s.ordered && b > ORDERED_TICKET_ROWS {
+        return Err(PlanError(format!(
+            "a batch of {b} triangles walked in primitive order needs more than \
+             {ORDERED_TICKET_ROWS} rasterizer iterations for a one-pixel tile"
         )));
     }
     Ok((plan, streams))
@@ -1094,6 +1107,11 @@ pub struct PipelinePlan {
 }
 
 impl PipelinePlan {
+    /// Fragments a rasterization pass may write (the SRF plan's fragment streams).
+    pub fn fragment_capacity(&self) -> usize {
+        self.plan.capacity(self.streams.addr)
+    }
+
     /// The kernels the pipeline may call, by the names they are built under; the merge
     /// stage's are compiled only if a round needs them.
     pub fn kernel_names(&self) -> Vec<String> {
