@@ -21,6 +21,7 @@
 //! | `marble` ([`turbulence::build_fragment`]) | `turbulence` as the OpenGL pipeline's fragment program: `irast`'s varyings in, packed RGBA8 out; `marble_ward` over Ward's noise |
 //! | [`prefix_sum`] | inclusive prefix sum of an int32 stream |
 //! | [`compact`] | keeps the fp32 words below a threshold, in order |
+//! | `load_balance` ([`record_input`]) | load-balanced conditional input of 3-word records: each cluster takes the next when its own is used up |
 //! | `hash_xy` ([`hash`]) | the composite stamp test of the OpenGL pipeline (per-cluster 32×32 stamp) on (x, y) records |
 //! | `sort32_keys` ([`sort32`]) | bitonic sort of 32-word chunks of u32 keys |
 //! | [`merge`] | bitonic merge of pairs of sorted 32-word chunks into 64-word chunks |
@@ -32,6 +33,7 @@ pub mod compact;
 pub mod hash;
 pub mod merge;
 pub mod prefix_sum;
+pub mod record_input;
 pub mod sort32;
 pub mod texture;
 pub mod transform;
@@ -99,6 +101,12 @@ static LIBRARY: &[LibraryKernel] = &[
         description: "inclusive prefix sum of an int32 stream (wrapping)",
         build: prefix_sum::build,
         inputs: prefix_sum::inputs,
+    },
+    LibraryKernel {
+        name: "load_balance",
+        description: "load-balanced conditional input of 3-word records (the scanline rasterizer's)",
+        build: record_input::build,
+        inputs: record_input::inputs,
     },
     LibraryKernel {
         name: "compact",

@@ -1,0 +1,237 @@
+//! Load-balanced conditional input of multi-word records, and `load_balance`, a kernel that
+//! exercises it.
+//!
+//! Imagine's conditional streams deliver whole records: each cluster whose condition holds
+//! receives the next record, in cluster order, routed over the intercluster switch and
+//! buffered in the scratchpad, 2 entries per word of the record (thesis §4.4.1; the
+//! scanline rasterizer's `spangen` and `spanrast` take half-triangles and spans this way).
+//! The machine's own conditional access is a single word (`read_if`: the next words of the
+//! stream, one per selected cluster), so a record read word by word would hand a cluster
+//! words of other clusters' records. [`RecordInput`] builds the record access from what
+//! the machine has, the way the hardware does it:
+//!
+//! * The stream is in the cluster-row layout: a row of `C` records holds word `j` of its
+//!   records side by side. Two rows are buffered, `A` (which holds the next record to hand
+//!   out) and `B` after it: `2·k` words per cluster for `k`-word records, the 2 entries per
+//!   word (kept in the LRFs as loop-carried values).
+//! * Each iteration the takers are ranked by an exclusive prefix sum of the condition
+//!   across the clusters (`log2 C` rotations), and their count broadcast.
+//! * The records handed out, `next … next + n − 1`, lie in `A` and `B` and hold each
+//!   cluster's buffered record at most once, so every cluster sends one word per record
+//!   word (its `A` word if its `A` record is not yet taken, else its `B` word), and taker
+//!   `r` receives from cluster `(next + r) mod C` (`Perm::PerCluster`): `k` comms.
+//! * When `next` passes `A`, `B` becomes `A` and the next row is read into `B` by `k`
+//!   conditional reads whose condition is the same in every cluster (a whole row, or
+//!   nothing).
+//!
+//! The switch carries one word per cluster per cycle, as Imagine's conditional streams do,
+//! so a record of `k` words costs `k` comms an iteration. The stream must hold two rows
+//! past the last record taken (the reads run ahead by a row). A loop whose decision to take
+//! depends on the record it took last has the ranking and the routing on its recurrence:
+//! `load_balance` on gold8 is bound at 54 cycles an iteration by that recurrence, against
+//! 14 by its ops (`imagine kernel show load_balance`). Holding records further ahead
+//! (taking the one after next) would spread it over more iterations.
+
+use imagine_units::arith::fp32::testgen::SplitMix64;
+use imagine_units::desc::MachineDesc;
+
+use super::finish;
+use crate::kernel::{
+    Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, Perm, StreamId,
+    Ty, Value,
+};
+
+/// The conditional input of `words`-word records from one stream (see the module notes).
+/// Made before the loop ([`RecordInput::new`], which reads the first two rows); taken
+/// from once per iteration ([`RecordInput::take`]).
+pub struct RecordInput {
+    stream: StreamId,
+    clusters: usize,
+    first: Vec<Value>,
+    second: Vec<Value>,
+}
+
+impl RecordInput {
+    /// Before the loop: reads the first two rows of `stream`'s `words`-word records.
+    /// Needs a power-of-two cluster count (a record's cluster is its index's low bits).
+    pub fn new(
+        b: &mut KernelBuilder,
+        desc: &MachineDesc,
+        kernel: &str,
+        stream: StreamId,
+        words: usize,
+    ) -> Result<RecordInput, MachineRequirementError> {
+        Needs::new(kernel, desc).power_of_two_clusters(None)?;
+        let row = |b: &mut KernelBuilder| (0..words).map(|_| b.read(stream)).collect();
+        let first = row(b);
+        let second = row(b);
+        Ok(RecordInput {
+            stream,
+            clusters: desc.cluster.count,
+            first,
+            second,
+        })
+    }
+
+    /// In the loop, once per iteration: the next records for the clusters where `want`
+    /// (a condition) holds, in cluster order; the other clusters get words of no use.
+    pub fn take(&self, b: &mut KernelBuilder, want: Value) -> Vec<Value> {
+        let c = self.clusters;
+        let (zero, one) = (b.i32(0), b.i32(1));
+        let row_c = b.i32(c as i32);
+        let lane_mask = b.i32(c as i32 - 1);
+        let cluster = b.cluster_id();
+        let rows: [Vec<Value>; 2] = [&self.first, &self.second]
+            .map(|r| r.iter().map(|&w| b.carried(w)).collect::<Vec<Value>>());
+        let next = b.carried(zero);
+        let base = b.carried(zero);
+        // Ranks: an inclusive scan of the takers across the clusters, less one's own.
+        let taking = b.select(want, one, zero);
+        let mut partial = taking;
+        let mut d = 1;
+        while d < c {
+            let below = b.comm(partial, Perm::Rotate((c - d) as u16));
+            let added = b.iadd(partial, below);
+            let distance = b.i32(d as i32);
+            let has_below = b.ile(distance, cluster);
+            partial = b.select(has_below, added, partial);
+            d *= 2;
+        }
+        let rank = b.isub(partial, taking);
+        let taken = b.comm(partial, Perm::Broadcast((c - 1) as u16));
+        // Taker `r` receives record `next + r` from the cluster that buffers it; a cluster
+        // sends its `A` record while that one is not yet taken.
+        let source = {
+            let e = b.iadd(next, rank);
+            b.and(e, lane_mask)
+        };
+        let done_in_a = b.isub(next, base);
+        let sends_a = b.ile(done_in_a, cluster);
+        let got = rows[0]
+            .iter()
+            .zip(&rows[1])
+            .map(|(&a, &second)| {
+                let sent = b.select(sends_a, a, second);
+                b.comm(sent, Perm::PerCluster(source))
+            })
+            .collect();
+        // Past `A`: `B` moves up and the next row comes in (the same choice everywhere).
+        let next_after = b.iadd(next, taken);
+        let end_of_a = b.iadd(base, row_c);
+        let advance = b.ile(end_of_a, next_after);
+        for (&a, &second) in rows[0].iter().zip(&rows[1]) {
+            let moved = b.select(advance, second, a);
+            b.set_next(a, moved);
+            let fresh = b.read_if(self.stream, advance, second);
+            b.set_next(second, fresh);
+        }
+        b.set_next(next, next_after);
+        let base_after = b.select(advance, end_of_a, base);
+        b.set_next(base, base_after);
+        got
+    }
+}
+
+/// Words of a `load_balance` record: its cost (iterations, at least 1) and two payload
+/// words.
+pub const RECORD_WORDS: usize = 3;
+
+/// `load_balance`: each cluster holds a record for as many iterations as its first word
+/// says, then takes the next by [`RecordInput`]; a record taken is written out with the
+/// cluster that took it (`a`, `b`, `taker`, conditional outputs). Inputs: `records`
+/// ([`RECORD_WORDS`] each, two rows past the last one the loop can take) and `tickets`,
+/// which sets the iterations.
+pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
+    let mut b = KernelBuilder::new("load_balance");
+    let records = b.input("records");
+    let tickets = b.input("tickets");
+    let out_a = b.output("a");
+    let out_b = b.output("b");
+    let taker = b.output("taker");
+    let input = RecordInput::new(&mut b, desc, "load_balance", records, RECORD_WORDS)?;
+    let (zero, one) = (b.i32(0), b.i32(1));
+    let cluster = b.cluster_id();
+    b.begin_loop(LoopSpec::OverStream(tickets));
+    let _ticket = b.read(tickets);
+    let left = b.carried(zero);
+    let want = b.ieq(left, zero);
+    let got = input.take(&mut b, want);
+    let cost = b.cast(got[0], Ty::I32);
+    let held = b.select(want, cost, left);
+    let left_after = b.isub(held, one);
+    b.set_next(left, left_after);
+    b.write_if(out_a, want, got[1]);
+    b.write_if(out_b, want, got[2]);
+    b.write_if(taker, want, cluster);
+    b.end_loop();
+    Ok(finish(b))
+}
+
+/// `rows` iterations over records of random costs 1 to 4 (record `e`'s `a` is `e`), laid
+/// out in rows of `C` records, with the two rows the input reads ahead.
+pub fn inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
+    let c = desc.cluster.count;
+    let mut rng = SplitMix64::new(seed);
+    let count = (rows + 2) * c;
+    let mut records = vec![0; count * RECORD_WORDS];
+    for e in 0..count {
+        let words = [1 + rng.next_u32() % 4, e as u32, rng.next_u32()];
+        for (j, w) in words.into_iter().enumerate() {
+            records[(e / c) * RECORD_WORDS * c + j * c + e % c] = w;
+        }
+    }
+    KernelInputs {
+        streams: vec![
+            records,
+            vec![0; rows * c],
+            Vec::new(),
+            Vec::new(),
+            Vec::new(),
+        ],
+        params: Vec::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernel::interpret;
+
+    /// What `load_balance` must write: each iteration the clusters whose record is used up
+    /// take the next records, in cluster order.
+    fn expected(records: &[u32], c: usize, iterations: usize) -> [Vec<u32>; 3] {
+        let word = |e: usize, j: usize| records[(e / c) * RECORD_WORDS * c + j * c + e % c];
+        let mut left = vec![0u32; c];
+        let mut next = 0;
+        let mut out: [Vec<u32>; 3] = Default::default();
+        for _ in 0..iterations {
+            for (cluster, l) in left.iter_mut().enumerate() {
+                if *l == 0 {
+                    *l = word(next, 0);
+                    out[0].push(word(next, 1));
+                    out[1].push(word(next, 2));
+                    out[2].push(cluster as u32);
+                    next += 1;
+                }
+                *l -= 1;
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn each_cluster_takes_the_next_record_when_its_own_is_used_up() {
+        for desc in [MachineDesc::gold8(), MachineDesc::resolve("gold4").unwrap()] {
+            let k = build(&desc).unwrap();
+            let c = desc.cluster.count;
+            for seed in 0..4 {
+                let rows = 5 + 3 * seed as usize;
+                let inputs = inputs(&desc, rows, seed);
+                let out = interpret(&k, &inputs, &desc).unwrap();
+                let want = expected(&inputs.streams[0], c, rows);
+                assert_eq!(out[2..5], want, "{} clusters, seed {seed}", c);
+                assert!(want[0].len() > rows * c / 4, "records were taken");
+            }
+        }
+    }
+}
