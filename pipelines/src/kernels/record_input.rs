@@ -29,13 +29,14 @@
 //! past the last record taken (the reads run ahead by a row). A loop whose decision to take
 //! depends on the record it took last has the ranking and the routing on its recurrence:
 //! `load_balance` on gold8 is bound at 54 cycles an iteration by that recurrence, against
-//! 14 by its ops (`imagine kernel show load_balance`). Holding records further ahead
+//! 13 by its ops (`imagine kernel show load_balance`). Holding records further ahead
 //! (taking the one after next) would spread it over more iterations.
 
 use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
 
 use super::finish;
+use super::prefix_sum::{inclusive_scan, scan_steps};
 use crate::kernel::{
     Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, Perm, StreamId,
     Ty, Value,
@@ -47,6 +48,9 @@ use crate::kernel::{
 pub struct RecordInput {
     stream: StreamId,
     clusters: usize,
+    cluster: Value,
+    /// The ranking scan's steps (their conditions kept across the loop).
+    scan: Vec<(usize, Value)>,
     first: Vec<Value>,
     second: Vec<Value>,
 }
@@ -65,9 +69,14 @@ impl RecordInput {
         let row = |b: &mut KernelBuilder| (0..words).map(|_| b.read(stream)).collect();
         let first = row(b);
         let second = row(b);
+        let clusters = desc.cluster.count;
+        let cluster = b.cluster_id();
+        let scan = scan_steps(b, clusters, cluster);
         Ok(RecordInput {
             stream,
-            clusters: desc.cluster.count,
+            clusters,
+            cluster,
+            scan,
             first,
             second,
         })
@@ -80,23 +89,14 @@ impl RecordInput {
         let (zero, one) = (b.i32(0), b.i32(1));
         let row_c = b.i32(c as i32);
         let lane_mask = b.i32(c as i32 - 1);
-        let cluster = b.cluster_id();
+        let cluster = self.cluster;
         let rows: [Vec<Value>; 2] = [&self.first, &self.second]
             .map(|r| r.iter().map(|&w| b.carried(w)).collect::<Vec<Value>>());
         let next = b.carried(zero);
         let base = b.carried(zero);
         // Ranks: an inclusive scan of the takers across the clusters, less one's own.
         let taking = b.select(want, one, zero);
-        let mut partial = taking;
-        let mut d = 1;
-        while d < c {
-            let below = b.comm(partial, Perm::Rotate((c - d) as u16));
-            let added = b.iadd(partial, below);
-            let distance = b.i32(d as i32);
-            let has_below = b.ile(distance, cluster);
-            partial = b.select(has_below, added, partial);
-            d *= 2;
-        }
+        let partial = inclusive_scan(b, c, &self.scan, taking);
         let rank = b.isub(partial, taking);
         let taken = b.comm(partial, Perm::Broadcast((c - 1) as u16));
         // Taker `r` receives record `next + r` from the cluster that buffers it; a cluster
