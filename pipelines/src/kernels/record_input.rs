@@ -27,10 +27,11 @@
 //! The switch carries one word per cluster per cycle, as Imagine's conditional streams do,
 //! so a record of `k` words costs `k` comms an iteration. The stream must hold two rows
 //! past the last record taken (the reads run ahead by a row). A loop whose decision to take
-//! depends on the record it took last has the ranking and the routing on its recurrence:
-//! `load_balance` on gold8 is bound at 54 cycles an iteration by that recurrence, against
-//! 13 by its ops (`imagine kernel show load_balance`). Holding records further ahead
-//! (taking the one after next) would spread it over more iterations.
+//! depends on the record it took in the iteration before has the ranking and the routing
+//! on its recurrence: `load_balance` taking the record it works on at once was bound at 54
+//! cycles an iteration on gold8. Holding the next record ahead puts two iterations between
+//! a take and the decision it feeds: bound 35 (its ops 15; `imagine kernel show
+//! load_balance`).
 
 use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
@@ -136,9 +137,9 @@ impl RecordInput {
 /// words.
 pub const RECORD_WORDS: usize = 3;
 
-/// `load_balance`: each cluster holds a record for as many iterations as its first word
-/// says, then takes the next by [`RecordInput`]; a record taken is written out with the
-/// cluster that took it (`a`, `b`, `taker`, conditional outputs). Inputs: `records`
+/// `load_balance`: each cluster works on a record for as many iterations as its first word
+/// says, holding the next one ahead: when it starts a record it takes the next by
+/// [`RecordInput`]; a record taken is written out with the cluster that took it (`a`, `b`, `taker`, conditional outputs). Inputs: `records`
 /// ([`RECORD_WORDS`] each, two rows past the last one the loop can take) and `tickets`,
 /// which sets the iterations.
 pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
@@ -153,13 +154,28 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let cluster = b.cluster_id();
     b.begin_loop(LoopSpec::OverStream(tickets));
     let _ticket = b.read(tickets);
-    let left = b.carried(zero);
-    let want = b.ieq(left, zero);
-    let got = input.take(&mut b, want);
-    let cost = b.cast(got[0], Ty::I32);
-    let held = b.select(want, cost, left);
-    let left_after = b.isub(held, one);
+    // Each cluster holds the record it will work on next (`ahead`), taken when it started
+    // the current one (or in the first iteration, which holds none): a take's ranking
+    // and routing then reach the decision to take again two iterations later, not one.
+    let left = b.carried(one);
+    let first = b.carried(one);
+    let ahead: Vec<Value> = (0..RECORD_WORDS).map(|_| b.carried(zero)).collect();
+    let switch = b.ieq(left, zero);
+    let cost = b.cast(ahead[0], Ty::I32);
+    let current = b.select(switch, cost, left);
+    let left_after = b.isub(current, one);
     b.set_next(left, left_after);
+    let want = {
+        let starts = b.select(switch, one, zero);
+        let w = b.or(starts, first);
+        b.ine(w, zero)
+    };
+    b.set_next(first, zero);
+    let got = input.take(&mut b, want);
+    for (&a, &g) in ahead.iter().zip(&got) {
+        let kept = b.select(want, g, a);
+        b.set_next(a, kept);
+    }
     b.write_if(out_a, want, got[1]);
     b.write_if(out_b, want, got[2]);
     b.write_if(taker, want, cluster);
@@ -197,23 +213,29 @@ mod tests {
     use super::*;
     use crate::kernel::interpret;
 
-    /// What `load_balance` must write: each iteration the clusters whose record is used up
-    /// take the next records, in cluster order.
+    /// What `load_balance` must write: in the first iteration every cluster takes a record
+    /// to hold ahead; afterwards a cluster whose record is used up starts the one it holds
+    /// and takes the next; the takers of an iteration take in cluster order.
     fn expected(records: &[u32], c: usize, iterations: usize) -> [Vec<u32>; 3] {
         let word = |e: usize, j: usize| records[(e / c) * RECORD_WORDS * c + j * c + e % c];
-        let mut left = vec![0u32; c];
+        let mut left = vec![1u32; c];
+        let mut ahead = vec![0usize; c];
         let mut next = 0;
         let mut out: [Vec<u32>; 3] = Default::default();
-        for _ in 0..iterations {
-            for (cluster, l) in left.iter_mut().enumerate() {
-                if *l == 0 {
-                    *l = word(next, 0);
+        for i in 0..iterations {
+            for cluster in 0..c {
+                let switch = left[cluster] == 0;
+                if switch {
+                    left[cluster] = word(ahead[cluster], 0);
+                }
+                left[cluster] -= 1;
+                if switch || i == 0 {
+                    ahead[cluster] = next;
                     out[0].push(word(next, 1));
                     out[1].push(word(next, 2));
                     out[2].push(cluster as u32);
                     next += 1;
                 }
-                *l -= 1;
             }
         }
         out
