@@ -6,7 +6,6 @@ use imagine_pipelines::opengl::render::{RenderOptions, render_with};
 use imagine_pipelines::scene::model::{Cull, DepthTest, Scene};
 use imagine_pipelines::scene::{self, LoadOptions, parse_tri, window_scene};
 use imagine_units::desc::MachineDesc;
-use std::path::Path;
 
 /// Render options with a compile cache under the target directory, so that the tests share
 /// the kernels they compile (and a re-run compiles nothing).
@@ -786,9 +785,8 @@ fn the_batch_size_is_asked_for_and_changes_no_pixel() {
 #[test]
 fn the_largest_batch_leaves_room_for_a_one_pixel_tile() {
     use imagine_pipelines::opengl::render::plan_pipeline;
-    let machines = Path::new(env!("CARGO_MANIFEST_DIR")).join("../machines");
     for machine in ["gold16", "gold32"] {
-        let desc = MachineDesc::load(&machines.join(format!("{machine}.toml"))).unwrap();
+        let desc = MachineDesc::resolve(machine).unwrap();
         for name in ["MARBLE", "VERONA"] {
             let scene = scene::load(name, &LoadOptions::default()).unwrap();
             let huge = RenderOptions {

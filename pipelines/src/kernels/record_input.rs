@@ -36,8 +36,8 @@
 use imagine_units::arith::fp32::testgen::SplitMix64;
 use imagine_units::desc::MachineDesc;
 
-use super::finish;
 use super::prefix_sum::{inclusive_scan, scan_steps};
+use super::{finish, records_to_stream};
 use crate::kernel::{
     Kernel, KernelBuilder, KernelInputs, LoopSpec, MachineRequirementError, Needs, Perm, StreamId,
     Ty, Value,
@@ -139,9 +139,9 @@ pub const RECORD_WORDS: usize = 3;
 
 /// `load_balance`: each cluster works on a record for as many iterations as its first word
 /// says, holding the next one ahead: when it starts a record it takes the next by
-/// [`RecordInput`]; a record taken is written out with the cluster that took it (`a`, `b`, `taker`, conditional outputs). Inputs: `records`
-/// ([`RECORD_WORDS`] each, two rows past the last one the loop can take) and `tickets`,
-/// which sets the iterations.
+/// [`RecordInput`]; a record taken is written out with the cluster that took it (`a`, `b`,
+/// `taker`, conditional outputs). Inputs: `records` ([`RECORD_WORDS`] each, two rows past
+/// the last one the loop can take) and `tickets`, which sets the iterations.
 pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let mut b = KernelBuilder::new("load_balance");
     let records = b.input("records");
@@ -188,17 +188,12 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
 pub fn inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
     let c = desc.cluster.count;
     let mut rng = SplitMix64::new(seed);
-    let count = (rows + 2) * c;
-    let mut records = vec![0; count * RECORD_WORDS];
-    for e in 0..count {
-        let words = [1 + rng.next_u32() % 4, e as u32, rng.next_u32()];
-        for (j, w) in words.into_iter().enumerate() {
-            records[(e / c) * RECORD_WORDS * c + j * c + e % c] = w;
-        }
-    }
+    let records: Vec<Vec<u32>> = (0..(rows + 2) * c)
+        .map(|e| vec![1 + rng.next_u32() % 4, e as u32, rng.next_u32()])
+        .collect();
     KernelInputs {
         streams: vec![
-            records,
+            records_to_stream(&records, c),
             vec![0; rows * c],
             Vec::new(),
             Vec::new(),
@@ -212,12 +207,14 @@ pub fn inputs(desc: &MachineDesc, rows: usize, seed: u64) -> KernelInputs {
 mod tests {
     use super::*;
     use crate::kernel::interpret;
+    use crate::kernels::stream_to_records;
 
     /// What `load_balance` must write: in the first iteration every cluster takes a record
     /// to hold ahead; afterwards a cluster whose record is used up starts the one it holds
     /// and takes the next; the takers of an iteration take in cluster order.
-    fn expected(records: &[u32], c: usize, iterations: usize) -> [Vec<u32>; 3] {
-        let word = |e: usize, j: usize| records[(e / c) * RECORD_WORDS * c + j * c + e % c];
+    fn expected(stream: &[u32], c: usize, iterations: usize) -> [Vec<u32>; 3] {
+        let records = stream_to_records(stream, RECORD_WORDS, c);
+        let word = |e: usize, j: usize| records[e][j];
         let mut left = vec![1u32; c];
         let mut ahead = vec![0usize; c];
         let mut next = 0;
