@@ -20,7 +20,9 @@ use imagine_units::runner::{RunOptions, run_kernel};
 use imagine_pipelines::compile::CompileCache;
 use imagine_pipelines::kernel::{Kernel, KernelInputs};
 use imagine_pipelines::kernels::{LibraryKernel, library};
-use imagine_pipelines::opengl::render::{RenderOptions, kernel_description, pipeline_kernels};
+use imagine_pipelines::opengl::render::{
+    Rasterizer, RenderOptions, kernel_description, pipeline_kernels,
+};
 use imagine_pipelines::reyes::frame::{self, ShadeSetup};
 use imagine_pipelines::run::{check, random_inputs};
 use imagine_pipelines::scene::model::PipelineKind;
@@ -154,6 +156,10 @@ pub struct PipelineArgs {
     /// `render --no-specialize`)
     #[arg(long)]
     no_specialize: bool,
+    /// The rasterizer kernels to take, `barycentric` or `scanline` (as `render
+    /// --rasterizer`)
+    #[arg(long, default_value = "barycentric", value_parser = |t: &str| t.parse::<Rasterizer>())]
+    rasterizer: Rasterizer,
     /// The pipeline whose kernels to take: `opengl` or `reyes` (the scene's patches; run
     /// them on `--machine reyes`) [default: the scene's `pipeline.kind`]
     #[arg(long, value_parser = ["opengl", "reyes"])]
@@ -595,6 +601,7 @@ impl Pipeline {
         } else {
             let options = RenderOptions {
                 specialise: !a.no_specialize,
+                rasterizer: a.rasterizer,
                 ..RenderOptions::default()
             };
             pipeline_kernels(&scene, desc, &options).map_err(|e| e.to_string())

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use imagine_pipelines::compile::CompileCache;
-use imagine_pipelines::opengl::render::{Frame, RenderOptions, render_with};
+use imagine_pipelines::opengl::render::{Frame, Rasterizer, RenderOptions, render_with};
 use imagine_pipelines::scene::model::{PipelineKind, Scene};
 use imagine_pipelines::scene::{self, LoadOptions};
 use imagine_units::desc::MachineDesc;
@@ -43,6 +43,11 @@ pub struct RenderArgs {
     /// largest batch up to N that the machine's scratchpad and SRF hold)
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_BATCH)))]
     batch: Option<u32>,
+    /// The rasterizer kernels: barycentric (xyprep, xyrast: each cluster walks its
+    /// triangles' boxes) or scanline (spanprep, spangen, spanpack, spanrast: half-triangles
+    /// and spans, load-balanced over the clusters; not for blending scenes)
+    #[arg(long, default_value = "barycentric", value_parser = parse_rasterizer)]
+    rasterizer: Rasterizer,
     /// Write the frame as PNG
     #[arg(long)]
     pub(super) png: Option<PathBuf>,
@@ -198,8 +203,13 @@ fn render_options(a: &RenderArgs) -> RenderOptions {
         batch: a.batch.map(|b| b as usize),
         timeline: a.timeline.is_some(),
         record_dram: a.dram_trace.is_some(),
+        rasterizer: a.rasterizer,
         ..RenderOptions::default()
     }
+}
+
+fn parse_rasterizer(text: &str) -> Result<Rasterizer, String> {
+    text.parse()
 }
 
 pub fn run(a: RenderArgs) -> Result<ExitCode> {

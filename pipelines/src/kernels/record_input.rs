@@ -43,17 +43,31 @@ use crate::kernel::{
     Ty, Value,
 };
 
-/// The conditional input of `words`-word records from one stream (see the module notes).
-/// Made before the loop ([`RecordInput::new`], which reads the first two rows); taken
-/// from once per iteration ([`RecordInput::take`]).
+/// The conditional input of records from one stream, or from several streams read in
+/// step, record `e` of each one part of record `e` (see the module notes). Made before the
+/// loop ([`RecordInput::new`], which reads the first two rows); taken from once per
+/// iteration ([`RecordInput::take`]).
 pub struct RecordInput {
-    stream: StreamId,
+    /// Each stream and the words of its part of a record.
+    streams: Vec<(StreamId, usize)>,
     clusters: usize,
     cluster: Value,
     /// The ranking scan's steps (their conditions kept across the loop).
     scan: Vec<(usize, Value)>,
-    first: Vec<Value>,
-    second: Vec<Value>,
+    rows: Rows,
+}
+
+/// Where the two buffered rows are kept.
+enum Rows {
+    /// In the LRFs, as loop-carried values (their words before the loop).
+    Lrf {
+        first: Vec<Value>,
+        second: Vec<Value>,
+    },
+    /// In the scratchpad from word `at`: three slots of a record's words, `A`, `B` and a
+    /// slot that takes the reads of an iteration that brings no row in. Which slot is `A`
+    /// alternates, so rows are never moved.
+    Scratchpad { at: u16 },
 }
 
 impl RecordInput {
@@ -66,20 +80,59 @@ impl RecordInput {
         stream: StreamId,
         words: usize,
     ) -> Result<RecordInput, MachineRequirementError> {
+        RecordInput::in_step(b, desc, kernel, &[(stream, words)], None)
+    }
+
+    /// Before the loop: reads the first two rows of every stream, `(stream, words)`, whose
+    /// records are taken together: a take returns the words of each in turn. With
+    /// `scratchpad_at`, the rows are kept in the scratchpad from that word, as Imagine's
+    /// conditional streams keep them (3 words per record word: the rows and a slot for the
+    /// reads that bring nothing), else in the LRFs.
+    pub fn in_step(
+        b: &mut KernelBuilder,
+        desc: &MachineDesc,
+        kernel: &str,
+        streams: &[(StreamId, usize)],
+        scratchpad_at: Option<u16>,
+    ) -> Result<RecordInput, MachineRequirementError> {
         Needs::new(kernel, desc).power_of_two_clusters(None)?;
-        let row = |b: &mut KernelBuilder| (0..words).map(|_| b.read(stream)).collect();
+        let words: usize = streams.iter().map(|&(_, w)| w).sum();
+        if let Some(at) = scratchpad_at {
+            Needs::new(kernel, desc).scratchpad_words(
+                usize::from(at) + 3 * words,
+                &format!("two buffered rows of {words}-word records and a slot for empty reads"),
+                true,
+            )?;
+        }
+        let row = |b: &mut KernelBuilder| -> Vec<Value> {
+            streams
+                .iter()
+                .flat_map(|&(s, words)| (0..words).map(move |_| s))
+                .map(|s| b.read(s))
+                .collect()
+        };
         let first = row(b);
         let second = row(b);
+        let rows = match scratchpad_at {
+            None => Rows::Lrf { first, second },
+            Some(at) => {
+                for (slot, row) in [first, second].iter().enumerate() {
+                    for (j, &w) in row.iter().enumerate() {
+                        b.sp_write(at + (slot * words + j) as u16, None, w);
+                    }
+                }
+                Rows::Scratchpad { at }
+            }
+        };
         let clusters = desc.cluster.count;
         let cluster = b.cluster_id();
         let scan = scan_steps(b, clusters, cluster);
         Ok(RecordInput {
-            stream,
+            streams: streams.to_vec(),
             clusters,
             cluster,
             scan,
-            first,
-            second,
+            rows,
         })
     }
 
@@ -91,8 +144,6 @@ impl RecordInput {
         let row_c = b.i32(c as i32);
         let lane_mask = b.i32(c as i32 - 1);
         let cluster = self.cluster;
-        let rows: [Vec<Value>; 2] = [&self.first, &self.second]
-            .map(|r| r.iter().map(|&w| b.carried(w)).collect::<Vec<Value>>());
         let next = b.carried(zero);
         let base = b.carried(zero);
         // Ranks: an inclusive scan of the takers across the clusters, less one's own.
@@ -108,24 +159,61 @@ impl RecordInput {
         };
         let done_in_a = b.isub(next, base);
         let sends_a = b.ile(done_in_a, cluster);
-        let got = rows[0]
-            .iter()
-            .zip(&rows[1])
-            .map(|(&a, &second)| {
-                let sent = b.select(sends_a, a, second);
-                b.comm(sent, Perm::PerCluster(source))
-            })
-            .collect();
         // Past `A`: `B` moves up and the next row comes in (the same choice everywhere).
         let next_after = b.iadd(next, taken);
         let end_of_a = b.iadd(base, row_c);
         let advance = b.ile(end_of_a, next_after);
-        for (&a, &second) in rows[0].iter().zip(&rows[1]) {
-            let moved = b.select(advance, second, a);
-            b.set_next(a, moved);
-            let fresh = b.read_if(self.stream, advance, second);
-            b.set_next(second, fresh);
-        }
+        let word_streams: Vec<StreamId> = self
+            .streams
+            .iter()
+            .flat_map(|&(s, words)| std::iter::repeat_n(s, words))
+            .collect();
+        let got = match &self.rows {
+            Rows::Lrf { first, second } => {
+                let rows: [Vec<Value>; 2] =
+                    [first, second].map(|r| r.iter().map(|&w| b.carried(w)).collect());
+                let got = rows[0]
+                    .iter()
+                    .zip(&rows[1])
+                    .map(|(&a, &second)| {
+                        let sent = b.select(sends_a, a, second);
+                        b.comm(sent, Perm::PerCluster(source))
+                    })
+                    .collect();
+                for ((&a, &second), &stream) in rows[0].iter().zip(&rows[1]).zip(&word_streams) {
+                    let moved = b.select(advance, second, a);
+                    b.set_next(a, moved);
+                    let fresh = b.read_if(stream, advance, second);
+                    b.set_next(second, fresh);
+                }
+                got
+            }
+            &Rows::Scratchpad { at } => {
+                let k = word_streams.len() as i32;
+                let slot_b = b.i32(k);
+                let a_at = b.carried(zero);
+                let b_at = b.carried(slot_b);
+                let send_at = b.select(sends_a, a_at, b_at);
+                let got = (0..word_streams.len())
+                    .map(|j| {
+                        let sent = b.sp_read(at + j as u16, Some(send_at));
+                        b.comm(sent, Perm::PerCluster(source))
+                    })
+                    .collect();
+                // The new row goes where `A` was, and becomes `B`.
+                let nowhere = b.i32(2 * k);
+                let write_at = b.select(advance, a_at, nowhere);
+                for (j, &stream) in word_streams.iter().enumerate() {
+                    let fresh = b.read_if(stream, advance, zero);
+                    b.sp_write(at + j as u16, Some(write_at), fresh);
+                }
+                let a_after = b.select(advance, b_at, a_at);
+                let b_after = b.select(advance, a_at, b_at);
+                b.set_next(a_at, a_after);
+                b.set_next(b_at, b_after);
+                got
+            }
+        };
         b.set_next(next, next_after);
         let base_after = b.select(advance, end_of_a, base);
         b.set_next(base, base_after);

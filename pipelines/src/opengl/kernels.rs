@@ -220,19 +220,19 @@ pub(crate) fn finish(b: KernelBuilder) -> Kernel {
 }
 
 /// `cc ? 1 : 0` as an int32.
-fn flag(b: &mut KernelBuilder, cc: Value) -> Value {
+pub(crate) fn flag(b: &mut KernelBuilder, cc: Value) -> Value {
     let (one, zero) = (b.i32(1), b.i32(0));
     b.select(cc, one, zero)
 }
 
 /// An int32 flag as a condition.
-fn cond(b: &mut KernelBuilder, flag: Value) -> Value {
+pub(crate) fn cond(b: &mut KernelBuilder, flag: Value) -> Value {
     let zero = b.i32(0);
     b.ine(flag, zero)
 }
 
 /// Combines `x` across the clusters with `op` by butterfly exchanges (log2 C comms).
-fn all_reduce(
+pub(crate) fn all_reduce(
     b: &mut KernelBuilder,
     clusters: usize,
     mut x: Value,
@@ -935,12 +935,7 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     let tri_mask = b.i32((1 << TRI_BITS) - 1);
     let width = b.i32(shape.width as i32);
     let (zero_f, half) = (b.f32(0.0), b.f32(0.5));
-    // Top-left edges pass at E >= 0, the others at E > 0: as one compare, E > -2^-149 (the
-    // negative subnormal next to -0) or E > +0. Flushing inputs to zero would turn the
-    // first into E > 0, so such machines select between two compares instead.
-    let flush = desc.arithmetic.flush_to_zero;
-    let below_zero = b.word(0x8000_0001);
-    let zero_word = b.word(0);
+    let edge_test = EdgeTest::new(&mut b, desc, zero_f);
 
     b.begin_loop(LoopSpec::OverStream(tickets));
     // The current record's first word, or in primitive order the triangle's index.
@@ -1000,19 +995,7 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     let at_next = b.select(done, at_moved, at0);
     b.set_next(at0, at_next);
 
-    let thresholds: Vec<Value> = (0..3)
-        .map(|i| {
-            let shift = b.i32((TRI_BITS + i) as i32);
-            let top_left = b.shr(tag, shift);
-            let top_left = b.cast(top_left, Ty::Cc);
-            if flush {
-                top_left
-            } else {
-                let t = b.select(top_left, below_zero, zero_word);
-                b.cast(t, Ty::F32)
-            }
-        })
-        .collect();
+    let thresholds = edge_test.thresholds(&mut b, tag);
     let tri = b.and(tag, tri_mask);
     // Pixel centres, exact: x + 0.5 + j and y + 0.5. The multipliers, which have room,
     // take the shifts (`imul_hi_u` by 2^16 is a shift right by 16) off the adders.
@@ -1061,13 +1044,7 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
             let s = b.fadd(ax, by);
             let e = b.fadd(s, coefficient(i, 2));
             *e_value = e;
-            let ok = if flush {
-                let positive = b.flt(zero_f, e);
-                let non_negative = b.fle(zero_f, e);
-                b.select(thresholds[i], non_negative, positive)
-            } else {
-                b.flt(thresholds[i], e)
-            };
+            let ok = edge_test.passes(&mut b, thresholds[i], e);
             // Bit 0 of a product is the AND of the factors' bits 0.
             let ok = b.cast(ok, Ty::I32);
             inside = Some(match inside {
@@ -1087,6 +1064,57 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
     nulls.extend(e_out.iter().map(|&s| (s, 0)));
     null_row(&mut b, &nulls);
     Ok(finish(b))
+}
+
+/// The coverage test of an edge value under OpenGL's rules (`xyrast`, `spanrast`): top-left
+/// edges pass at E >= 0, the others at E > 0 — as one compare, E > -2^-149 (the negative
+/// subnormal next to -0) or E > +0. Flushing inputs to zero would turn the first into
+/// E > 0, so such machines select between two compares instead.
+pub(crate) struct EdgeTest {
+    flush: bool,
+    zero_f: Value,
+    below_zero: Value,
+    zero_word: Value,
+}
+
+impl EdgeTest {
+    /// Before the loop (`zero_f` is +0.0).
+    pub(crate) fn new(b: &mut KernelBuilder, desc: &MachineDesc, zero_f: Value) -> EdgeTest {
+        EdgeTest {
+            flush: desc.arithmetic.flush_to_zero,
+            zero_f,
+            below_zero: b.word(0x8000_0001),
+            zero_word: b.word(0),
+        }
+    }
+
+    /// The three edges' thresholds from a tag's top-left flags (bits `TRI_BITS + i`).
+    pub(crate) fn thresholds(&self, b: &mut KernelBuilder, tag: Value) -> Vec<Value> {
+        (0..3)
+            .map(|i| {
+                let shift = b.i32((TRI_BITS + i) as i32);
+                let top_left = b.shr(tag, shift);
+                let top_left = b.cast(top_left, Ty::Cc);
+                if self.flush {
+                    top_left
+                } else {
+                    let t = b.select(top_left, self.below_zero, self.zero_word);
+                    b.cast(t, Ty::F32)
+                }
+            })
+            .collect()
+    }
+
+    /// Whether edge value `e` passes its `threshold` (a condition).
+    pub(crate) fn passes(&self, b: &mut KernelBuilder, threshold: Value, e: Value) -> Value {
+        if self.flush {
+            let positive = b.flt(self.zero_f, e);
+            let non_negative = b.fle(self.zero_f, e);
+            b.select(threshold, non_negative, positive)
+        } else {
+            b.flt(threshold, e)
+        }
+    }
 }
 
 /// `1/x` by `steps` Newton–Raphson steps on the multipliers and adders from the bit-level

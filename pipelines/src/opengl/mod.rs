@@ -5,6 +5,7 @@ pub mod fragment_program;
 pub mod kernels;
 pub mod mergefrag;
 pub mod render;
+pub mod scanline;
 pub mod srf_model;
 pub mod stats;
 pub mod vertex_program;

@@ -72,6 +72,7 @@ use super::kernels::{
     self, CLIPPED_WORDS, FrameShape, NULL_DEPTH, PIXEL_WORDS, RASTER_WORDS, Varyings, WINDOW_WORDS,
 };
 use super::mergefrag::{self, GROUP};
+use super::scanline::{self, EDGE_WORDS, HALF_WORDS, SENTINEL_ROWS, SPAN_WORDS};
 use super::srf_model::SrfModelReport;
 use super::stats::{BatchRow, Phases, Specialisation, TextureCacheReport};
 use super::vertex_program::{self, VertexProgram};
@@ -85,8 +86,9 @@ use crate::scene::{MAX_TRI_COORDINATE, MAX_WINDOW, bump_map};
 use crate::stream::attribution::{self, Attribution, DramActivity, WaitingOn};
 use crate::stream::timeline::{self, ProgramInfo, TimelineInput};
 use crate::stream::{
-    Buffer, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS, PlanError,
-    SrfPlan, SrfPlanner, StreamHost, StreamId, live, pipelined, split_to_fit, strip_mine,
+    Buffer, Call, DramMap, Fit, HostError, KernelId, KernelLibrary, Layout, Lifetime, PARAMS,
+    PlanError, SrfPlan, SrfPlanner, StreamHost, StreamId, live, pipelined, split_to_fit,
+    strip_mine,
 };
 
 pub use super::stats::{FrameStats, KernelShare};
@@ -195,6 +197,48 @@ pub struct RenderOptions {
     pub timeline: bool,
     /// Keep the frame's DRAM requests ([`Frame::dram_requests`], `--dram-trace`).
     pub record_dram: bool,
+    /// The rasterizer kernels: barycentric (`xyprep`, `xyrast`) or scanline.
+    pub rasterizer: Rasterizer,
+}
+
+/// The rasterizer kernels a frame runs (machines with a hardware rasterizer use it
+/// instead).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Rasterizer {
+    /// `xyprep` and `xyrast`: each cluster walks its triangles' bounding boxes.
+    #[default]
+    Barycentric,
+    /// `spanprep`, `spangen`, `spanpack` and `spanrast` ([`super::scanline`]): half-triangles
+    /// and spans, load-balanced over the clusters.
+    Scanline,
+}
+
+impl Rasterizer {
+    pub const ALL: [Rasterizer; 2] = [Rasterizer::Barycentric, Rasterizer::Scanline];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Rasterizer::Barycentric => "barycentric",
+            Rasterizer::Scanline => "scanline",
+        }
+    }
+}
+
+impl std::str::FromStr for Rasterizer {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        Rasterizer::ALL
+            .into_iter()
+            .find(|r| r.name() == text)
+            .ok_or_else(|| format!("`{text}` is not a rasterizer (barycentric or scanline)"))
+    }
+}
+
+impl std::fmt::Display for Rasterizer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// Conflicts from which the host sorts and merges. The stage costs more cycles than the
@@ -217,6 +261,7 @@ impl Default for RenderOptions {
             batch: None,
             timeline: false,
             record_dram: false,
+            rasterizer: Rasterizer::Barycentric,
         }
     }
 }
@@ -269,7 +314,29 @@ struct Streams {
     composite: CompositeStreams,
     /// The fragment program's streams (frames with textures or marble).
     texturing: Option<TexturingStreams>,
+    /// The scanline rasterizer's streams, when it runs.
+    scanline: Option<ScanlineStreams>,
 }
+
+/// The scanline rasterizer's streams ([`super::scanline`]): per tile, `spanprep`'s
+/// half-triangles, edge records (stored to DRAM at a batch's first tile) and counts;
+/// `spangen`'s spans as three conditional streams; `spanpack`'s span records and counts;
+/// the spans' edge records gathered by triangle.
+struct ScanlineStreams {
+    halves: StreamId,
+    edges: StreamId,
+    prep_counts: StreamId,
+    pos: StreamId,
+    end: StreamId,
+    tri: StreamId,
+    spans: StreamId,
+    pack_counts: StreamId,
+    span_edges: StreamId,
+}
+
+/// The SRF's share the scanline rasterizer's span streams take (1/8): spans are about a
+/// quarter as many as fragments, and 15 words each against a fragment's 5.
+const SPAN_SHARE: usize = 8;
 
 /// The composite's streams: the fragments of a chunk's rounds (the first set, or the
 /// rasterizer's outputs, then two recycle sets that alternate: z, colour, addr, prim), the
@@ -419,6 +486,8 @@ struct Sizes {
     dependent_fetches: usize,
     /// Texel words per vertex of the vertex textures (`bump_env`), 0 without.
     vertex_texels: usize,
+    /// Whether the scanline rasterizer runs (else `xyprep` and `xyrast`, or the hardware).
+    scanline: bool,
 }
 
 /// Words of `perlight`'s parameters (see [`VertexProgram::perlight_params`]).
@@ -434,6 +503,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
     // fragments have their room.
     let hardware = desc.rasterizer.is_some();
     let kernels_only = |records: usize| if hardware { 0 } else { records };
+    let barycentric_only = |records: usize| if s.scanline { 0 } else { kernels_only(records) };
     let words = Layout::words();
     let chunk = composite_chunk(desc);
     let streams = Streams {
@@ -509,10 +579,16 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
         raster: p.stream(
             "raster",
             Layout::records(RASTER_WORDS),
-            kernels_only(b),
+            barycentric_only(b),
             live("xyprep", "xyrast"),
         ),
-        rows: p.stream("rows", words, kernels_only(2 * c), live("xyprep", "xyprep")),
+        rows: p.stream(
+            "rows",
+            words,
+            barycentric_only(2 * c),
+            live("xyprep", "xyprep"),
+        ),
+        // The scanline rasterizer's `spangen` runs over them too.
         tickets: p.stream(
             "tickets",
             words,
@@ -521,7 +597,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
             } else {
                 TICKET_WORDS / c * c
             }),
-            live("xyrast", "xyrast"),
+            live(if s.scanline { "xyprep" } else { "xyrast" }, "xyrast"),
         ),
         addr: p.elastic("addr", words, live("xyrast", "composite")),
         kernel_fragments: (!hardware).then(|| KernelFragments {
@@ -582,6 +658,49 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
                         always,
                     ),
                 }),
+            }
+        }),
+        scanline: s.scanline.then(|| {
+            // Room for a one-pixel tile's spans (a row of every half-triangle) and the
+            // sentinels, or the SRF's share.
+            let spans = (desc.srf.words / SPAN_SHARE / (SPAN_WORDS + EDGE_WORDS + 3))
+                .max(2 * b + SENTINEL_ROWS * c)
+                .div_ceil(c)
+                * c;
+            let per_tile = |p: &mut SrfPlanner, name: &str, words: usize, records: usize| {
+                p.stream(
+                    name,
+                    Layout::records(words),
+                    records,
+                    live("xyprep", "xyprep"),
+                )
+            };
+            ScanlineStreams {
+                halves: per_tile(&mut p, "halves", HALF_WORDS, 2 * b + SENTINEL_ROWS * c),
+                // Stored to DRAM at the first tile: live until the store has surely ended.
+                edges: p.stream(
+                    "edges",
+                    Layout::records(EDGE_WORDS),
+                    b + c,
+                    live("xyprep", "xyrast"),
+                ),
+                prep_counts: per_tile(&mut p, "prep_counts", 1, 2 * c),
+                pos: per_tile(&mut p, "pos", 1, spans),
+                end: per_tile(&mut p, "end", 1, spans),
+                tri: per_tile(&mut p, "span_tri", 1, spans),
+                pack_counts: per_tile(&mut p, "pack_counts", 1, 2 * c),
+                spans: p.stream(
+                    "spans",
+                    Layout::records(SPAN_WORDS),
+                    spans,
+                    live("xyprep", "xyrast"),
+                ),
+                span_edges: p.stream(
+                    "span_edges",
+                    Layout::records(EDGE_WORDS),
+                    spans,
+                    live("xyprep", "xyrast"),
+                ),
             }
         }),
     };
@@ -662,6 +781,34 @@ impl Kernels {
     }
 }
 
+/// The rasterizer kernels of a frame.
+enum RasterKernels {
+    Barycentric {
+        xyprep: KernelId,
+        xyrast: KernelId,
+    },
+    Scanline {
+        spanprep: KernelId,
+        spangen: KernelId,
+        spanpack: KernelId,
+        spanrast: KernelId,
+    },
+}
+
+impl RasterKernels {
+    fn all(&self) -> Vec<KernelId> {
+        match *self {
+            RasterKernels::Barycentric { xyprep, xyrast } => vec![xyprep, xyrast],
+            RasterKernels::Scanline {
+                spanprep,
+                spangen,
+                spanpack,
+                spanrast,
+            } => vec![spanprep, spangen, spanpack, spanrast],
+        }
+    }
+}
+
 /// The kernels a frame may call.
 struct Kernels {
     /// Per object: its `perbegin`, `perlight` (lit programs), vertex program and light passes.
@@ -669,8 +816,7 @@ struct Kernels {
     assemble_clip: KernelId,
     viewport_cull: KernelId,
     baryprep: KernelId,
-    xyprep: KernelId,
-    xyrast: KernelId,
+    raster: RasterKernels,
     irast: KernelId,
     hash: KernelId,
     zcompare: KernelId,
@@ -728,8 +874,18 @@ fn register_kernels(
     );
     let viewport_cull = lib.register("viewport_cull", kernels::viewport_cull(desc, shape)?);
     let baryprep = lib.register("baryprep", kernels::baryprep(desc, varyings)?);
-    let xyprep = lib.register("xyprep", kernels::xyprep(desc, shape)?);
-    let xyrast = lib.register("xyrast", kernels::xyrast(desc, shape)?);
+    let raster = match pp.rasterizer {
+        Rasterizer::Barycentric => RasterKernels::Barycentric {
+            xyprep: lib.register("xyprep", kernels::xyprep(desc, shape)?),
+            xyrast: lib.register("xyrast", kernels::xyrast(desc, shape)?),
+        },
+        Rasterizer::Scanline => RasterKernels::Scanline {
+            spanprep: lib.register("spanprep", scanline::spanprep(desc, shape)?),
+            spangen: lib.register("spangen", scanline::spangen(desc, shape)?),
+            spanpack: lib.register("spanpack", scanline::spanpack(desc)?),
+            spanrast: lib.register("spanrast", scanline::spanrast(desc, shape)?),
+        },
+    };
     let irast = lib.register("irast", kernels::irast(desc, varyings, pp.newton_steps)?);
     let mut per_object = per_object;
     // A vertex texture's address kernel per combined map.
@@ -829,8 +985,7 @@ fn register_kernels(
         assemble_clip,
         viewport_cull,
         baryprep,
-        xyprep,
-        xyrast,
+        raster,
         irast,
         hash,
         zcompare,
@@ -872,6 +1027,10 @@ pub fn kernel_description(name: &str) -> String {
         "baryprep" => "triangle: the interpolation record",
         "xyprep" => "triangle, per scissor tile: the box clamped to the tile, xyrast's cost",
         "xyrast" => "run of 4 candidate pixels: coverage by the three edge functions",
+        "spanprep" => "triangle, per scissor tile: two half-triangles, the edge record",
+        "spangen" => "half-triangle (load-balanced): 2 spans a loop",
+        "spanpack" => "span: its words side by side, spanrast's cost",
+        "spanrast" => "span (load-balanced): 2 pixels a loop, coverage by the three edges",
         "irast" => "fragment: perspective-correct depth and colour (or varyings)",
         "hash" => "fragment: held back if an earlier fragment of the round shares its stamp",
         "zcompare" => "fragment: the depth test and the blend",
@@ -1104,6 +1263,8 @@ pub struct PipelinePlan {
     /// Newton–Raphson steps for `irast`'s reciprocal, 0 for the divide unit
     /// (`pipeline.newton_raphson`).
     pub newton_steps: u8,
+    /// The rasterizer kernels the frame runs.
+    pub rasterizer: Rasterizer,
 }
 
 impl PipelinePlan {
@@ -1129,14 +1290,10 @@ impl PipelinePlan {
                 }
             }
         }
+        names.extend(["clear", "assemble_clip", "viewport_cull", "baryprep"].map(String::from));
+        names.extend(self.rasterizer_kernels().iter().map(|n| n.to_string()));
         names.extend(
             [
-                "clear",
-                "assemble_clip",
-                "viewport_cull",
-                "baryprep",
-                "xyprep",
-                "xyrast",
                 "irast",
                 "hash",
                 "zcompare",
@@ -1174,6 +1331,14 @@ impl PipelinePlan {
             names.extend(["sort32".into(), "mergefrag".into()]);
         }
         names
+    }
+
+    /// The rasterizer kernels' names, in the order a frame calls them.
+    pub fn rasterizer_kernels(&self) -> &'static [&'static str] {
+        match self.rasterizer {
+            Rasterizer::Barycentric => &["xyprep", "xyrast"],
+            Rasterizer::Scanline => &["spanprep", "spangen", "spanpack", "spanrast"],
+        }
     }
 
     /// What the general pipeline has and this one leaves out.
@@ -1275,6 +1440,22 @@ pub fn plan_pipeline(
     check_supported(scene)?;
     let clusters = desc.cluster.count;
     let general = !options.specialise;
+    let scanline = options.rasterizer == Rasterizer::Scanline;
+    if scanline && desc.rasterizer.is_some() {
+        return Err(RenderError(format!(
+            "machine `{}` rasterizes in hardware; `--rasterizer scanline` chooses between \
+             the rasterizer kernels",
+            desc.name
+        )));
+    }
+    if scanline && kernels::in_primitive_order(scene.pipeline.blend) {
+        return Err(RenderError(format!(
+            "scene `{}` blends, so its fragments must reach the composite in primitive \
+             order; the scanline rasterizer's load-balanced spans do not keep it (render it \
+             with `--rasterizer barycentric`)",
+            scene.name
+        )));
+    }
     let programs: Vec<VertexProgram> = scene
         .objects
         .iter()
@@ -1414,6 +1595,7 @@ pub fn plan_pipeline(
         ordered: kernels::in_primitive_order(scene.pipeline.blend),
         dependent_fetches,
         vertex_texels,
+        scanline,
     };
     let (batch, plan, s) = strip_mine(candidates, |b| plan_streams(desc, &sizes_for(b)))?;
     let shape = FrameShape {
@@ -1438,6 +1620,7 @@ pub fn plan_pipeline(
         textures,
         normalise_clip: scene.pipeline.normalise_clip,
         newton_steps: scene.pipeline.newton_raphson,
+        rasterizer: options.rasterizer,
     })
 }
 
@@ -1522,7 +1705,9 @@ fn run_frame(
     if !geometry_only {
         // The hardware rasterizer, where there is one, does the rasterizer kernels' work.
         if desc.rasterizer.is_none() {
-            eager.extend([k.baryprep, k.xyprep, k.xyrast, k.irast]);
+            eager.push(k.baryprep);
+            eager.extend(k.raster.all());
+            eager.push(k.irast);
         }
         eager.extend([k.hash, k.zcompare, k.recycle_zc, k.recycle_ap]);
         eager.extend(k.fragment.iter().flat_map(FragmentKernels::all));
@@ -1560,6 +1745,8 @@ fn run_frame(
         framebuffer: dram.buffer("framebuffer", (fb_pixels * PIXEL_WORDS) as u64)?,
         pixels: pixels as u64,
         interp_records: batch as u64,
+        edges: dram.buffer("edges", ((batch + clusters) * EDGE_WORDS) as u64)?,
+        edge_records: (batch + clusters) as u64,
     };
     let geometry_store = if geometry_only {
         let triangles: usize = input.batches.iter().map(|b| b.triangles).sum();
@@ -1659,6 +1846,7 @@ fn run_frame(
         current_object: 0,
         first_prim: 0,
         geometry: geometry_store,
+        edges_stored: false,
     };
     let batches = input.batches.len();
     let mut run = (&mut host, &mut frame);
@@ -1984,6 +2172,10 @@ struct Memory {
     pixels: u64,
     /// A batch's interpolation records: the bound of gathers by triangle.
     interp_records: u64,
+    /// A batch's edge records and the sentinel's (the scanline rasterizer's), and their
+    /// count: the bound of gathers by span.
+    edges: Buffer,
+    edge_records: u64,
 }
 
 /// A frame in progress.
@@ -2009,6 +2201,8 @@ struct FrameRun<'a> {
     max_fragment_words: usize,
     /// Where a geometry-only run stores its triangles' records (`None`: a whole frame).
     geometry: Option<GeometryStore>,
+    /// Whether this batch's edge records are in DRAM (the scanline rasterizer's).
+    edges_stored: bool,
 }
 
 /// The DRAM buffers of a geometry-only run ([`render_geometry`]): each kept batch
@@ -2243,6 +2437,7 @@ impl FrameRun<'_> {
             return Ok(());
         }
         self.first_prim = bt.first_prim as u32;
+        self.edges_stored = false;
         if s.unit.is_none() {
             let interp = p.first(s.interp, tris);
             let bparams = p.whole(s.baryprep_params);
@@ -2301,6 +2496,10 @@ impl FrameRun<'_> {
         if self.s.unit.is_some() {
             return self.tile_in_hardware(h, tile);
         }
+        let (xyprep, xyrast) = match self.k.raster {
+            RasterKernels::Barycentric { xyprep, xyrast } => (xyprep, xyrast),
+            RasterKernels::Scanline { .. } => return self.tile_in_spans(h, tile),
+        };
         let (p, s) = (self.plan, self.s);
         let c = h.clusters();
         let tris = self.batch;
@@ -2308,7 +2507,7 @@ impl FrameRun<'_> {
         h.write_params(xparams, &tile.map(|v| v as u32));
         let rows_stream = p.whole(s.rows);
         h.call(
-            self.k.xyprep,
+            xyprep,
             &[
                 ("window", p.first(s.window, tris)),
                 ("raster", p.first(s.raster, tris)),
@@ -2328,7 +2527,126 @@ impl FrameRun<'_> {
                 p.capacity(s.tickets) / c
             )));
         }
-        self.rasterize(h, rows, candidates + c)?;
+        self.rasterize(h, xyrast, rows, candidates + c)?;
+        Ok(Fit::Done)
+    }
+
+    /// Scissor tile `tile` through the scanline rasterizer ([`scanline`]), then the
+    /// composite, unless the tile's spans or fragments would overflow their streams.
+    fn tile_in_spans(&mut self, h: &mut StreamHost, tile: [i32; 4]) -> Result<Fit, RenderError> {
+        let RasterKernels::Scanline {
+            spanprep,
+            spangen,
+            spanpack,
+            spanrast,
+        } = self.k.raster
+        else {
+            unreachable!("the scanline rasterizer's kernels")
+        };
+        let (p, s, m) = (self.plan, self.s, self.m);
+        let ss = s
+            .scanline
+            .as_ref()
+            .expect("the scanline rasterizer's streams");
+        let c = h.clusters();
+        let tris = self.batch;
+        let params = p.whole(s.xyprep_params);
+        h.write_params(params, &tile.map(|v| v as u32));
+        let halves = p.whole(ss.halves);
+        let edges = p.whole(ss.edges);
+        h.call(
+            spanprep,
+            &[
+                ("window", p.first(s.window, tris)),
+                ("halves", halves),
+                ("edges", edges),
+                ("rows", p.whole(ss.prep_counts)),
+                (PARAMS, params),
+            ],
+        )?;
+        if !self.edges_stored {
+            // The same records at every tile of the batch: stored once.
+            h.store(edges, Layout::records(EDGE_WORDS), tris + c, m.edges, 0);
+            self.edges_stored = true;
+        }
+        let counts = h.read_back(p.whole(ss.prep_counts))?;
+        let iterations = counts[0] as usize;
+        let most_spans: usize = counts[c..].iter().map(|&n| n as usize).sum();
+        let tickets = p.capacity(s.tickets) / c;
+        let span_room = p.capacity(ss.pos);
+        let sentinels = SENTINEL_ROWS * c;
+        if iterations > tickets || most_spans + sentinels > span_room {
+            return Ok(Fit::Overflow(format!(
+                "a one-pixel tile needs {iterations} span-generator iterations and up to \
+                 {most_spans} spans; the SRF holds {tickets} iterations and {} spans",
+                span_room - sentinels
+            )));
+        }
+        let spans_out = [ss.pos, ss.end, ss.tri].map(|id| p.whole(id));
+        let call = h.call(
+            spangen,
+            &[
+                ("halves", halves),
+                ("tickets", p.first(s.tickets, iterations * c)),
+                ("pos", spans_out[0]),
+                ("end", spans_out[1]),
+                ("tri", spans_out[2]),
+            ],
+        )?;
+        h.wait(call)?;
+        let spans = h.written(call, "pos")? - sentinels;
+        // Every span, and the sentinels up to the rows `spanrast` reads ahead (it takes at
+        // most one sentinel a cluster).
+        let len = (spans.div_ceil(c) + SENTINEL_ROWS - 1) * c;
+        h.call(
+            spanpack,
+            &[
+                ("pos", p.first(ss.pos, len)),
+                ("end", p.first(ss.end, len)),
+                ("spans", p.first(ss.spans, len)),
+                ("counts", p.whole(ss.pack_counts)),
+            ],
+        )?;
+        let span_edges = p.first(ss.span_edges, len);
+        h.gather(
+            m.edges,
+            p.first(ss.tri, len),
+            m.edge_records,
+            Layout::records(EDGE_WORDS),
+            len,
+            span_edges,
+        );
+        let counts = h.read_back(p.whole(ss.pack_counts))?;
+        let iterations = counts[0] as usize;
+        let candidates: usize = counts[c..].iter().map(|&n| n as usize).sum();
+        let capacity = p.capacity(s.addr);
+        if candidates + c > capacity || iterations > tickets {
+            return Ok(Fit::Overflow(format!(
+                "a one-pixel tile needs {iterations} span-rasterizer iterations and \
+                 {candidates} fragments; the SRF holds {tickets} iterations and {capacity} \
+                 fragments"
+            )));
+        }
+        let cap = p.capacity(s.addr);
+        let frags = |id| p.first(id, cap);
+        let kf = s
+            .kernel_fragments
+            .as_ref()
+            .expect("the rasterizer kernels' streams");
+        let call = h.call(
+            spanrast,
+            &[
+                ("spans", p.first(ss.spans, len)),
+                ("edges", span_edges),
+                ("tickets", p.first(s.tickets, iterations * c)),
+                ("addr", frags(s.addr)),
+                ("tri", frags(kf.tri)),
+                ("e0", frags(kf.edges[0])),
+                ("e1", frags(kf.edges[1])),
+                ("e2", frags(kf.edges[2])),
+            ],
+        )?;
+        self.composite_rasterized(h, call, candidates + c)?;
         Ok(Fit::Done)
     }
 
@@ -2411,6 +2729,7 @@ impl FrameRun<'_> {
     fn rasterize(
         &mut self,
         h: &mut StreamHost,
+        xyrast: KernelId,
         rows: usize,
         bound: usize,
     ) -> Result<(), RenderError> {
@@ -2420,7 +2739,7 @@ impl FrameRun<'_> {
         let frags = |id| p.first(id, cap);
         let kf = s.kernel_fragments.as_ref().expect("xyrast's streams");
         let call = h.call(
-            self.k.xyrast,
+            xyrast,
             &[
                 ("raster", p.first(s.raster, self.batch)),
                 ("tickets", p.first(s.tickets, rows * c)),
@@ -2431,6 +2750,19 @@ impl FrameRun<'_> {
                 ("e2", frags(kf.edges[2])),
             ],
         )?;
+        self.composite_rasterized(h, call, bound)
+    }
+
+    /// Interpolates and composites the fragments rasterizer kernel call `call` writes
+    /// (at most `bound`, the row of nulls included).
+    fn composite_rasterized(
+        &mut self,
+        h: &mut StreamHost,
+        call: Call,
+        bound: usize,
+    ) -> Result<(), RenderError> {
+        let s = self.s;
+        let c = h.clusters();
         h.wait(call)?;
         // The real fragments, then the row of nulls.
         let real = h.written(call, "addr")? - c;
