@@ -593,6 +593,7 @@ fn render_point(
     let options = RenderOptions {
         cache: CompileCache::from_env(),
         batch: point.setup.batch,
+        rasterizer: point.setup.rasterizer,
         ..RenderOptions::default()
     };
     let frame = render_with(&scene, &point.setup.machine, options, None, |_, _| {})?;

@@ -336,7 +336,7 @@ struct ScanlineStreams {
 
 /// The SRF's share the scanline rasterizer's span streams take (1/8): spans are about a
 /// quarter as many as fragments, and 15 words each against a fragment's 5.
-const SPAN_SHARE: usize = 8;
+const SPAN_SHARE: usize = 4;
 
 /// The composite's streams: the fragments of a chunk's rounds (the first set, or the
 /// rasterizer's outputs, then two recycle sets that alternate: z, colour, addr, prim), the
@@ -664,7 +664,7 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
             // Room for a one-pixel tile's spans (a row of every half-triangle) and the
             // sentinels, or the SRF's share.
             let spans = (desc.srf.words / SPAN_SHARE / (SPAN_WORDS + EDGE_WORDS + 3))
-                .max(2 * b + SENTINEL_ROWS * c)
+                .max(2 * b + (SENTINEL_ROWS + 1) * c)
                 .div_ceil(c)
                 * c;
             let per_tile = |p: &mut SrfPlanner, name: &str, words: usize, records: usize| {
@@ -1511,7 +1511,13 @@ pub fn plan_pipeline(
         0
     };
     // (`PipelinePlan::vertex_texel_words` says the same once the plan is built.)
-    let rows = kernels::xyrast_rows(desc);
+    // `xyrast` keeps a batch's raster records in the scratchpad; the scanline rasterizer
+    // keeps only its buffered records there (its kernels name what they lack).
+    let rows = if scanline {
+        usize::MAX / clusters
+    } else {
+        kernels::xyrast_rows(desc)
+    };
     if rows == 0 {
         // `xyrast` names what its scratchpad lacks for a batch of one row.
         let one_row = FrameShape {
@@ -2574,7 +2580,7 @@ impl FrameRun<'_> {
         let most_spans: usize = counts[c..].iter().map(|&n| n as usize).sum();
         let tickets = p.capacity(s.tickets) / c;
         let span_room = p.capacity(ss.pos);
-        let sentinels = SENTINEL_ROWS * c;
+        let sentinels = (SENTINEL_ROWS + 1) * c;
         if iterations > tickets || most_spans + sentinels > span_room {
             return Ok(Fit::Overflow(format!(
                 "a one-pixel tile needs {iterations} span-generator iterations and up to \
@@ -2595,9 +2601,8 @@ impl FrameRun<'_> {
         )?;
         h.wait(call)?;
         let spans = h.written(call, "pos")? - sentinels;
-        // Every span, and the sentinels up to the rows `spanrast` reads ahead (it takes at
-        // most one sentinel a cluster).
-        let len = (spans.div_ceil(c) + SENTINEL_ROWS - 1) * c;
+        // Every span, and the sentinels up to the rows `spanrast` reads.
+        let len = (spans.div_ceil(c) + SENTINEL_ROWS) * c;
         h.call(
             spanpack,
             &[

@@ -41,7 +41,7 @@
 
 use imagine_units::desc::MachineDesc;
 
-use super::kernels::{EdgeTest, FrameShape, TRI_BITS, all_reduce, cond, finish, flag, null_row};
+use super::kernels::{EdgeTest, FrameShape, TRI_BITS, all_reduce, finish, null_row};
 use crate::kernel::{Kernel, KernelBuilder, LoopSpec, MachineRequirementError, Needs, Ty, Value};
 use crate::kernels::record_input::RecordInput;
 
@@ -53,9 +53,10 @@ pub const HALF_WORDS: usize = 7;
 /// Words of an edge record (`spanprep` → DRAM → `spanrast`): the nine edge coefficients and
 /// the tag (the triangle's index and its top-left flags, as in a raster record).
 pub const EDGE_WORDS: usize = 10;
-/// Words of a span record (`spanpack` → `spanrast`): `y·2^16 + x` of its first pixel, and
-/// `x` of its last (the triangle's index goes with the gathered edge record).
-pub const SPAN_WORDS: usize = 2;
+/// Words of a span record (`spanpack` → `spanrast`): `y·2^16 + x` of its first pixel, `x`
+/// of its last, and `spanrast`'s iterations on it ([`SENTINEL_END`] for a sentinel; the
+/// triangle's index goes with the gathered edge record).
+pub const SPAN_WORDS: usize = 3;
 /// How far beyond its bounding lines a span reaches, in pixels.
 pub const SPAN_MARGIN: f32 = 0.25;
 /// The steepest line (in x per row) a half-triangle is bounded by.
@@ -66,18 +67,40 @@ pub const FAR: f32 = 4_194_304.0;
 pub const SENTINEL: u32 = u32::MAX;
 /// A sentinel span's last pixel: so far on that no bound reaches its end.
 pub const SENTINEL_END: u32 = 1 << 30;
-/// Rows of sentinels after a stream's real records: a cluster takes at most two (`spangen`
-/// holds one ahead when it starts the other), and the input reads two rows ahead.
+/// Rows of sentinels after a stream's real records: a cluster takes at most two (it holds
+/// one ahead when it starts the other), and the input reads two rows ahead.
 pub const SENTINEL_ROWS: usize = 4;
-/// Pixels `spanrast` tests per cluster and iteration, and rows `spangen` makes.
-pub const SPAN_RUN: usize = 2;
+/// Rows `spangen` makes per cluster and iteration (the thesis's 2 spans a loop).
+pub const SPANGEN_ROWS: usize = 2;
+/// Pixels `spanrast` tests per cluster and iteration: 4, where the thesis's made 2. Each
+/// iteration pays for a take (the ranking, the routing of a 13-word record, its
+/// scratchpad buffers), whether a cluster takes or not; at 2 pixels that cost is spread
+/// over 2.
+pub const SPANRAST_PIXELS: usize = 4;
 
-/// Iterations of a record of `units` (`⌈units / 2⌉`, at least one): `spangen`'s for a
-/// half-triangle's rows, `spanrast`'s for a span's pixels.
-fn iterations_of(b: &mut KernelBuilder, units: Value) -> Value {
+/// Whether every condition in `conditions` holds: conditions are bit 0 of a word, and bit 0
+/// of a product is the AND of the factors' bits 0, so the multipliers, which have room,
+/// take the ANDs off the adders.
+fn all(b: &mut KernelBuilder, conditions: &[Value]) -> Value {
+    let mut words = conditions
+        .iter()
+        .map(|&c| b.cast(c, Ty::I32))
+        .collect::<Vec<_>>()
+        .into_iter();
+    let first = words.next().expect("a condition");
+    let product = words.fold(first, |p, w| b.imul(p, w));
+    b.cast(product, Ty::Cc)
+}
+
+/// Iterations of a record of `units` at `run` a time (`⌈units / run⌉`, at least one, `run`
+/// a power of two): `spangen`'s for a half-triangle's rows, `spanrast`'s for a span's
+/// pixels.
+fn iterations_of(b: &mut KernelBuilder, units: Value, run: usize) -> Value {
     let one = b.i32(1);
-    let n = b.iadd(units, one);
-    let n = b.shr(n, one);
+    let round = b.i32(run as i32 - 1);
+    let shift = b.i32(run.trailing_zeros() as i32);
+    let n = b.iadd(units, round);
+    let n = b.shr(n, shift);
     b.imax(n, one)
 }
 
@@ -101,44 +124,40 @@ fn iteration_bound(
     (b.iadd(bound, two), total)
 }
 
-/// A line `x = s·y + o` of a half-triangle, and whether it bounds anything.
+/// A line `x = s·y + o` of a half-triangle.
 #[derive(Clone, Copy)]
 struct Line {
     s: Value,
     o: Value,
 }
 
-/// The usable line among `lines` that bounds row centre `fy` most tightly: the largest
-/// `x` for left lines, the smallest for right ones; `none` if no line is usable.
-fn tightest(
-    b: &mut KernelBuilder,
-    lines: &[(Value, Line)],
-    fy: Value,
-    left: bool,
-    none: Line,
-) -> Line {
+/// An edge's line, whether it bounds the left side (else the right), whether it is
+/// usable, and its `x` at the top and the bottom row's centres.
+struct EdgeLine {
+    line: Line,
+    left: Value,
+    right: Value,
+    usable: Value,
+    at: [Value; 2],
+}
+
+/// The usable line of side `left` that bounds row `row` (0 top, 1 bottom) most tightly:
+/// the largest `x` for the left side, the smallest for the right; `none` (`s = 0`, `o`
+/// far out) if no line is usable.
+fn tightest(b: &mut KernelBuilder, lines: &[EdgeLine], row: usize, left: bool, none: Line) -> Line {
     let mut best = none;
-    let mut best_x = {
-        let sx = b.fmul(none.s, fy);
-        b.fadd(sx, none.o)
-    };
-    for &(usable, line) in lines {
-        let x = {
-            let sx = b.fmul(line.s, fy);
-            b.fadd(sx, line.o)
-        };
-        let tighter = if left {
-            b.flt(best_x, x)
+    let mut best_x = none.o;
+    for e in lines {
+        let x = e.at[row];
+        let (tighter, side) = if left {
+            (b.flt(best_x, x), e.left)
         } else {
-            b.flt(x, best_x)
+            (b.flt(x, best_x), e.right)
         };
-        let t = flag(b, tighter);
-        let u = flag(b, usable);
-        let take = b.and(t, u);
-        let take = cond(b, take);
+        let take = all(b, &[tighter, e.usable, side]);
         best = Line {
-            s: b.select(take, line.s, best.s),
-            o: b.select(take, line.o, best.o),
+            s: b.select(take, e.line.s, best.s),
+            o: b.select(take, e.line.o, best.o),
         };
         best_x = b.select(take, x, best_x);
     }
@@ -208,22 +227,22 @@ pub fn spanprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
     let kept = {
         let x_ok = b.ile(x0, x1);
         let y_ok = b.ile(y0, y1);
-        let k = b.and(flags, one);
-        let a = flag(&mut b, x_ok);
-        let c = flag(&mut b, y_ok);
-        let k = b.and(k, a);
-        let k = b.and(k, c);
-        cond(&mut b, k)
+        all(&mut b, &[flags, x_ok, y_ok])
     };
-    // Each edge's line, and the side it bounds (A > 0: x at least the line's).
-    let mut left_lines = Vec::new();
-    let mut right_lines = Vec::new();
-    for e in coefficients.chunks(3) {
-        let (a, bc, c) = (e[0], e[1], e[2]);
-        let minus_inv = b.fdiv(minus_one_f, a);
-        let s = b.fmul(bc, minus_inv);
-        let o = b.fmul(c, minus_inv);
-        let usable = {
+    let centre = |b: &mut KernelBuilder, y: Value| {
+        let f = b.itof(y);
+        b.fadd(f, half)
+    };
+    let rows_at = [centre(&mut b, y0), centre(&mut b, y1)];
+    // Each edge's line, and the side it bounds (A > 0: x at least the line's; A < 0: at
+    // most; A = 0 has no line).
+    let lines: Vec<EdgeLine> = coefficients
+        .chunks(3)
+        .map(|e| {
+            let (a, bc, c) = (e[0], e[1], e[2]);
+            let minus_inv = b.fdiv(minus_one_f, a);
+            let s = b.fmul(bc, minus_inv);
+            let o = b.fmul(c, minus_inv);
             let s_ok = {
                 let m = b.fabs(s);
                 b.fle(m, max_slope)
@@ -232,35 +251,23 @@ pub fn spanprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
                 let m = b.fabs(o);
                 b.flt(m, far)
             };
-            let s_ok = flag(&mut b, s_ok);
-            let o_ok = flag(&mut b, o_ok);
-            b.and(s_ok, o_ok)
-        };
-        let is_left = {
-            let l = b.flt(zero_f, a);
-            flag(&mut b, l)
-        };
-        let left_usable = {
-            let u = b.and(usable, is_left);
-            cond(&mut b, u)
-        };
-        let right_usable = {
-            let not_left = b.xor(is_left, one);
-            let u = b.and(usable, not_left);
-            cond(&mut b, u)
-        };
-        left_lines.push((left_usable, Line { s, o }));
-        right_lines.push((right_usable, Line { s, o }));
-    }
-    let centre = |b: &mut KernelBuilder, y: Value| {
-        let f = b.itof(y);
-        b.fadd(f, half)
-    };
-    let (fy_top, fy_bottom) = (centre(&mut b, y0), centre(&mut b, y1));
-    let left_top = tightest(&mut b, &left_lines, fy_top, true, no_left);
-    let left_bottom = tightest(&mut b, &left_lines, fy_bottom, true, no_left);
-    let right_top = tightest(&mut b, &right_lines, fy_top, false, no_right);
-    let right_bottom = tightest(&mut b, &right_lines, fy_bottom, false, no_right);
+            let at = rows_at.map(|fy| {
+                let sx = b.fmul(s, fy);
+                b.fadd(sx, o)
+            });
+            EdgeLine {
+                line: Line { s, o },
+                left: b.flt(zero_f, a),
+                right: b.flt(a, zero_f),
+                usable: all(&mut b, &[s_ok, o_ok]),
+                at,
+            }
+        })
+        .collect();
+    let left_top = tightest(&mut b, &lines, 0, true, no_left);
+    let left_bottom = tightest(&mut b, &lines, 1, true, no_left);
+    let right_top = tightest(&mut b, &lines, 0, false, no_right);
+    let right_bottom = tightest(&mut b, &lines, 1, false, no_right);
     // The middle corner's row: where the side whose line changes crosses itself.
     let crossing = |b: &mut KernelBuilder, top: Line, bottom: Line| {
         let num = b.fsub(bottom.o, top.o);
@@ -316,7 +323,7 @@ pub fn spanprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
             b.write(halves, w);
         }
         spans = b.iadd(spans, rows);
-        let iterations = iterations_of(&mut b, rows);
+        let iterations = iterations_of(&mut b, rows, SPANGEN_ROWS);
         work = b.iadd(work, iterations);
         most = b.imax(most, iterations);
     }
@@ -358,10 +365,10 @@ pub fn spanprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
 }
 
 /// `spangen`: walks half-triangles, taken by load-balanced conditional input from `halves`
-/// ([`HALF_WORDS`], then the sentinels), [`SPAN_RUN`] rows per iteration, and writes each
+/// ([`HALF_WORDS`], then the sentinels), [`SPANGEN_ROWS`] rows per iteration, and writes each
 /// row's span (within the half-triangle's columns, which `spanprep` clamped to the tile)
 /// when it is not empty: `pos` (`y·2^16 + x` of its first pixel), `end` (`x` of its last), `tri`
-/// (the triangle's index); then [`SENTINEL_ROWS`] rows of sentinel spans (end
+/// (the triangle's index); then [`SENTINEL_ROWS`] + 1 rows of sentinel spans (end
 /// [`SENTINEL_END`], triangle `batch`: the sentinel edge record). The loop runs over
 /// `tickets`, as many iterations as `spanprep` counts.
 pub fn spangen(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRequirementError> {
@@ -377,7 +384,7 @@ pub fn spangen(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineR
     let (lo_clamp, hi_clamp) = (b.f32(-2.0), b.f32(8192.0));
     let low16 = b.i32(0xFFFF);
     let sixteen = b.i32(16);
-    let run = b.i32(SPAN_RUN as i32);
+    let run = b.i32(SPANGEN_ROWS as i32);
     let sentinel = b.word(SENTINEL);
     let forever = b.i32(SENTINEL_END as i32);
 
@@ -402,7 +409,7 @@ pub fn spangen(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineR
         (first, rows)
     };
     let cost = {
-        let n = iterations_of(&mut b, ahead_rows);
+        let n = iterations_of(&mut b, ahead_rows, SPANGEN_ROWS);
         let is_sentinel = b.ieq(ahead[2], sentinel);
         b.select(is_sentinel, forever, n)
     };
@@ -410,9 +417,9 @@ pub fn spangen(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineR
     let left_after = b.isub(current, one);
     b.set_next(left, left_after);
     let want = {
-        let starts = b.select(switch, one, zero);
+        let starts = b.cast(switch, Ty::I32);
         let w = b.or(starts, first);
-        b.ine(w, zero)
+        b.cast(w, Ty::Cc)
     };
     b.set_next(first, zero);
     let got = input.take(&mut b, want);
@@ -453,7 +460,7 @@ pub fn spangen(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineR
         let x = b.fmin(x, hi_clamp);
         b.ftoi_trunc(x)
     };
-    for j in 0..SPAN_RUN {
+    for j in 0..SPANGEN_ROWS {
         let y = if j == 0 {
             row
         } else {
@@ -474,12 +481,7 @@ pub fn spangen(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineR
         };
         let in_half = b.ile(y, last);
         let nonempty = b.ile(from, to);
-        let ok = {
-            let h = flag(&mut b, in_half);
-            let n = flag(&mut b, nonempty);
-            let o = b.and(h, n);
-            cond(&mut b, o)
-        };
+        let ok = all(&mut b, &[in_half, nonempty]);
         let pos = {
             let y = b.shl(y, sixteen);
             b.or(y, from)
@@ -489,15 +491,17 @@ pub fn spangen(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineR
         b.write_if(tri_out, ok, tri);
     }
     b.end_loop();
-    for _ in 0..SENTINEL_ROWS {
-        null_row(
-            &mut b,
-            &[
-                (pos_out, 0),
-                (end_out, SENTINEL_END),
-                (tri_out, shape.batch as u32),
-            ],
-        );
+    // (One row more than the rows `spanrast` reads, which start in the last span's row.)
+    let every = b.ieq(zero, zero);
+    let nulls = [
+        (pos_out, zero),
+        (end_out, forever),
+        (tri_out, b.i32(shape.batch as i32)),
+    ];
+    for _ in 0..=SENTINEL_ROWS {
+        for &(stream, null) in &nulls {
+            b.write_if(stream, every, null);
+        }
     }
     Ok(finish(b))
 }
@@ -523,8 +527,6 @@ pub fn spanpack(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let candidates0 = b.carried(zero);
     let p = b.read_i32(pos);
     let e = b.read_i32(end);
-    b.write(spans, p);
-    b.write(spans, e);
     let real = b.ilt(e, forever);
     let pixels = {
         let x = b.and(p, low16);
@@ -533,9 +535,13 @@ pub fn spanpack(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
         b.select(real, n, zero)
     };
     let iterations = {
-        let n = iterations_of(&mut b, pixels);
+        let n = iterations_of(&mut b, pixels, SPANRAST_PIXELS);
         b.select(real, n, zero)
     };
+    let cost = b.select(real, iterations, forever);
+    for w in [p, e, cost] {
+        b.write(spans, w);
+    }
     let work = b.iadd(work0, iterations);
     b.set_next(work0, work);
     let most = b.imax(most0, iterations);
@@ -550,7 +556,7 @@ pub fn spanpack(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
 }
 
 /// `spanrast`: walks spans, taken by load-balanced conditional input from `spans`
-/// ([`SPAN_WORDS`]) and `edges` (the span's triangle's edge record, gathered), [`SPAN_RUN`]
+/// ([`SPAN_WORDS`]) and `edges` (the span's triangle's edge record, gathered), [`SPANRAST_PIXELS`]
 /// pixels per iteration, and writes the covered ones as `xyrast` does: `addr`
 /// (`y·W + x`), `tri`, `e0`, `e1`, `e2`, then a row of nulls. The loop runs over
 /// `tickets`, as many iterations as `spanpack` counts.
@@ -574,46 +580,54 @@ pub fn spanrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
     let edge_test = EdgeTest::new(&mut b, desc, zero_f);
     let low16 = b.i32(0xFFFF);
     let sixteen = b.i32(16);
-    let run = b.i32(SPAN_RUN as i32);
+    let run = b.i32(SPANRAST_PIXELS as i32);
     let width = b.i32(shape.width as i32);
     let tri_mask = b.i32((1 << TRI_BITS) - 1);
-    let forever = b.i32(SENTINEL_END as i32);
     let minus_one = b.i32(-1);
 
     b.begin_loop(LoopSpec::OverStream(tickets));
     let _ticket = b.read(tickets);
     // The span being walked: its iterations left, next pixel, row and last pixel, and its
-    // edge record. A cluster whose span is done takes the next and starts on it at once.
-    let left = b.carried(zero);
+    // edge record; and the span held ahead, taken when this one was started (or in the
+    // first iteration, which holds none).
+    let left = b.carried(one);
+    let first = b.carried(one);
+    let ahead: Vec<Value> = (0..SPAN_WORDS + EDGE_WORDS)
+        .map(|_| b.carried(zero))
+        .collect();
     let x0 = b.carried(zero);
     let y0 = b.carried(zero);
     let last0 = b.carried(minus_one);
     let rec0: Vec<Value> = (0..EDGE_WORDS).map(|_| b.carried(zero)).collect();
-    let want = b.ieq(left, zero);
-    let got = input.take(&mut b, want);
-    let (got_x, got_y, got_last) = {
-        let p = b.cast(got[0], Ty::I32);
-        let x = b.and(p, low16);
-        let y = b.shr(p, sixteen);
-        (x, y, b.cast(got[1], Ty::I32))
-    };
-    let cost = {
-        let d = b.isub(got_last, got_x);
-        let pixels = b.iadd(d, one);
-        let n = iterations_of(&mut b, pixels);
-        let real = b.ilt(got_last, forever);
-        b.select(real, n, forever)
-    };
-    let current = b.select(want, cost, left);
+    let switch = b.ieq(left, zero);
+    let cost = b.cast(ahead[2], Ty::I32);
+    let current = b.select(switch, cost, left);
     let left_after = b.isub(current, one);
     b.set_next(left, left_after);
-    let x = b.select(want, got_x, x0);
-    let y = b.select(want, got_y, y0);
-    let last = b.select(want, got_last, last0);
+    let want = {
+        let starts = b.cast(switch, Ty::I32);
+        let w = b.or(starts, first);
+        b.cast(w, Ty::Cc)
+    };
+    b.set_next(first, zero);
+    let got = input.take(&mut b, want);
+    for (&a, &g) in ahead.iter().zip(&got) {
+        let kept = b.select(want, g, a);
+        b.set_next(a, kept);
+    }
+    let (ahead_x, ahead_y, ahead_last) = {
+        let p = b.cast(ahead[0], Ty::I32);
+        let x = b.and(p, low16);
+        let y = b.shr(p, sixteen);
+        (x, y, b.cast(ahead[1], Ty::I32))
+    };
+    let x = b.select(switch, ahead_x, x0);
+    let y = b.select(switch, ahead_y, y0);
+    let last = b.select(switch, ahead_last, last0);
     let rec: Vec<Value> = rec0
         .iter()
-        .zip(&got[SPAN_WORDS..])
-        .map(|(&r, &g)| b.select(want, g, r))
+        .zip(&ahead[SPAN_WORDS..])
+        .map(|(&r, &a)| b.select(switch, a, r))
         .collect();
     let x_next = b.iadd(x, run);
     b.set_next(x0, x_next);
@@ -638,7 +652,7 @@ pub fn spanrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
         let r = b.imul(y, width);
         b.iadd(r, x)
     };
-    for j in 0..SPAN_RUN {
+    for j in 0..SPANRAST_PIXELS {
         let (fx, addr, px) = if j == 0 {
             (fx0, addr0, x)
         } else {
@@ -646,11 +660,7 @@ pub fn spanrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
             let ij = b.i32(j as i32);
             (b.fadd(fx0, fj), b.iadd(addr0, ij), b.iadd(x, ij))
         };
-        let in_span = {
-            let i = b.ile(px, last);
-            flag(&mut b, i)
-        };
-        let mut inside = in_span;
+        let mut tests = vec![b.ile(px, last)];
         let mut e_values = [zero_f; 3];
         for (i, e_value) in e_values.iter_mut().enumerate() {
             // As `xyrast`: E = (A·X + B·Y) + C, rounded in this order.
@@ -659,11 +669,9 @@ pub fn spanrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
             let s = b.fadd(ax, by);
             let e = b.fadd(s, rec[3 * i + 2]);
             *e_value = e;
-            let ok = edge_test.passes(&mut b, thresholds[i], e);
-            let ok = flag(&mut b, ok);
-            inside = b.and(inside, ok);
+            tests.push(edge_test.passes(&mut b, thresholds[i], e));
         }
-        let covered = cond(&mut b, inside);
+        let covered = all(&mut b, &tests);
         b.write_if(addr_out, covered, addr);
         b.write_if(tri_out, covered, tri);
         for (&s, e) in e_out.iter().zip(e_values) {

@@ -3,6 +3,7 @@
 //! how the scene is loaded). `--knob NAME=V1,V2,…` gives one knob's values.
 
 use anyhow::{Context, Result, bail};
+use imagine_pipelines::opengl::render::Rasterizer;
 use imagine_pipelines::reyes::frame::check_stop_length;
 use imagine_pipelines::reyes::kernels::MAX_STOP_LENGTH;
 use imagine_pipelines::scene::model::Filter;
@@ -29,8 +30,9 @@ pub enum Knob {
     /// Reyes's stop length (`render --pipeline reyes --stop-length`): the point renders
     /// through the Reyes pipeline.
     StopLength,
-    /// The OpenGL pipeline's rasterizer: its kernels, or the thesis's hardware rasterizer
-    /// (`gold8+hwrast`'s `[rasterizer]` table) on the chosen machine.
+    /// The OpenGL pipeline's rasterizer: its barycentric or its scanline kernels (`render
+    /// --rasterizer`), or the thesis's hardware rasterizer (`gold8+hwrast`'s
+    /// `[rasterizer]` table) on the chosen machine.
     Rasterizer,
 }
 
@@ -81,7 +83,7 @@ impl Knob {
             Knob::StopLength => {
                 format!("Reyes's largest quad side in pixels, above 0 and up to {MAX_STOP_LENGTH}")
             }
-            Knob::Rasterizer => "kernels, hardware".into(),
+            Knob::Rasterizer => "barycentric (or kernels), scanline, hardware".into(),
         }
     }
 
@@ -110,9 +112,12 @@ impl Knob {
                 _ => bail!("`{text}` is not a number of Newton–Raphson steps"),
             },
             Knob::Rasterizer => match text {
-                "kernels" => KnobValue::HardwareRasterizer(false),
-                "hardware" => KnobValue::HardwareRasterizer(true),
-                _ => bail!("`{text}` is not a rasterizer"),
+                "kernels" => KnobValue::Rasterizer(Some(Rasterizer::Barycentric)),
+                "hardware" => KnobValue::Rasterizer(None),
+                _ => match text.parse::<Rasterizer>() {
+                    Ok(r) => KnobValue::Rasterizer(Some(r)),
+                    Err(_) => bail!("`{text}` is not a rasterizer"),
+                },
             },
             Knob::StopLength => match text.parse::<f32>() {
                 Ok(l) if check_stop_length(l).is_ok() => KnobValue::StopLength(l),
@@ -142,7 +147,8 @@ pub enum KnobValue {
     ReferenceDepth(bool),
     NewtonRaphson(u8),
     StopLength(f32),
-    HardwareRasterizer(bool),
+    /// The rasterizer kernels, or `None` for the hardware rasterizer.
+    Rasterizer(Option<Rasterizer>),
 }
 
 /// A knob and its values in the order given: one axis of the grid.
@@ -242,6 +248,8 @@ pub struct Setup {
     pub newton_raphson: Option<u8>,
     /// Reyes at this stop length (else the OpenGL pipeline).
     pub stop_length: Option<f32>,
+    /// The rasterizer kernels (where the machine has no hardware rasterizer).
+    pub rasterizer: Rasterizer,
 }
 
 impl Setup {
@@ -264,6 +272,7 @@ impl Setup {
             reference_depth: None,
             newton_raphson: None,
             stop_length: None,
+            rasterizer: Rasterizer::Barycentric,
         };
         for value in values {
             match value {
@@ -275,8 +284,11 @@ impl Setup {
                 KnobValue::ReferenceDepth(on) => setup.reference_depth = Some(*on),
                 KnobValue::NewtonRaphson(n) => setup.newton_raphson = Some(*n),
                 KnobValue::StopLength(l) => setup.stop_length = Some(*l),
-                KnobValue::HardwareRasterizer(false) => setup.machine.rasterizer = None,
-                KnobValue::HardwareRasterizer(true) => {
+                KnobValue::Rasterizer(Some(kernels)) => {
+                    setup.machine.rasterizer = None;
+                    setup.rasterizer = *kernels;
+                }
+                KnobValue::Rasterizer(None) => {
                     if setup.machine.rasterizer.is_none() {
                         let hwrast = MachineDesc::resolve(HARDWARE_RASTERIZER_MACHINE)
                             .map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -308,7 +320,10 @@ mod tests {
             ("stop_size=1,2", "no knob is named `stop_size`"),
             ("stop_length=0", "above 0 and up to 7"),
             ("stop_length=1.5,nan", "not a stop length"),
-            ("rasterizer=scanline", "kernels, hardware"),
+            (
+                "rasterizer=edge",
+                "barycentric (or kernels), scanline, hardware",
+            ),
             ("batch", "NAME=V1,V2"),
             ("batch=0", "triangles per batch"),
             ("batch=8,,16", "an empty value"),
@@ -349,14 +364,21 @@ mod tests {
         assert_eq!(setup.reference_depth, Some(false));
         assert_eq!(setup.newton_raphson, Some(2));
         let hardware = [
-            KnobValue::HardwareRasterizer(true),
+            KnobValue::Rasterizer(None),
             KnobValue::Machine("gold16".into()),
         ];
         let setup = Setup::of("gold8", &hardware.iter().collect::<Vec<_>>()).unwrap();
         assert_eq!(setup.machine.name, "gold16");
         assert!(setup.machine.rasterizer.is_some());
-        let kernels = [KnobValue::HardwareRasterizer(false)];
-        let setup = Setup::of("gold8+hwrast", &kernels.iter().collect::<Vec<_>>()).unwrap();
-        assert!(setup.machine.rasterizer.is_none());
+        for (text, kernels) in [
+            ("kernels", Rasterizer::Barycentric),
+            ("barycentric", Rasterizer::Barycentric),
+            ("scanline", Rasterizer::Scanline),
+        ] {
+            let value = Knob::Rasterizer.value(text).unwrap();
+            let setup = Setup::of("gold8+hwrast", &[&value]).unwrap();
+            assert!(setup.machine.rasterizer.is_none());
+            assert_eq!(setup.rasterizer, kernels);
+        }
     }
 }
