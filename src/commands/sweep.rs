@@ -28,7 +28,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use imagine_pipelines::compile::CompileCache;
-use imagine_pipelines::opengl::render::{RenderOptions, render_with};
+use imagine_pipelines::opengl::render::{Rasterizer, RenderOptions, render_with};
 use imagine_pipelines::reyes::{self, frame::ReyesOptions};
 use imagine_pipelines::scene::model::Filter;
 use imagine_pipelines::scene::{self, LoadOptions, file::BUILTIN};
@@ -227,6 +227,11 @@ fn point_key(scene_hash: &blake3::Hash, size: Option<u32>, setup: &Setup) -> Str
         )
         .as_bytes(),
     );
+    // (Only a point on the scanline kernels says so, so the records of points from
+    // before the knob had that value stay valid.)
+    if setup.rasterizer != Rasterizer::Barycentric {
+        h.update(format!("\nrasterizer {}", setup.rasterizer).as_bytes());
+    }
     h.finalize().to_hex().to_string()
 }
 
@@ -745,4 +750,22 @@ fn summary(
         .collect();
     let frontier = plot::pareto_frontier(&plot_points);
     (plot_points, frontier)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_rasterizer_kernels_are_part_of_a_points_key() {
+        let hash = blake3::hash(b"scene");
+        let value = |text: &str| knobs::parse_axis(&format!("rasterizer={text}")).unwrap();
+        let key = |text: &str| {
+            let axis = value(text);
+            let setup = Setup::of("gold8", &[&axis.values[0].1]).unwrap();
+            point_key(&hash, None, &setup)
+        };
+        assert_eq!(key("barycentric"), key("kernels"));
+        assert_ne!(key("barycentric"), key("scanline"));
+    }
 }

@@ -334,8 +334,9 @@ struct ScanlineStreams {
     span_edges: StreamId,
 }
 
-/// The SRF's share the scanline rasterizer's span streams take (1/8): spans are about a
-/// quarter as many as fragments, and 15 words each against a fragment's 5.
+/// The SRF's share the scanline rasterizer's span streams take at most (1/4: a span is 16
+/// words, a fragment 5), halved while the fragments would get room for fewer than twice
+/// as many records (frames whose other streams are large, such as PIN's textures).
 const SPAN_SHARE: usize = 4;
 
 /// The composite's streams: the fragments of a chunk's rounds (the first set, or the
@@ -494,6 +495,30 @@ struct Sizes {
 const PERLIGHT_PARAMS: usize = 24;
 
 fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), PlanError> {
+    let c = desc.cluster.count;
+    // A one-pixel tile's spans (a row of every half-triangle), then the sentinels.
+    let fewest = (2 * s.batch + (SENTINEL_ROWS + 1) * c).div_ceil(c) * c;
+    let mut spans = (desc.srf.words / SPAN_SHARE / (SPAN_WORDS + EDGE_WORDS + 3)).max(fewest);
+    loop {
+        let planned = plan_streams_with(desc, s, spans);
+        let halve = match &planned {
+            Ok((plan, streams)) => s.scanline && plan.capacity(streams.addr) < 2 * spans,
+            Err(_) => s.scanline,
+        };
+        if !halve || spans == fewest {
+            return planned;
+        }
+        spans = (spans / 2).div_ceil(c).max(1) * c;
+        spans = spans.max(fewest);
+    }
+}
+
+/// The streams of a batch, with room for `spans` spans when the scanline rasterizer runs.
+fn plan_streams_with(
+    desc: &MachineDesc,
+    s: &Sizes,
+    spans: usize,
+) -> Result<(SrfPlan, Streams), PlanError> {
     let c = desc.cluster.count;
     let b = s.batch;
     let mut p = SrfPlanner::new(desc, &PHASES);
@@ -661,12 +686,6 @@ fn plan_streams(desc: &MachineDesc, s: &Sizes) -> Result<(SrfPlan, Streams), Pla
             }
         }),
         scanline: s.scanline.then(|| {
-            // Room for a one-pixel tile's spans (a row of every half-triangle) and the
-            // sentinels, or the SRF's share.
-            let spans = (desc.srf.words / SPAN_SHARE / (SPAN_WORDS + EDGE_WORDS + 3))
-                .max(2 * b + (SENTINEL_ROWS + 1) * c)
-                .div_ceil(c)
-                * c;
             let per_tile = |p: &mut SrfPlanner, name: &str, words: usize, records: usize| {
                 p.stream(
                     name,
