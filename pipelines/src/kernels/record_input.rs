@@ -13,7 +13,10 @@
 //! * The stream is in the cluster-row layout: a row of `C` records holds word `j` of its
 //!   records side by side. Two rows are buffered, `A` (which holds the next record to hand
 //!   out) and `B` after it: `2·k` words per cluster for `k`-word records, the 2 entries per
-//!   word (kept in the LRFs as loop-carried values).
+//!   word — kept in the LRFs as loop-carried values, or in the scratchpad as on Imagine
+//!   (with a third slot for the reads of iterations that bring no row in; `A` and `B`
+//!   swap by pointer), which leaves the LRFs to the kernel (`spanrast`'s 13-word records
+//!   do not schedule with their rows in the LRFs).
 //! * Each iteration the takers are ranked by an exclusive prefix sum of the condition
 //!   across the clusters (`log2 C` rotations), and their count broadcast.
 //! * The records handed out, `next … next + n − 1`, lie in `A` and `B` and hold each
@@ -30,7 +33,7 @@
 //! depends on the record it took in the iteration before has the ranking and the routing
 //! on its recurrence: `load_balance` taking the record it works on at once was bound at 54
 //! cycles an iteration on gold8. Holding the next record ahead puts two iterations between
-//! a take and the decision it feeds: bound 35 (its ops 15; `imagine kernel show
+//! a take and the decision it feeds: bound 32 (its ops 14; `imagine kernel show
 //! load_balance`).
 
 use imagine_units::arith::fp32::testgen::SplitMix64;
@@ -55,6 +58,9 @@ pub struct RecordInput {
     /// The ranking scan's steps (their conditions kept across the loop).
     scan: Vec<(usize, Value)>,
     rows: Rows,
+    /// 0 and 1, made before the loop.
+    zero: Value,
+    one: Value,
 }
 
 /// Where the two buffered rows are kept.
@@ -127,12 +133,15 @@ impl RecordInput {
         let clusters = desc.cluster.count;
         let cluster = b.cluster_id();
         let scan = scan_steps(b, clusters, cluster);
+        let (zero, one) = (b.i32(0), b.i32(1));
         Ok(RecordInput {
             streams: streams.to_vec(),
             clusters,
             cluster,
             scan,
             rows,
+            zero,
+            one,
         })
     }
 
@@ -221,6 +230,58 @@ impl RecordInput {
     }
 }
 
+/// What [`RecordInput::take_ahead`] gives an iteration.
+pub struct Held {
+    /// Whether the cluster starts the record it held this iteration.
+    pub switch: Value,
+    /// The record held ahead at the start of the iteration (the one started on a switch).
+    pub ahead: Vec<Value>,
+    /// Whether the cluster takes a record this iteration, and the words it takes.
+    pub want: Value,
+    pub got: Vec<Value>,
+}
+
+impl RecordInput {
+    /// In the loop, once per iteration: each cluster works on a record for as many
+    /// iterations as `cost` (of its words) says, holding the next one ahead. When it starts
+    /// the held record it takes the next, and in the first iteration, which holds none, it
+    /// takes one: a take's ranking and routing then reach the decision to take again two
+    /// iterations later, not one.
+    pub fn take_ahead(
+        &self,
+        b: &mut KernelBuilder,
+        cost: impl FnOnce(&mut KernelBuilder, &[Value]) -> Value,
+    ) -> Held {
+        let (zero, one) = (self.zero, self.one);
+        let words: usize = self.streams.iter().map(|&(_, w)| w).sum();
+        let left = b.carried(one);
+        let first = b.carried(one);
+        let ahead: Vec<Value> = (0..words).map(|_| b.carried(zero)).collect();
+        let switch = b.ieq(left, zero);
+        let cost = cost(b, &ahead);
+        let current = b.select(switch, cost, left);
+        let left_after = b.isub(current, one);
+        b.set_next(left, left_after);
+        let want = {
+            let starts = b.cast(switch, Ty::I32);
+            let w = b.or(starts, first);
+            b.cast(w, Ty::Cc)
+        };
+        b.set_next(first, zero);
+        let got = self.take(b, want);
+        for (&a, &g) in ahead.iter().zip(&got) {
+            let kept = b.select(want, g, a);
+            b.set_next(a, kept);
+        }
+        Held {
+            switch,
+            ahead,
+            want,
+            got,
+        }
+    }
+}
+
 /// Words of a `load_balance` record: its cost (iterations, at least 1) and two payload
 /// words.
 pub const RECORD_WORDS: usize = 3;
@@ -238,32 +299,13 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let out_b = b.output("b");
     let taker = b.output("taker");
     let input = RecordInput::new(&mut b, desc, "load_balance", records, RECORD_WORDS)?;
-    let (zero, one) = (b.i32(0), b.i32(1));
     let cluster = b.cluster_id();
     b.begin_loop(LoopSpec::OverStream(tickets));
     let _ticket = b.read(tickets);
     // Each cluster holds the record it will work on next (`ahead`), taken when it started
     // the current one (or in the first iteration, which holds none): a take's ranking
     // and routing then reach the decision to take again two iterations later, not one.
-    let left = b.carried(one);
-    let first = b.carried(one);
-    let ahead: Vec<Value> = (0..RECORD_WORDS).map(|_| b.carried(zero)).collect();
-    let switch = b.ieq(left, zero);
-    let cost = b.cast(ahead[0], Ty::I32);
-    let current = b.select(switch, cost, left);
-    let left_after = b.isub(current, one);
-    b.set_next(left, left_after);
-    let want = {
-        let starts = b.select(switch, one, zero);
-        let w = b.or(starts, first);
-        b.ine(w, zero)
-    };
-    b.set_next(first, zero);
-    let got = input.take(&mut b, want);
-    for (&a, &g) in ahead.iter().zip(&got) {
-        let kept = b.select(want, g, a);
-        b.set_next(a, kept);
-    }
+    let Held { want, got, .. } = input.take_ahead(&mut b, |b, ahead| b.cast(ahead[0], Ty::I32));
     b.write_if(out_a, want, got[1]);
     b.write_if(out_b, want, got[2]);
     b.write_if(taker, want, cluster);

@@ -4,10 +4,10 @@
 //!
 //! | kernel | per element | streams |
 //! |---|---|---|
-//! | [`spanprep`] | triangle, per batch: 2 half-triangles (a top and a bottom one, split at the middle corner; one of them empty when an edge is parallel to x, both when the triangle is not drawn), its edge record, `spangen`'s iterations | window → halves (2 × 7), edges (10), rows |
-//! | [`spangen`] | half-triangle, taken by load-balanced conditional input: 2 spans (rows) per iteration, clamped to the scissor tile | halves → pos, end, tri (conditional) |
-//! | [`spanpack`] | span: the conditional streams side by side as 2-word records, `spanrast`'s iterations and candidate pixels | pos, end → spans, counts |
-//! | [`spanrast`] | span with its edge record (gathered by triangle), taken by load-balanced conditional input: 2 pixels per iteration | spans, edges → addr, tri, e0, e1, e2 (conditional) |
+//! | [`spanprep`] | triangle, per scissor tile: 2 half-triangles (a top and a bottom one, split at the middle corner; one of them empty when an edge is parallel to x, both when the triangle is not drawn), its edge record, `spangen`'s iterations | window → halves (2 × 7), edges (10), rows |
+//! | [`spangen`] | half-triangle, taken by load-balanced record input: [`SPANGEN_ROWS`] spans (rows) per iteration | halves → pos, end, tri (conditional) |
+//! | [`spanpack`] | span: the conditional streams side by side as 3-word records with `spanrast`'s iterations on each; `spanrast`'s iterations and candidate pixels | pos, end → spans, counts |
+//! | [`spanrast`] | span with its edge record (gathered by triangle), taken by load-balanced record input: [`SPANRAST_PIXELS`] pixels per iteration | spans, edges → addr, tri, e0, e1, e2 (conditional) |
 //!
 //! **Coverage is the barycentric rasterizer's, bit for bit.** A half-triangle bounds each
 //! row by a left and a right edge's line, `x = s·(y + ½) + o` (`s = −B/A`, `o = −C/A`), with
@@ -23,15 +23,16 @@
 //! `xyrast`'s, so coverage and colours would differ from the barycentric frame's.
 //!
 //! **Record input.** Half-triangles and spans are multi-word records taken by the
-//! clusters that have finished theirs ([`RecordInput`], which holds two rows of each stream
-//! in every cluster). Each cluster works on one record and holds the next ahead, so the
-//! decision to take waits on no take of the iteration before. The machine's conditional
-//! streams are one word per cluster, so `spangen` writes a span's words to three streams
-//! and `spanpack` puts them side by side; `spangen` writes the top and the bottom half
-//! of every triangle (an empty one costs `spangen` one iteration of one cluster), as a
-//! conditional output of 7-word records would need 7 streams more than a kernel has.
-//! After the last real record come sentinels, records no cluster finishes, so a cluster
-//! takes at most one of them (three rows: the sentinels and the two rows read ahead).
+//! clusters that have finished theirs ([`RecordInput`], which buffers two rows of each
+//! stream in every cluster's scratchpad). Each cluster works on one record and holds the
+//! next ahead, so the decision to take waits on no take of the iteration before. The
+//! machine's conditional streams are one word per cluster, so `spangen` writes a span's
+//! words to three streams and `spanpack` puts them side by side; `spanprep` writes the
+//! top and the bottom half of every triangle (an empty one costs `spangen` one iteration
+//! of one cluster), as a conditional output of 7-word records would need 7 streams, more
+//! than a kernel has. After the last real record come sentinels, records no cluster
+//! finishes, so a cluster takes at most two of them ([`SENTINEL_ROWS`]: those and the two
+//! rows read ahead).
 //!
 //! **Iterations.** With `W` iterations of work over `C` clusters and the longest record
 //! `w`, every cluster is busy until the last record is taken, after which it finishes its
@@ -392,41 +393,24 @@ pub fn spangen(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineR
     let _ticket = b.read(tickets);
     // The half-triangle being walked: its next row and last row, columns, triangle and
     // lines; and the one held ahead, taken when this one was started.
-    let left = b.carried(one);
-    let first = b.carried(one);
-    let ahead: Vec<Value> = (0..HALF_WORDS).map(|_| b.carried(zero)).collect();
     let minus_one = b.i32(-1);
     let row0 = b.carried(zero);
     let last0 = b.carried(minus_one);
     let columns0 = b.carried(zero);
     let tri0 = b.carried(zero);
     let lines0: [Value; 4] = std::array::from_fn(|_| b.carried(zero_f));
-    let switch = b.ieq(left, zero);
-    let (ahead_first, ahead_rows) = {
+    let held = input.take_ahead(&mut b, |b, ahead| {
         let packed = b.cast(ahead[0], Ty::I32);
-        let first = b.and(packed, low16);
         let rows = b.shr(packed, sixteen);
-        (first, rows)
-    };
-    let cost = {
-        let n = iterations_of(&mut b, ahead_rows, SPANGEN_ROWS);
+        let n = iterations_of(b, rows, SPANGEN_ROWS);
         let is_sentinel = b.ieq(ahead[2], sentinel);
         b.select(is_sentinel, forever, n)
+    });
+    let (switch, ahead) = (held.switch, &held.ahead);
+    let (ahead_first, ahead_rows) = {
+        let packed = b.cast(ahead[0], Ty::I32);
+        (b.and(packed, low16), b.shr(packed, sixteen))
     };
-    let current = b.select(switch, cost, left);
-    let left_after = b.isub(current, one);
-    b.set_next(left, left_after);
-    let want = {
-        let starts = b.cast(switch, Ty::I32);
-        let w = b.or(starts, first);
-        b.cast(w, Ty::Cc)
-    };
-    b.set_next(first, zero);
-    let got = input.take(&mut b, want);
-    for (&a, &g) in ahead.iter().zip(&got) {
-        let kept = b.select(want, g, a);
-        b.set_next(a, kept);
-    }
     // On a switch the held record becomes the current one.
     let row = b.select(switch, ahead_first, row0);
     let last = {
@@ -575,7 +559,7 @@ pub fn spanrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
         &[(spans, SPAN_WORDS), (edges, EDGE_WORDS)],
         Some(0),
     )?;
-    let (zero, one) = (b.i32(0), b.i32(1));
+    let zero = b.i32(0);
     let (zero_f, half) = (b.f32(0.0), b.f32(0.5));
     let edge_test = EdgeTest::new(&mut b, desc, zero_f);
     let low16 = b.i32(0xFFFF);
@@ -587,34 +571,14 @@ pub fn spanrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
 
     b.begin_loop(LoopSpec::OverStream(tickets));
     let _ticket = b.read(tickets);
-    // The span being walked: its iterations left, next pixel, row and last pixel, and its
-    // edge record; and the span held ahead, taken when this one was started (or in the
-    // first iteration, which holds none).
-    let left = b.carried(one);
-    let first = b.carried(one);
-    let ahead: Vec<Value> = (0..SPAN_WORDS + EDGE_WORDS)
-        .map(|_| b.carried(zero))
-        .collect();
+    // The span being walked: its next pixel, row and last pixel, and its edge record; and
+    // the span held ahead, taken when this one was started.
+    let held = input.take_ahead(&mut b, |b, ahead| b.cast(ahead[2], Ty::I32));
+    let (switch, ahead) = (held.switch, &held.ahead);
     let x0 = b.carried(zero);
     let y0 = b.carried(zero);
     let last0 = b.carried(minus_one);
     let rec0: Vec<Value> = (0..EDGE_WORDS).map(|_| b.carried(zero)).collect();
-    let switch = b.ieq(left, zero);
-    let cost = b.cast(ahead[2], Ty::I32);
-    let current = b.select(switch, cost, left);
-    let left_after = b.isub(current, one);
-    b.set_next(left, left_after);
-    let want = {
-        let starts = b.cast(switch, Ty::I32);
-        let w = b.or(starts, first);
-        b.cast(w, Ty::Cc)
-    };
-    b.set_next(first, zero);
-    let got = input.take(&mut b, want);
-    for (&a, &g) in ahead.iter().zip(&got) {
-        let kept = b.select(want, g, a);
-        b.set_next(a, kept);
-    }
     let (ahead_x, ahead_y, ahead_last) = {
         let p = b.cast(ahead[0], Ty::I32);
         let x = b.and(p, low16);
