@@ -802,28 +802,24 @@ impl Kernels {
 
 /// The rasterizer kernels of a frame.
 enum RasterKernels {
-    Barycentric {
-        xyprep: KernelId,
-        xyrast: KernelId,
-    },
-    Scanline {
-        spanprep: KernelId,
-        spangen: KernelId,
-        spanpack: KernelId,
-        spanrast: KernelId,
-    },
+    Barycentric { xyprep: KernelId, xyrast: KernelId },
+    Scanline(ScanlineKernels),
+}
+
+/// The scanline rasterizer's kernels ([`scanline`]).
+#[derive(Clone, Copy)]
+struct ScanlineKernels {
+    spanprep: KernelId,
+    spangen: KernelId,
+    spanpack: KernelId,
+    spanrast: KernelId,
 }
 
 impl RasterKernels {
     fn all(&self) -> Vec<KernelId> {
         match *self {
             RasterKernels::Barycentric { xyprep, xyrast } => vec![xyprep, xyrast],
-            RasterKernels::Scanline {
-                spanprep,
-                spangen,
-                spanpack,
-                spanrast,
-            } => vec![spanprep, spangen, spanpack, spanrast],
+            RasterKernels::Scanline(k) => vec![k.spanprep, k.spangen, k.spanpack, k.spanrast],
         }
     }
 }
@@ -898,12 +894,12 @@ fn register_kernels(
             xyprep: lib.register("xyprep", kernels::xyprep(desc, shape)?),
             xyrast: lib.register("xyrast", kernels::xyrast(desc, shape)?),
         },
-        Rasterizer::Scanline => RasterKernels::Scanline {
+        Rasterizer::Scanline => RasterKernels::Scanline(ScanlineKernels {
             spanprep: lib.register("spanprep", scanline::spanprep(desc, shape)?),
             spangen: lib.register("spangen", scanline::spangen(desc, shape)?),
             spanpack: lib.register("spanpack", scanline::spanpack(desc)?),
             spanrast: lib.register("spanrast", scanline::spanrast(desc, shape)?),
-        },
+        }),
     };
     let irast = lib.register("irast", kernels::irast(desc, varyings, pp.newton_steps)?);
     let mut per_object = per_object;
@@ -1049,7 +1045,7 @@ pub fn kernel_description(name: &str) -> String {
         "spanprep" => "triangle, per scissor tile: two half-triangles, the edge record",
         "spangen" => "half-triangle (load-balanced): 2 spans a loop",
         "spanpack" => "span: its words side by side, spanrast's cost",
-        "spanrast" => "span (load-balanced): 2 pixels a loop, coverage by the three edges",
+        "spanrast" => "span (load-balanced): 4 pixels a loop, coverage by the three edges",
         "irast" => "fragment: perspective-correct depth and colour (or varyings)",
         "hash" => "fragment: held back if an earlier fragment of the round shares its stamp",
         "zcompare" => "fragment: the depth test and the blend",
@@ -2523,7 +2519,7 @@ impl FrameRun<'_> {
         }
         let (xyprep, xyrast) = match self.k.raster {
             RasterKernels::Barycentric { xyprep, xyrast } => (xyprep, xyrast),
-            RasterKernels::Scanline { .. } => return self.tile_in_spans(h, tile),
+            RasterKernels::Scanline(k) => return self.tile_in_spans(h, tile, k),
         };
         let (p, s) = (self.plan, self.s);
         let c = h.clusters();
@@ -2558,16 +2554,12 @@ impl FrameRun<'_> {
 
     /// Scissor tile `tile` through the scanline rasterizer ([`scanline`]), then the
     /// composite, unless the tile's spans or fragments would overflow their streams.
-    fn tile_in_spans(&mut self, h: &mut StreamHost, tile: [i32; 4]) -> Result<Fit, RenderError> {
-        let RasterKernels::Scanline {
-            spanprep,
-            spangen,
-            spanpack,
-            spanrast,
-        } = self.k.raster
-        else {
-            unreachable!("the scanline rasterizer's kernels")
-        };
+    fn tile_in_spans(
+        &mut self,
+        h: &mut StreamHost,
+        tile: [i32; 4],
+        k: ScanlineKernels,
+    ) -> Result<Fit, RenderError> {
         let (p, s, m) = (self.plan, self.s, self.m);
         let ss = s
             .scanline
@@ -2580,7 +2572,7 @@ impl FrameRun<'_> {
         let halves = p.whole(ss.halves);
         let edges = p.whole(ss.edges);
         h.call(
-            spanprep,
+            k.spanprep,
             &[
                 ("window", p.first(s.window, tris)),
                 ("halves", halves),
@@ -2609,7 +2601,7 @@ impl FrameRun<'_> {
         }
         let spans_out = [ss.pos, ss.end, ss.tri].map(|id| p.whole(id));
         let call = h.call(
-            spangen,
+            k.spangen,
             &[
                 ("halves", halves),
                 ("tickets", p.first(s.tickets, iterations * c)),
@@ -2623,7 +2615,7 @@ impl FrameRun<'_> {
         // Every span, and the sentinels up to the rows `spanrast` reads.
         let len = (spans.div_ceil(c) + SENTINEL_ROWS) * c;
         h.call(
-            spanpack,
+            k.spanpack,
             &[
                 ("pos", p.first(ss.pos, len)),
                 ("end", p.first(ss.end, len)),
@@ -2651,25 +2643,13 @@ impl FrameRun<'_> {
                  fragments"
             )));
         }
-        let cap = p.capacity(s.addr);
-        let frags = |id| p.first(id, cap);
-        let kf = s
-            .kernel_fragments
-            .as_ref()
-            .expect("the rasterizer kernels' streams");
-        let call = h.call(
-            spanrast,
-            &[
-                ("spans", p.first(ss.spans, len)),
-                ("edges", span_edges),
-                ("tickets", p.first(s.tickets, iterations * c)),
-                ("addr", frags(s.addr)),
-                ("tri", frags(kf.tri)),
-                ("e0", frags(kf.edges[0])),
-                ("e1", frags(kf.edges[1])),
-                ("e2", frags(kf.edges[2])),
-            ],
-        )?;
+        let mut bindings = vec![
+            ("spans", p.first(ss.spans, len)),
+            ("edges", span_edges),
+            ("tickets", p.first(s.tickets, iterations * c)),
+        ];
+        bindings.extend(self.fragment_outputs());
+        let call = h.call(k.spanrast, &bindings)?;
         self.composite_rasterized(h, call, candidates + c)?;
         Ok(Fit::Done)
     }
@@ -2759,22 +2739,31 @@ impl FrameRun<'_> {
     ) -> Result<(), RenderError> {
         let (p, s) = (self.plan, self.s);
         let c = h.clusters();
+        let mut bindings = vec![
+            ("raster", p.first(s.raster, self.batch)),
+            ("tickets", p.first(s.tickets, rows * c)),
+        ];
+        bindings.extend(self.fragment_outputs());
+        let call = h.call(xyrast, &bindings)?;
+        self.composite_rasterized(h, call, bound)
+    }
+
+    /// The rasterizer kernels' fragment outputs, each over its whole stream.
+    fn fragment_outputs(&self) -> [(&'static str, StreamBinding); 5] {
+        let (p, s) = (self.plan, self.s);
         let cap = p.capacity(s.addr);
         let frags = |id| p.first(id, cap);
-        let kf = s.kernel_fragments.as_ref().expect("xyrast's streams");
-        let call = h.call(
-            xyrast,
-            &[
-                ("raster", p.first(s.raster, self.batch)),
-                ("tickets", p.first(s.tickets, rows * c)),
-                ("addr", frags(s.addr)),
-                ("tri", frags(kf.tri)),
-                ("e0", frags(kf.edges[0])),
-                ("e1", frags(kf.edges[1])),
-                ("e2", frags(kf.edges[2])),
-            ],
-        )?;
-        self.composite_rasterized(h, call, bound)
+        let kf = s
+            .kernel_fragments
+            .as_ref()
+            .expect("the rasterizer kernels' streams");
+        [
+            ("addr", frags(s.addr)),
+            ("tri", frags(kf.tri)),
+            ("e0", frags(kf.edges[0])),
+            ("e1", frags(kf.edges[1])),
+            ("e2", frags(kf.edges[2])),
+        ]
     }
 
     /// Interpolates and composites the fragments rasterizer kernel call `call` writes
