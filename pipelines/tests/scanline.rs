@@ -94,32 +94,23 @@ fn scanline_and_barycentric_draw_the_same_frame_on_every_test_scene() {
     }
 }
 
+/// The error that refuses `scene` on `desc` with the scanline rasterizer.
+fn scanline_refusal(scene: &Scene, desc: &MachineDesc) -> String {
+    render_with(scene, desc, options(Rasterizer::Scanline), None, |_, _| {})
+        .unwrap_err()
+        .to_string()
+}
+
 #[test]
 fn blending_frames_and_hardware_rasterizers_are_refused_by_name() {
     let mut scene = load("SPHERE-FULL", 16, Some(0));
     scene.pipeline.blend = Blend::Add;
     let desc = MachineDesc::gold8();
-    let e = render_with(
-        &scene,
-        &desc,
-        options(Rasterizer::Scanline),
-        None,
-        |_, _| {},
-    )
-    .unwrap_err()
-    .to_string();
+    let e = scanline_refusal(&scene, &desc);
     assert!(e.contains("blends") && e.contains("primitive order"), "{e}");
     let scene = load("SPHERE-FULL", 16, Some(0));
     let hwrast = MachineDesc::resolve("gold8+hwrast").unwrap();
-    let e = render_with(
-        &scene,
-        &hwrast,
-        options(Rasterizer::Scanline),
-        None,
-        |_, _| {},
-    )
-    .unwrap_err()
-    .to_string();
+    let e = scanline_refusal(&scene, &hwrast);
     assert!(e.contains("gold8+hwrast") && e.contains("hardware"), "{e}");
 }
 
@@ -133,15 +124,7 @@ fn a_scratchpad_too_small_for_the_buffered_records_is_named() {
     let reserved = 2 * desc.srf.conditional_words_per_cycle;
     for (words, kernel) in [(20 + reserved, "spangen"), (38 + reserved, "spanrast")] {
         desc.scratchpad.words = words;
-        let e = render_with(
-            &scene,
-            &desc,
-            options(Rasterizer::Scanline),
-            None,
-            |_, _| {},
-        )
-        .unwrap_err()
-        .to_string();
+        let e = scanline_refusal(&scene, &desc);
         assert!(
             e.contains(kernel) && e.contains("scratchpad"),
             "{words}: {e}"

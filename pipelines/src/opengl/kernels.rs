@@ -220,13 +220,13 @@ pub(crate) fn finish(b: KernelBuilder) -> Kernel {
 }
 
 /// `cc ? 1 : 0` as an int32.
-pub(crate) fn flag(b: &mut KernelBuilder, cc: Value) -> Value {
+fn flag(b: &mut KernelBuilder, cc: Value) -> Value {
     let (one, zero) = (b.i32(1), b.i32(0));
     b.select(cc, one, zero)
 }
 
 /// An int32 flag as a condition.
-pub(crate) fn cond(b: &mut KernelBuilder, flag: Value) -> Value {
+fn cond(b: &mut KernelBuilder, flag: Value) -> Value {
     let zero = b.i32(0);
     b.ine(flag, zero)
 }
@@ -1036,13 +1036,9 @@ pub fn xyrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, MachineRe
         };
         let mut e_values = [zero_f; 3];
         for (i, e_value) in e_values.iter_mut().enumerate() {
-            // E = (A·fx + B·fy) + C, rounded in this order. B·fy is the
-            // same for the run's pixels but is made per pixel: one product read by all of
-            // them would have to wait in its register for the last.
-            let by = b.fmul(coefficient(i, 1), fy);
-            let ax = b.fmul(coefficient(i, 0), fx);
-            let s = b.fadd(ax, by);
-            let e = b.fadd(s, coefficient(i, 2));
+            // B·fy is the same for the run's pixels but is made per pixel: one product
+            // read by all of them would have to wait in its register for the last.
+            let e = EdgeTest::value(&mut b, std::array::from_fn(|k| coefficient(i, k)), fx, fy);
             *e_value = e;
             let ok = edge_test.passes(&mut b, thresholds[i], e);
             // Bit 0 of a product is the AND of the factors' bits 0.
@@ -1103,6 +1099,15 @@ impl EdgeTest {
                 }
             })
             .collect()
+    }
+
+    /// The edge value `E = (A·X + B·Y) + C` of pixel centre `(x, y)`, for `[A, B, C]`,
+    /// rounded in this order: the one expression both rasterizers' coverage rests on.
+    pub(crate) fn value(b: &mut KernelBuilder, abc: [Value; 3], x: Value, y: Value) -> Value {
+        let by = b.fmul(abc[1], y);
+        let ax = b.fmul(abc[0], x);
+        let s = b.fadd(ax, by);
+        b.fadd(s, abc[2])
     }
 
     /// Whether edge value `e` passes its `threshold` (a condition).

@@ -107,12 +107,7 @@ fn iterations_of(b: &mut KernelBuilder, units: Value, run: usize) -> Value {
 
 /// `⌈total / C⌉ + 2·most + 2`, the iterations that do all the work (see the module notes),
 /// from each cluster's total and longest record.
-fn iteration_bound(
-    b: &mut KernelBuilder,
-    clusters: usize,
-    total: Value,
-    most: Value,
-) -> (Value, Value) {
+fn iteration_bound(b: &mut KernelBuilder, clusters: usize, total: Value, most: Value) -> Value {
     let total = all_reduce(b, clusters, total, KernelBuilder::iadd);
     let most = all_reduce(b, clusters, most, KernelBuilder::imax);
     let round = b.i32(clusters as i32 - 1);
@@ -122,7 +117,7 @@ fn iteration_bound(
     let two = b.i32(2);
     let m = b.imul(most, two);
     let bound = b.iadd(rows, m);
-    (b.iadd(bound, two), total)
+    b.iadd(bound, two)
 }
 
 /// A line `x = s·y + o` of a half-triangle.
@@ -359,7 +354,7 @@ pub fn spanprep(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
         b.write(edges_out, if k == 2 { minus_inf } else { zero_f });
     }
     b.write(edges_out, zero);
-    let (bound, _) = iteration_bound(&mut b, clusters, work0, most0);
+    let bound = iteration_bound(&mut b, clusters, work0, most0);
     b.write(rows_out, bound);
     b.write(rows_out, spans0);
     Ok(finish(b))
@@ -533,7 +528,7 @@ pub fn spanpack(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let candidates = b.iadd(candidates0, pixels);
     b.set_next(candidates0, candidates);
     b.end_loop();
-    let (bound, _) = iteration_bound(&mut b, clusters, work0, most0);
+    let bound = iteration_bound(&mut b, clusters, work0, most0);
     b.write(counts, bound);
     b.write(counts, candidates0);
     Ok(finish(b))
@@ -627,11 +622,7 @@ pub fn spanrast(desc: &MachineDesc, shape: FrameShape) -> Result<Kernel, Machine
         let mut tests = vec![b.ile(px, last)];
         let mut e_values = [zero_f; 3];
         for (i, e_value) in e_values.iter_mut().enumerate() {
-            // As `xyrast`: E = (A·X + B·Y) + C, rounded in this order.
-            let by = b.fmul(rec[3 * i + 1], fy);
-            let ax = b.fmul(rec[3 * i], fx);
-            let s = b.fadd(ax, by);
-            let e = b.fadd(s, rec[3 * i + 2]);
+            let e = EdgeTest::value(&mut b, std::array::from_fn(|k| rec[3 * i + k]), fx, fy);
             *e_value = e;
             tests.push(edge_test.passes(&mut b, thresholds[i], e));
         }
