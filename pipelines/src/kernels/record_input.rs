@@ -51,8 +51,8 @@ use crate::kernel::{
 /// loop ([`RecordInput::new`], which reads the first two rows); taken from once per
 /// iteration ([`RecordInput::take`]).
 pub struct RecordInput {
-    /// Each stream and the words of its part of a record.
-    streams: Vec<(StreamId, usize)>,
+    /// The stream of each word of a record, in the order a take returns them.
+    word_streams: Vec<StreamId>,
     clusters: usize,
     cluster: Value,
     /// The ranking scan's steps (their conditions kept across the loop).
@@ -102,7 +102,11 @@ impl RecordInput {
         scratchpad_at: Option<u16>,
     ) -> Result<RecordInput, MachineRequirementError> {
         Needs::new(kernel, desc).power_of_two_clusters(None)?;
-        let words: usize = streams.iter().map(|&(_, w)| w).sum();
+        let word_streams: Vec<StreamId> = streams
+            .iter()
+            .flat_map(|&(s, words)| std::iter::repeat_n(s, words))
+            .collect();
+        let words = word_streams.len();
         if let Some(at) = scratchpad_at {
             Needs::new(kernel, desc).scratchpad_words(
                 usize::from(at) + 3 * words,
@@ -111,11 +115,7 @@ impl RecordInput {
             )?;
         }
         let row = |b: &mut KernelBuilder| -> Vec<Value> {
-            streams
-                .iter()
-                .flat_map(|&(s, words)| (0..words).map(move |_| s))
-                .map(|s| b.read(s))
-                .collect()
+            word_streams.iter().map(|&s| b.read(s)).collect()
         };
         let first = row(b);
         let second = row(b);
@@ -135,7 +135,7 @@ impl RecordInput {
         let scan = scan_steps(b, clusters, cluster);
         let (zero, one) = (b.i32(0), b.i32(1));
         Ok(RecordInput {
-            streams: streams.to_vec(),
+            word_streams,
             clusters,
             cluster,
             scan,
@@ -172,11 +172,7 @@ impl RecordInput {
         let next_after = b.iadd(next, taken);
         let end_of_a = b.iadd(base, row_c);
         let advance = b.ile(end_of_a, next_after);
-        let word_streams: Vec<StreamId> = self
-            .streams
-            .iter()
-            .flat_map(|&(s, words)| std::iter::repeat_n(s, words))
-            .collect();
+        let word_streams = &self.word_streams;
         let got = match &self.rows {
             Rows::Lrf { first, second } => {
                 let rows: [Vec<Value>; 2] =
@@ -189,7 +185,7 @@ impl RecordInput {
                         b.comm(sent, Perm::PerCluster(source))
                     })
                     .collect();
-                for ((&a, &second), &stream) in rows[0].iter().zip(&rows[1]).zip(&word_streams) {
+                for ((&a, &second), &stream) in rows[0].iter().zip(&rows[1]).zip(word_streams) {
                     let moved = b.select(advance, second, a);
                     b.set_next(a, moved);
                     let fresh = b.read_if(stream, advance, second);
@@ -253,7 +249,7 @@ impl RecordInput {
         cost: impl FnOnce(&mut KernelBuilder, &[Value]) -> Value,
     ) -> Held {
         let (zero, one) = (self.zero, self.one);
-        let words: usize = self.streams.iter().map(|&(_, w)| w).sum();
+        let words = self.word_streams.len();
         let left = b.carried(one);
         let first = b.carried(one);
         let ahead: Vec<Value> = (0..words).map(|_| b.carried(zero)).collect();
