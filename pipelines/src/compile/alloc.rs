@@ -8,7 +8,7 @@
 //! interval makes the body a few passes long, and then each pass's copy of the value gets
 //! an entry of its own (modulo variable expansion).
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 
 use super::graph::{Graph, Loc, Source};
 use super::schedule::{Schedule, Slots};
@@ -161,7 +161,7 @@ fn pack(
         }
     }
     // Before the loop, a kept value's entry is free until the value is written.
-    let mut kept_from: HashMap<(usize, u16), i64> = HashMap::new();
+    let mut kept_from: HashMap<(usize, u16), i64> = HashMap::default();
     for (u, op) in g.ops.iter().enumerate() {
         let (true, Region::Pre, Some(pl)) = (perm[u], op.region, s.place[u]) else {
             continue;
@@ -196,7 +196,7 @@ fn pack(
         .flat_map(|&u| s.dests[u].iter().map(move |&loc| (u, loc)))
         .collect();
     // With `renamed`, each location's loop values are coloured first.
-    let mut packed: HashMap<(usize, Loc), Vec<u16>> = HashMap::new();
+    let mut packed: HashMap<(usize, Loc), Vec<u16>> = HashMap::default();
     if let (Some(_), Some(m), Some(ii)) = (renamed, modulus, ii) {
         // Per location: each value and the arc each pass's copy of it is live.
         type Copies = Vec<(usize, Vec<Arc>)>;
@@ -643,7 +643,7 @@ pub fn last_reads(
     slots: &Slots,
     region: Option<Region>,
 ) -> HashMap<(usize, Loc), i64> {
-    let mut last_read: HashMap<(usize, Loc), i64> = HashMap::new();
+    let mut last_read: HashMap<(usize, Loc), i64> = HashMap::default();
     for (u, op) in g.ops.iter().enumerate() {
         let Some(pl) = s.place[u] else { continue };
         if region.is_some_and(|r| r != op.region) {
@@ -694,7 +694,7 @@ mod tests {
 
     /// No entry of `entries` is held by two arcs at one row.
     fn assert_valid(arcs: &[Arc], entries: &[usize], m: usize) {
-        let mut held = std::collections::HashSet::new();
+        let mut held = rustc_hash::FxHashSet::default();
         for (&arc, &e) in arcs.iter().zip(entries) {
             for c in rows(arc, m) {
                 assert!(held.insert((e, c)), "entry {e} twice at row {c} of {m}");

@@ -13,7 +13,7 @@
 //! `x` exactly, so a loop that fills its adders can still copy values through an idle
 //! multiplier.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 
 use imagine_units::ops::{Op, UnitClass};
 
@@ -29,10 +29,10 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
     ops.sort_by_key(|&o| (g.ops[o].ir.map_or(u32::MAX, |v| v.0), o));
     let nfu = slots.shape.fu_count();
     let mut load = vec![0usize; nfu + slots.shape.comm_units];
-    let mut groups: HashMap<usize, Vec<Loc>> = HashMap::new();
+    let mut groups: HashMap<usize, Vec<Loc>> = HashMap::default();
     // Values of earlier regions kept in each LRF (for the whole loop), and where.
     let mut kept = vec![0usize; slots.lrfs()];
-    let mut kept_at: std::collections::HashSet<(usize, Loc)> = std::collections::HashSet::new();
+    let mut kept_at: rustc_hash::FxHashSet<(usize, Loc)> = rustc_hash::FxHashSet::default();
     for (p, r) in sched.required.iter().enumerate() {
         for &(l, by) in r {
             if by != region

@@ -106,7 +106,7 @@ pub fn emit(
     lay: &Layout,
     slots: &Slots,
     desc: &MachineDesc,
-    providers: &std::collections::HashMap<(usize, Loc), usize>,
+    providers: &rustc_hash::FxHashMap<(usize, Loc), usize>,
 ) -> Program {
     let empty = Instruction::empty(desc);
     let clusters = desc.cluster.count as u16;

@@ -21,6 +21,12 @@
 //! passes as they need (modulo variable expansion: copies cost unit slots, which a loop
 //! near its bound lacks). A kernel that cannot fit fails with a [`CompileError`] naming the
 //! kernel and the resource.
+//!
+//! The schedules the search tries do not depend on each other, so they run on every host
+//! core at once; the first in the search's order that succeeds wins, which makes the
+//! microcode that of trying them in turn ([`first_in_order`]). The search of a loop with no
+//! straight-line fallback counts its schedules against a budget, in order, and so tries
+//! them in turn.
 
 pub mod alloc;
 pub mod bind;
@@ -31,7 +37,7 @@ pub mod repair;
 pub mod report;
 pub mod schedule;
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap as HashMap;
 use std::fmt;
 
 use imagine_units::desc::MachineDesc;
@@ -42,7 +48,7 @@ use crate::kernel::{Kernel, Region};
 pub use cache::CompileCache;
 use graph::{Edge, Graph, Kind, Loc, MOp};
 pub use report::Report;
-use schedule::{Failure, Schedule, Slots, schedule_region};
+use schedule::{Failure, Schedule, Slots, Wanted, schedule_region};
 
 /// A kernel that does not fit the machine.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -156,7 +162,7 @@ fn search(
         }
     };
     if !has_loop {
-        return try_ii(kernel, base, desc, slots, LoopMode::None)
+        return try_ii(kernel, base, desc, slots, LoopMode::None, &|| true)
             .map(compiled)
             .map_err(|e| match e {
                 Retry::Fatal(e) | Retry::Larger(e) | Retry::Repair(_, e) => e,
@@ -176,29 +182,24 @@ fn search(
             format!("{why} (the compiler gave up after {MAX_SCHEDULE_ATTEMPTS} schedules tried)"),
         )
     };
-    let with_repairs = |base: &Graph, mode: LoopMode, repairs: usize| -> Result<Attempted, Retry> {
-        let mut work = base.clone();
-        let mut last = None;
-        for _repair in 0..=repairs {
-            if spent() {
-                break;
-            }
-            attempts.set(attempts.get() + 1);
-            match try_ii(kernel, &work, desc, slots, mode) {
-                Err(Retry::Repair(g, e)) => {
-                    work = *g;
-                    last = Some(e);
-                }
-                other => return other,
-            }
+    // Counts a schedule against the budget; false once it is spent.
+    let spend = || {
+        if spent() {
+            return false;
         }
-        // A call starts only while the budget lasts, so at least one schedule was tried.
-        Err(Retry::Larger(last.expect("a schedule was tried")))
+        attempts.set(attempts.get() + 1);
+        true
     };
     // The body list-scheduled, one iteration at a time: the interval to beat. Its order is
     // also the order the scheduler places big loops in far from their bound.
     let mut hinted = base.clone();
-    let line = match with_repairs(base, LoopMode::Line, MAX_REPAIRS) {
+    let line_try = Try {
+        mode: LoopMode::Line,
+        graph: base,
+        expand: false,
+        repairs: MAX_REPAIRS,
+    };
+    let line = match line_try.run(kernel, desc, slots, spend, &|| true) {
         Ok(a) => {
             hinted.hint = (0..base.ops.len())
                 .map(|o| {
@@ -262,29 +263,45 @@ fn search(
     repaired.repair = true;
     repaired.expand = true;
     let mut searched = None;
-    for (ii, graph, repairs) in near_attempts.chain(far_attempts) {
-        let mut expanded = graph.clone();
-        expanded.expand = true;
-        let few = repairs.min(WIDE_REPAIRS);
-        let search_too = ii <= mii + SEARCH_ABOVE_BOUND && searched.replace(ii) != Some(ii);
-        let variants = [
-            (graph, repairs),
-            (&expanded, few),
-            (&listed, repairs),
-            (&listed_expanded, few),
-        ];
-        for (graph, repairs) in variants
+    let tries = near_attempts
+        .chain(far_attempts)
+        .flat_map(|(ii, graph, repairs)| {
+            let mode = LoopMode::Modulo(ii as i64);
+            let few = repairs.min(WIDE_REPAIRS);
+            let search_too = ii <= mii + SEARCH_ABOVE_BOUND && searched.replace(ii) != Some(ii);
+            let at = |graph, expand, repairs| Try {
+                mode,
+                graph,
+                expand,
+                repairs,
+            };
+            [
+                at(graph, false, repairs),
+                at(graph, true, few),
+                at(&listed, false, repairs),
+                at(&listed_expanded, false, few),
+            ]
             .into_iter()
-            .chain(search_too.then_some((&repaired, few)))
-        {
-            match with_repairs(graph, LoopMode::Modulo(ii as i64), repairs) {
-                Ok(a) => return Ok(compiled(a)),
-                Err(Retry::Fatal(e)) => return Err(e),
-                Err(Retry::Larger(e) | Retry::Repair(_, e)) => last_error = Some(e),
-            }
-            if spent() {
-                return Err(gave_up(last_error.expect("a schedule was tried")));
-            }
+            .chain(search_too.then(|| at(&repaired, false, few)))
+        });
+    let outcomes: Box<dyn Iterator<Item = Result<Attempted, Retry>>> = if bounded.get() {
+        // Without a fallback the budget counts schedules in order, so they go in turn.
+        Box::new(tries.map(|t| t.run(kernel, desc, slots, spend, &|| true)))
+    } else {
+        // Otherwise they go on every core, with the outcome of taking them in turn.
+        let tries: Vec<Try<'_>> = tries.collect();
+        let ends = |r: &Result<Attempted, Retry>| matches!(r, Ok(_) | Err(Retry::Fatal(_)));
+        let run = |t: &Try<'_>, wanted: Wanted<'_>| t.run(kernel, desc, slots, || true, wanted);
+        Box::new(first_in_order(&tries, run, ends).into_iter())
+    };
+    for outcome in outcomes {
+        match outcome {
+            Ok(a) => return Ok(compiled(a)),
+            Err(Retry::Fatal(e)) => return Err(e),
+            Err(Retry::Larger(e) | Retry::Repair(_, e)) => last_error = Some(e),
+        }
+        if spent() {
+            return Err(gave_up(last_error.expect("a schedule was tried")));
         }
     }
     line.ok_or_else(|| last_error.unwrap_or(("schedule".into(), "no schedule found".into())))
@@ -370,12 +387,104 @@ enum Retry {
 
 type Attempted = (Program, Graph, Schedule, emit::Layout, alloc::Entries);
 
+/// One schedule of the search: `graph` (unrolled if `expand`) in `mode`, with up to
+/// `repairs` LRF repairs (each a schedule again with a copy).
+#[derive(Clone, Copy)]
+struct Try<'a> {
+    mode: LoopMode,
+    graph: &'a Graph,
+    expand: bool,
+    repairs: usize,
+}
+
+impl Try<'_> {
+    /// Schedules, repairing a full LRF while `spend` allows another schedule (the budget
+    /// lasts) and the search still `wanted` this one.
+    fn run(
+        &self,
+        kernel: &Kernel,
+        desc: &MachineDesc,
+        slots: &Slots,
+        mut spend: impl FnMut() -> bool,
+        wanted: Wanted<'_>,
+    ) -> Result<Attempted, Retry> {
+        let mut work = self.graph.clone();
+        work.expand |= self.expand;
+        let mut last = None;
+        for _repair in 0..=self.repairs {
+            if !wanted() || !spend() {
+                break;
+            }
+            match try_ii(kernel, &work, desc, slots, self.mode, wanted) {
+                Err(Retry::Repair(g, e)) => {
+                    work = *g;
+                    last = Some(e);
+                }
+                other => return other,
+            }
+        }
+        // (Nothing tried: the search no longer wants this one; its outcome is dropped.)
+        Err(Retry::Larger(last.unwrap_or_else(|| {
+            ("schedule".into(), "not tried: no longer wanted".into())
+        })))
+    }
+}
+
+/// Runs `jobs` on the host's cores, taken in order, until one gives a result that `ends`
+/// the search; returns the results in order up to and including that one (or all). The
+/// results are those of running the jobs in turn: every job before the first that ends is
+/// run (a job is started only while no earlier one has ended), and the ones after it that
+/// were already started are dropped. A job is given a test of whether it is still wanted
+/// (no earlier job has ended), so that it can stop early once it is not.
+fn first_in_order<J: Sync, R: Send>(
+    jobs: &[J],
+    run: impl Fn(&J, Wanted<'_>) -> R + Sync,
+    ends: impl Fn(&R) -> bool + Sync,
+) -> Vec<R> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let next = AtomicUsize::new(0);
+    let first_end = AtomicUsize::new(usize::MAX);
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(jobs.len())
+        .max(1);
+    let worker = || {
+        let mut mine = Vec::new();
+        loop {
+            let i = next.fetch_add(1, Ordering::Relaxed);
+            if i >= jobs.len() || i > first_end.load(Ordering::Relaxed) {
+                return mine;
+            }
+            let r = run(&jobs[i], &|| first_end.load(Ordering::Relaxed) > i);
+            if ends(&r) {
+                first_end.fetch_min(i, Ordering::Relaxed);
+            }
+            mine.push((i, r));
+        }
+    };
+    let mut done: Vec<(usize, R)> = std::thread::scope(|scope| {
+        let others: Vec<_> = (1..threads).map(|_| scope.spawn(worker)).collect();
+        let mut done = worker();
+        for w in others {
+            done.extend(w.join().expect("a compiler thread panicked"));
+        }
+        done
+    });
+    done.sort_by_key(|&(i, _)| i);
+    let last = first_end.into_inner();
+    done.into_iter()
+        .take_while(|&(i, _)| i <= last)
+        .map(|(_, r)| r)
+        .collect()
+}
+
 fn try_ii(
     kernel: &Kernel,
     base: &Graph,
     desc: &MachineDesc,
     slots: &Slots,
     mode: LoopMode,
+    wanted: Wanted<'_>,
 ) -> Result<Attempted, Retry> {
     let mut g = base.clone();
     let mut s = Schedule::new(g.ops.len());
@@ -395,7 +504,7 @@ fn try_ii(
         LoopMode::Line => {
             // The body as straight-line code; the next iteration starts when every result
             // has landed.
-            schedule_region(&mut g, &mut s, Region::Loop, None, slots, desc)
+            schedule_region(&mut g, &mut s, Region::Loop, None, slots, desc, wanted)
                 .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
             let len = g
                 .in_region(Region::Loop)
@@ -407,12 +516,14 @@ fn try_ii(
         }
     };
     if let (LoopMode::Modulo(_), Some(ii)) = (mode, ii) {
-        schedule_region(&mut g, &mut s, Region::Loop, Some(ii), slots, desc).map_err(|f| {
-            Retry::Larger((
-                "schedule".into(),
-                format!("at initiation interval {ii}, {}", describe(&g, &f)),
-            ))
-        })?;
+        schedule_region(&mut g, &mut s, Region::Loop, Some(ii), slots, desc, wanted).map_err(
+            |f| {
+                Retry::Larger((
+                    "schedule".into(),
+                    format!("at initiation interval {ii}, {}", describe(&g, &f)),
+                ))
+            },
+        )?;
         let last = g
             .in_region(Region::Loop)
             .iter()
@@ -431,10 +542,10 @@ fn try_ii(
         }
     }
     let after_loop = g.clone();
-    schedule_region(&mut g, &mut s, Region::Post, None, slots, desc)
+    schedule_region(&mut g, &mut s, Region::Post, None, slots, desc, wanted)
         .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
     let providers = fan_out(&mut g, &mut s);
-    schedule_region(&mut g, &mut s, Region::Pre, None, slots, desc)
+    schedule_region(&mut g, &mut s, Region::Pre, None, slots, desc, wanted)
         .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
     // A full LRF in the loop first gets copies that move its long-waiting values to the
     // adders' LRFs, the schedule kept (see [`schedule::relieve`]); then, if that is not
@@ -549,7 +660,7 @@ fn longest_read(
 /// read them: up to two places directly, more through extra immediates or `mov` copies.
 /// Returns, for each (value, location), the op that writes it there.
 fn fan_out(g: &mut Graph, s: &mut Schedule) -> HashMap<(usize, Loc), usize> {
-    let mut providers = HashMap::new();
+    let mut providers = HashMap::default();
     let pre = g.in_region(Region::Pre);
     for &p in &pre {
         if let Some(m) = g.ops[p].tie {
@@ -761,7 +872,7 @@ fn rec_mii(n: usize, edges: &[Edge]) -> u32 {
 
 #[cfg(test)]
 mod tests {
-    use super::result_port_mii;
+    use super::{first_in_order, result_port_mii};
     use std::collections::{BTreeMap, BTreeSet};
 
     /// Every (short, long) op count one unit can issue at interval `ii` with each result
@@ -844,5 +955,42 @@ mod tests {
             result_port_mii(&BTreeMap::from([(2, 434), (4, 217)]), 3),
             217
         );
+    }
+
+    /// The jobs' outcomes in turn, up to and including the first that ends the search.
+    fn in_turn(jobs: &[u64], ends: impl Fn(&u64) -> bool) -> Vec<u64> {
+        let mut out = Vec::new();
+        for &j in jobs {
+            out.push(j * 10);
+            if ends(&(j * 10)) {
+                break;
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn jobs_on_every_core_give_the_outcomes_taken_in_turn() {
+        // Job j sleeps (j % 4) ms, so later jobs often finish first; outcome 10·j ends the
+        // search when j is a multiple of 7 (never, for the first list).
+        let lists: [Vec<u64>; 3] = [
+            vec![1, 2, 3, 5, 6, 9, 3, 2, 1, 5],
+            (1..40).collect(),
+            vec![14, 1, 2, 3],
+        ];
+        let ends = |r: &u64| r.is_multiple_of(70);
+        for jobs in &lists {
+            let got = first_in_order(
+                jobs,
+                |&j, wanted| {
+                    std::thread::sleep(std::time::Duration::from_millis(j % 4));
+                    // A job no longer wanted may stop with any result: it is dropped.
+                    if wanted() { j * 10 } else { 1 }
+                },
+                ends,
+            );
+            assert_eq!(got, in_turn(jobs, ends), "jobs {jobs:?}");
+        }
+        assert!(first_in_order(&[] as &[u64], |&j, _| j, |_| true).is_empty());
     }
 }

@@ -28,8 +28,7 @@
 //! its result ports cannot clash. A schedule is returned only when nothing is broken and
 //! every LRF holds its values at every row.
 
-use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, Ordering};
+use rustc_hash::FxHashMap as HashMap;
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::ops::UnitClass;
@@ -264,7 +263,7 @@ impl Problem {
             local[o] = i;
         }
         let mut lops = Vec::with_capacity(n);
-        let mut earlier: HashMap<usize, usize> = HashMap::new();
+        let mut earlier: HashMap<usize, usize> = HashMap::default();
         for &o in ops {
             let op = &g.ops[o];
             let (issue, align) = match op.kind {
@@ -1563,8 +1562,8 @@ impl<'p> State<'p> {
 
 /// Schedules the loop's `ops` at interval `ii` by local search, its random choices drawn
 /// from `seed`. On success returns each op's (cycle, slot, swap); `None` if the search
-/// ran out of moves with something broken or an LRF still too full, or if `abandoned` was
-/// set (its result is no longer wanted).
+/// ran out of moves with something broken or an LRF still too full, or once `wanted` says
+/// its result is no longer wanted.
 #[allow(clippy::too_many_arguments)]
 pub fn schedule(
     g: &Graph,
@@ -1576,7 +1575,7 @@ pub fn schedule(
     slots: &Slots,
     desc: &MachineDesc,
     seed: u64,
-    abandoned: &AtomicBool,
+    wanted: &dyn Fn() -> bool,
 ) -> Option<Vec<(i64, usize, bool)>> {
     let problem = Problem::new(g, ops, edges, ii, reach, slots, desc)?;
     let p = &problem;
@@ -1599,7 +1598,7 @@ pub fn schedule(
             break;
         }
         if step % REFRESH == 0 {
-            if abandoned.load(Ordering::Relaxed) {
+            if !wanted() {
                 return None;
             }
             // A search still paying for more than one broken constraint per op once it has
