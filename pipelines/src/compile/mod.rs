@@ -24,9 +24,9 @@
 //!
 //! The schedules the search tries do not depend on each other, so they run on every host
 //! core at once; the first in the search's order that succeeds wins, which makes the
-//! microcode that of trying them in turn ([`first_in_order`]). The search of a loop with no
-//! straight-line fallback counts its schedules against a budget, in order, and so tries
-//! them in turn.
+//! microcode that of trying them in turn ([`first_in_order`]). A local search, which runs
+//! on every core itself, goes alone. The search of a loop with no straight-line fallback
+//! counts its schedules against a budget, in order, and so tries them in turn.
 
 pub mod alloc;
 pub mod bind;
@@ -288,11 +288,20 @@ fn search(
         // Without a fallback the budget counts schedules in order, so they go in turn.
         Box::new(tries.map(|t| t.run(kernel, desc, slots, spend, &|| true)))
     } else {
-        // Otherwise they go on every core, with the outcome of taking them in turn.
+        // Otherwise they go on every core, with the outcome of taking them in turn. A local
+        // search runs its seeds on every core itself, so it goes alone, between the runs of
+        // the schedules before and after it (beside another schedule it only goes slower).
         let tries: Vec<Try<'_>> = tries.collect();
         let ends = |r: &Result<Attempted, Retry>| matches!(r, Ok(_) | Err(Retry::Fatal(_)));
         let run = |t: &Try<'_>, wanted: Wanted<'_>| t.run(kernel, desc, slots, || true, wanted);
-        Box::new(first_in_order(&tries, run, ends).into_iter())
+        let mut outcomes = Vec::new();
+        for group in tries.chunk_by(|a, b| !a.graph.repair && !b.graph.repair) {
+            outcomes.extend(first_in_order(group, run, ends));
+            if outcomes.last().is_some_and(ends) {
+                break;
+            }
+        }
+        Box::new(outcomes.into_iter())
     };
     for outcome in outcomes {
         match outcome {
