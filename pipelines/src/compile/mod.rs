@@ -48,7 +48,7 @@ use crate::kernel::{Kernel, Region};
 pub use cache::CompileCache;
 use graph::{Edge, Graph, Kind, Loc, MOp};
 pub use report::Report;
-use schedule::{Failure, Schedule, Slots, Wanted, schedule_region};
+use schedule::{Failure, Schedule, Slots, schedule_region};
 
 /// A kernel that does not fit the machine.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -162,7 +162,7 @@ fn search(
         }
     };
     if !has_loop {
-        return try_ii(kernel, base, desc, slots, LoopMode::None, &|| true)
+        return try_ii(kernel, base, desc, slots, LoopMode::None)
             .map(compiled)
             .map_err(|e| match e {
                 Retry::Fatal(e) | Retry::Larger(e) | Retry::Repair(_, e) => e,
@@ -199,7 +199,7 @@ fn search(
         expand: false,
         repairs: MAX_REPAIRS,
     };
-    let line = match line_try.run(kernel, desc, slots, spend, &|| true) {
+    let line = match line_try.run(kernel, desc, slots, spend) {
         Ok(a) => {
             hinted.hint = (0..base.ops.len())
                 .map(|o| {
@@ -286,14 +286,14 @@ fn search(
         });
     let outcomes: Box<dyn Iterator<Item = Result<Attempted, Retry>>> = if bounded.get() {
         // Without a fallback the budget counts schedules in order, so they go in turn.
-        Box::new(tries.map(|t| t.run(kernel, desc, slots, spend, &|| true)))
+        Box::new(tries.map(|t| t.run(kernel, desc, slots, spend)))
     } else {
         // Otherwise they go on every core, with the outcome of taking them in turn. A local
         // search runs its seeds on every core itself, so it goes alone, between the runs of
         // the schedules before and after it (beside another schedule it only goes slower).
         let tries: Vec<Try<'_>> = tries.collect();
         let ends = |r: &Result<Attempted, Retry>| matches!(r, Ok(_) | Err(Retry::Fatal(_)));
-        let run = |t: &Try<'_>, wanted: Wanted<'_>| t.run(kernel, desc, slots, || true, wanted);
+        let run = |t: &Try<'_>, wanted: Wanted<'_>| t.run(kernel, desc, slots, wanted);
         let mut outcomes = Vec::new();
         for group in tries.chunk_by(|a, b| !a.graph.repair && !b.graph.repair) {
             outcomes.extend(first_in_order(group, run, ends));
@@ -396,6 +396,10 @@ enum Retry {
 
 type Attempted = (Program, Graph, Schedule, emit::Layout, alloc::Entries);
 
+/// Whether the search still wants a job's outcome: a job stops early once it does not (its
+/// outcome is then dropped).
+type Wanted<'a> = &'a (dyn Fn() -> bool + Sync);
+
 /// One schedule of the search: `graph` (unrolled if `expand`) in `mode`, with up to
 /// `repairs` LRF repairs (each a schedule again with a copy).
 #[derive(Clone, Copy)]
@@ -408,23 +412,22 @@ struct Try<'a> {
 
 impl Try<'_> {
     /// Schedules, repairing a full LRF while `spend` allows another schedule (the budget
-    /// lasts) and the search still `wanted` this one.
+    /// lasts, or the search still wants this one).
     fn run(
         &self,
         kernel: &Kernel,
         desc: &MachineDesc,
         slots: &Slots,
         mut spend: impl FnMut() -> bool,
-        wanted: Wanted<'_>,
     ) -> Result<Attempted, Retry> {
         let mut work = self.graph.clone();
         work.expand |= self.expand;
         let mut last = None;
         for _repair in 0..=self.repairs {
-            if !wanted() || !spend() {
+            if !spend() {
                 break;
             }
-            match try_ii(kernel, &work, desc, slots, self.mode, wanted) {
+            match try_ii(kernel, &work, desc, slots, self.mode) {
                 Err(Retry::Repair(g, e)) => {
                     work = *g;
                     last = Some(e);
@@ -493,7 +496,6 @@ fn try_ii(
     desc: &MachineDesc,
     slots: &Slots,
     mode: LoopMode,
-    wanted: Wanted<'_>,
 ) -> Result<Attempted, Retry> {
     let mut g = base.clone();
     let mut s = Schedule::new(g.ops.len());
@@ -513,7 +515,7 @@ fn try_ii(
         LoopMode::Line => {
             // The body as straight-line code; the next iteration starts when every result
             // has landed.
-            schedule_region(&mut g, &mut s, Region::Loop, None, slots, desc, wanted)
+            schedule_region(&mut g, &mut s, Region::Loop, None, slots, desc)
                 .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
             let len = g
                 .in_region(Region::Loop)
@@ -525,14 +527,12 @@ fn try_ii(
         }
     };
     if let (LoopMode::Modulo(_), Some(ii)) = (mode, ii) {
-        schedule_region(&mut g, &mut s, Region::Loop, Some(ii), slots, desc, wanted).map_err(
-            |f| {
-                Retry::Larger((
-                    "schedule".into(),
-                    format!("at initiation interval {ii}, {}", describe(&g, &f)),
-                ))
-            },
-        )?;
+        schedule_region(&mut g, &mut s, Region::Loop, Some(ii), slots, desc).map_err(|f| {
+            Retry::Larger((
+                "schedule".into(),
+                format!("at initiation interval {ii}, {}", describe(&g, &f)),
+            ))
+        })?;
         let last = g
             .in_region(Region::Loop)
             .iter()
@@ -551,10 +551,10 @@ fn try_ii(
         }
     }
     let after_loop = g.clone();
-    schedule_region(&mut g, &mut s, Region::Post, None, slots, desc, wanted)
+    schedule_region(&mut g, &mut s, Region::Post, None, slots, desc)
         .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
     let providers = fan_out(&mut g, &mut s);
-    schedule_region(&mut g, &mut s, Region::Pre, None, slots, desc, wanted)
+    schedule_region(&mut g, &mut s, Region::Pre, None, slots, desc)
         .map_err(|f| Retry::Fatal(("schedule".into(), describe(&g, &f))))?;
     // A full LRF in the loop first gets copies that move its long-waiting values to the
     // adders' LRFs, the schedule kept (see [`schedule::relieve`]); then, if that is not

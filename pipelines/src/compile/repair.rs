@@ -29,6 +29,7 @@
 //! every LRF holds its values at every row.
 
 use rustc_hash::FxHashMap as HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 use imagine_units::desc::MachineDesc;
 use imagine_units::ops::UnitClass;
@@ -1562,8 +1563,8 @@ impl<'p> State<'p> {
 
 /// Schedules the loop's `ops` at interval `ii` by local search, its random choices drawn
 /// from `seed`. On success returns each op's (cycle, slot, swap); `None` if the search
-/// ran out of moves with something broken or an LRF still too full, or once `wanted` says
-/// its result is no longer wanted.
+/// ran out of moves with something broken or an LRF still too full, or if `abandoned` was
+/// set (its result is no longer wanted).
 #[allow(clippy::too_many_arguments)]
 pub fn schedule(
     g: &Graph,
@@ -1575,7 +1576,7 @@ pub fn schedule(
     slots: &Slots,
     desc: &MachineDesc,
     seed: u64,
-    wanted: &dyn Fn() -> bool,
+    abandoned: &AtomicBool,
 ) -> Option<Vec<(i64, usize, bool)>> {
     let problem = Problem::new(g, ops, edges, ii, reach, slots, desc)?;
     let p = &problem;
@@ -1598,7 +1599,7 @@ pub fn schedule(
             break;
         }
         if step % REFRESH == 0 {
-            if !wanted() {
+            if abandoned.load(Ordering::Relaxed) {
                 return None;
             }
             // A search still paying for more than one broken constraint per op once it has

@@ -183,10 +183,6 @@ pub enum Failure {
 
 const FREE: u32 = u32::MAX;
 
-/// Whether the caller still wants a schedule: a search stops early once it does not (its
-/// outcome is then dropped).
-pub type Wanted<'a> = &'a (dyn Fn() -> bool + Sync);
-
 /// The modulo reservation table.
 struct Table {
     modulus: i64,
@@ -253,7 +249,6 @@ pub fn schedule_region(
     ii: Option<i64>,
     slots: &Slots,
     desc: &MachineDesc,
-    wanted: Wanted<'_>,
 ) -> Result<(), Failure> {
     // (Only a loop asks for copies; one that needs too many is tried at the next interval.
     // With the body unrolled, a value that outlives even that has drifted with the
@@ -268,7 +263,7 @@ pub fn schedule_region(
         super::bind::bind(g, sched, region, ii, slots);
         sched.grow(g.ops.len());
         let attempted = match ii {
-            Some(ii) if g.repair => attempt_repair(g, sched, region, ii, slots, desc, wanted),
+            Some(ii) if g.repair => attempt_repair(g, sched, region, ii, slots, desc),
             Some(ii) if g.list => attempt_list_modulo(g, sched, region, ii, slots, desc),
             Some(ii) => attempt_modulo(g, sched, region, ii, slots, desc),
             None => attempt_line(g, sched, region, slots, desc),
@@ -635,7 +630,6 @@ fn attempt_repair(
     ii: i64,
     slots: &Slots,
     desc: &MachineDesc,
-    wanted: Wanted<'_>,
 ) -> Result<(), Attempt> {
     let edges = g.edges(region, desc);
     let dag = Dag::new(g, sched, region, &edges);
@@ -643,12 +637,11 @@ fn attempt_repair(
     let priority = list_priority(g, &dag.height);
     // The search is a gamble: a run that ends with something broken is tried again from
     // other random choices, a few times. The runs go at once, on threads of their own, and
-    // the first seed's success wins as if they had gone in turn (a run no longer wanted,
-    // here or by the caller, stops early).
+    // the first seed's success wins as if they had gone in turn (a run no longer wanted
+    // stops early).
     let search = |seed: u64, abandoned: &AtomicBool| {
-        let wanted = || !abandoned.load(Ordering::Relaxed) && wanted();
         super::repair::schedule(
-            g, &dag.ops, &edges, &priority, ii, reach, slots, desc, seed, &wanted,
+            g, &dag.ops, &edges, &priority, ii, reach, slots, desc, seed, abandoned,
         )
     };
     let abandoned = AtomicBool::new(false);
