@@ -298,9 +298,7 @@ pub fn build(desc: &MachineDesc) -> Result<Kernel, MachineRequirementError> {
     let cluster = b.cluster_id();
     b.begin_loop(LoopSpec::OverStream(tickets));
     let _ticket = b.read(tickets);
-    // Each cluster holds the record it will work on next (`ahead`), taken when it started
-    // the current one (or in the first iteration, which holds none): a take's ranking
-    // and routing then reach the decision to take again two iterations later, not one.
+    // A record's cost is its first word; the next one is held ahead (see `take_ahead`).
     let Held { want, got, .. } = input.take_ahead(&mut b, |b, ahead| b.cast(ahead[0], Ty::I32));
     b.write_if(out_a, want, got[1]);
     b.write_if(out_b, want, got[2]);
