@@ -364,6 +364,17 @@ impl Sim {
             .filter_map(|m| (&**m as &dyn Any).downcast_ref::<M>())
     }
 
+    /// The position of the first module of type `M`, for a caller that inspects it every
+    /// cycle: [`module`](Self::module) then asks one module its type instead of each.
+    pub fn module_index<M: Module>(&self) -> Option<usize> {
+        (self.design.modules.iter()).position(|m| (&**m as &dyn Any).is::<M>())
+    }
+
+    /// The module at `index` (see [`module_index`](Self::module_index)), if it is an `M`.
+    pub fn module<M: Module>(&self, index: usize) -> Option<&M> {
+        (self.design.modules.get(index)).and_then(|m| (&**m as &dyn Any).downcast_ref::<M>())
+    }
+
     /// The modules of type `M`, for a host that hands them more work between cycles (a
     /// stream program's host adding instructions).
     pub fn modules_of_mut<M: Module>(&mut self) -> impl Iterator<Item = &mut M> {

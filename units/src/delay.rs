@@ -57,7 +57,8 @@ impl DelayLine {
             (1..len).contains(&(latency as usize)),
             "latency {latency} outside 1..{len}"
         );
-        let slot = &mut self.ring[(self.head + latency as usize) % len];
+        let at = self.after(latency as usize);
+        let slot = &mut self.ring[at];
         if slot.valid {
             return Err(ContractError::at(
                 &self.path,
@@ -92,8 +93,20 @@ impl DelayLine {
     /// before it: a write with latency 1 is visible to the next cycle's reads).
     #[inline]
     pub fn due_next(&self) -> Option<&InFlight> {
-        let s = &self.ring[(self.head + 1) % self.ring.len()];
+        let s = &self.ring[self.after(1)];
         s.valid.then_some(s)
+    }
+
+    /// The ring position `k < len` cycles after the head (a compare, not a division: this
+    /// runs for every delay line every cycle).
+    #[inline(always)]
+    fn after(&self, k: usize) -> usize {
+        let i = self.head + k;
+        if i >= self.ring.len() {
+            i - self.ring.len()
+        } else {
+            i
+        }
     }
 
     /// Values still in flight (including the one leaving this cycle).
@@ -110,12 +123,14 @@ impl DelayLine {
 
     #[inline]
     pub fn commit(&mut self) {
-        let s = &mut self.ring[self.head];
-        if s.valid {
-            s.valid = false;
-            self.in_flight -= 1;
+        if self.in_flight > 0 {
+            let s = &mut self.ring[self.head];
+            if s.valid {
+                s.valid = false;
+                self.in_flight -= 1;
+            }
         }
-        self.head = (self.head + 1) % self.ring.len();
+        self.head = self.after(1);
     }
 }
 

@@ -178,6 +178,12 @@ impl Lrf {
     #[inline]
     pub fn commit(&mut self) {
         let p = &mut self.probes;
+        // Most files see no access in a cycle: leave them after the cheapest test.
+        if self.write_entry.is_none() && self.read_entry.get().is_none() {
+            p.last_read = None;
+            p.last_write = None;
+            return;
+        }
         p.last_read = self.read_entry.take();
         p.last_write = self.write_entry.take();
         if p.last_read.is_some() {

@@ -30,7 +30,7 @@ use crate::ccfile::CcFile;
 use crate::comm::CommUnit;
 use crate::delay::{DelayLine, InFlight};
 use crate::desc::MachineDesc;
-use crate::fu::{Adder, Completion, DivSqrt, Issue, Multiplier};
+use crate::fu::{Adder, DivSqrt, Issue, Multiplier};
 use crate::lrf::Lrf;
 use crate::microcode::{Dest, Dests, ImmValue, Instruction, Permutation, Program, StreamDir};
 use crate::microcontroller::{LoopEnv, Microcontroller, Phase};
@@ -159,21 +159,6 @@ struct Fus {
 }
 
 impl Fus {
-    fn len(&self) -> usize {
-        self.adders.len() + self.multipliers.len() + self.divsqrts.len()
-    }
-
-    fn completed(&self, slot: usize) -> Option<Completion<'_>> {
-        let (a, m) = (self.adders.len(), self.multipliers.len());
-        if slot < a {
-            self.adders[slot].completed()
-        } else if slot < a + m {
-            self.multipliers[slot - a].completed()
-        } else {
-            self.divsqrts[slot - a - m].completed()
-        }
-    }
-
     fn issue(&mut self, slot: usize, is: Issue<'_>) -> Result<(), ContractError> {
         let (a, m) = (self.adders.len(), self.multipliers.len());
         if slot < a {
@@ -239,8 +224,13 @@ impl<'a> Sources<'a> {
         mut f: impl FnMut(Dests, &'a [u32], Option<&'a [bool]>) -> Result<(), ContractError>,
     ) -> Result<(), ContractError> {
         let mask = |r: &'a InFlight| r.masked.then_some(&r.mask[..]);
-        for slot in 0..self.fus.len() {
-            if let Some(c) = self.fus.completed(slot) {
+        // Unit by unit rather than through `Fus::completed`: this runs every cycle.
+        let fus = &self.fus;
+        let completions = (fus.adders.iter().map(|u| u.completed()))
+            .chain(fus.multipliers.iter().map(|u| u.completed()))
+            .chain(fus.divsqrts.iter().map(|u| u.completed()));
+        for (slot, c) in completions.enumerate() {
+            if let Some(c) = c {
                 f(slot_of(code, c.tag, |i| i.fu[slot]).dests, c.values, None)?;
             }
         }

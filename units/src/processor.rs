@@ -594,8 +594,8 @@ pub fn run(
     desc: &MachineDesc,
     max_core_cycles: u64,
 ) -> Result<StreamReport, RunError> {
-    let done = |sim: &Sim| {
-        processor(sim).is_done() && sim.modules_of::<DramChannel>().all(DramChannel::is_idle)
+    let done = |p: &Processor, sim: &Sim| {
+        p.is_done() && sim.modules_of::<DramChannel>().all(DramChannel::is_idle)
     };
     let finished = run_until(sim, max_core_cycles, done)?;
     sim.finish()

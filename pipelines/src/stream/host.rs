@@ -19,7 +19,7 @@ use imagine_units::desc::MachineDesc;
 use imagine_units::hwrast::{RasterJob, RasterResult};
 use imagine_units::machine::StreamBinding;
 use imagine_units::memory::{MemOp, MemOpKind, Pattern};
-use imagine_units::processor::{self, ProcessorOptions, StreamProgram};
+use imagine_units::processor::{self, Processor, ProcessorOptions, StreamProgram};
 use imagine_units::stream_controller::{InstrRecord, StreamInstr};
 
 use super::dram::{Buffer, DramMap};
@@ -182,19 +182,17 @@ impl StreamHost {
         if !evicted.is_empty() {
             // The load may run ahead of queued calls: those of the programs it evicts
             // complete first.
-            let records = |s: &Sim, id: usize| {
-                processor::processor(s).controller().records()[id]
-                    .completed
-                    .is_some()
-            };
-            self.pending.retain(|&(id, _)| !records(&self.sim, id));
+            let records =
+                |p: &Processor, id: usize| p.controller().records()[id].completed.is_some();
+            self.pending
+                .retain(|&(id, _)| !records(processor::processor(&self.sim), id));
             let ids: Vec<usize> = self
                 .pending
                 .iter()
                 .filter(|(_, q)| evicted.contains(q))
                 .map(|&(id, _)| id)
                 .collect();
-            self.run_until(|s| ids.iter().all(|&id| records(s, id)))?;
+            self.run_until(|p, _| ids.iter().all(|&id| records(p, id)))?;
         }
         self.resident.push(p);
         self.push(StreamInstr::LoadMicrocode { program: p });
@@ -468,11 +466,7 @@ impl StreamHost {
             start: from.start,
             len: from.words,
         });
-        self.run_until(|s| {
-            processor::processor(s).controller().records()[id]
-                .completed
-                .is_some()
-        })?;
+        self.run_until(|p, _| p.controller().records()[id].completed.is_some())?;
         Ok(self.records()[id].read.clone())
     }
 
@@ -525,24 +519,20 @@ impl StreamHost {
 
     fn wait_id(&mut self, id: usize) -> Result<(), HostError> {
         self.flush_deferred()?;
-        self.run_until(|s| {
-            processor::processor(s).controller().records()[id]
-                .completed
-                .is_some()
-        })
+        self.run_until(|p, _| p.controller().records()[id].completed.is_some())
     }
 
     /// Runs until every queued instruction has completed and the memory is idle.
     pub fn drain(&mut self) -> Result<(), HostError> {
         self.flush_deferred()?;
-        self.run_until(|s| {
-            processor::processor(s).is_done()
+        self.run_until(|p, s| {
+            p.is_done()
                 && s.modules_of::<imagine_units::dram::DramChannel>()
                     .all(imagine_units::dram::DramChannel::is_idle)
         })
     }
 
-    fn run_until(&mut self, done: impl Fn(&Sim) -> bool) -> Result<(), HostError> {
+    fn run_until(&mut self, done: impl Fn(&Processor, &Sim) -> bool) -> Result<(), HostError> {
         let left = self.max_cycles.saturating_sub(self.sim.core_cycles());
         let finished = processor::run_until(&mut self.sim, left, done)
             .map_err(|e| HostError(format!("the machine stopped: {e}")))?;

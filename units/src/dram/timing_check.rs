@@ -245,7 +245,11 @@ impl TimingChecker {
             Command::Read { bank, column } | Command::Write { bank, column } => {
                 let write = matches!(cmd, Command::Write { .. });
                 let b = bank.value() as usize;
-                let name = if write { "WRITE" } else { "READ" };
+                let (name, after_activate) = if write {
+                    ("WRITE", "ACTIVATE to WRITE")
+                } else {
+                    ("READ", "ACTIVATE to READ")
+                };
                 if column.value() as usize + p.burst > p.columns {
                     self.flag(
                         t,
@@ -258,14 +262,7 @@ impl TimingChecker {
                     self.flag(t, Some(b), "bank state", format!("{name} of an idle bank"));
                 }
                 let act = self.banks[b].act;
-                self.gap(
-                    t,
-                    act,
-                    p.t_rcd,
-                    Some(b),
-                    "tRCD",
-                    &format!("ACTIVATE to {name}"),
-                );
+                self.gap(t, act, p.t_rcd, Some(b), "tRCD", after_activate);
                 if write {
                     self.gap(
                         t,

@@ -41,16 +41,20 @@ use crate::stream_controller::IdleCounts;
 /// is found at most this much later.
 const RETRY: u64 = 16;
 
-/// Runs `sim` (a built processor) until `done` holds, checked after every core-clock edge,
-/// or `max` more core cycles have elapsed; returns whether `done` held. Idle time is
-/// jumped over (see the module doc), so `done` must depend on the design's state, not on
-/// the cycle count: it does not change in idle cycles.
+/// Runs `sim` (a built processor) until `done` holds, checked (with the processor) after
+/// every core-clock edge, or `max` more core cycles have elapsed; returns whether `done`
+/// held. Idle time is jumped over (see the module doc), so `done` must depend on the
+/// design's state, not on the cycle count: it does not change in idle cycles.
 pub fn run_until(
     sim: &mut Sim,
     max: u64,
-    mut done: impl FnMut(&Sim) -> bool,
+    mut done: impl FnMut(&Processor, &Sim) -> bool,
 ) -> Result<bool, ContractError> {
     let end = sim.core_cycles().saturating_add(max);
+    // Found once: searching the modules for it every cycle cost more than the check.
+    let at = sim
+        .module_index::<Processor>()
+        .expect("the design holds a processor");
     let maybe_idle = super::processor(sim).maybe_idle.clone();
     let mut next_try = 0;
     while sim.core_cycles() < end {
@@ -58,7 +62,8 @@ pub fn run_until(
         sim.step()?;
         let now = sim.core_cycles();
         if now > before {
-            if done(sim) {
+            let processor = sim.module::<Processor>(at).expect("found above");
+            if done(processor, sim) {
                 return Ok(true);
             }
             if maybe_idle.get() && now >= next_try && skip_idle(sim, end) == 0 {
