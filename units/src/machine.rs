@@ -30,7 +30,7 @@ use crate::ccfile::CcFile;
 use crate::comm::CommUnit;
 use crate::delay::{DelayLine, InFlight};
 use crate::desc::MachineDesc;
-use crate::fu::{Adder, DivSqrt, Issue, Multiplier};
+use crate::fu::{Adder, Completion, DivSqrt, Issue, Multiplier};
 use crate::lrf::Lrf;
 use crate::microcode::{Dest, Dests, ImmValue, Instruction, Permutation, Program, StreamDir};
 use crate::microcontroller::{LoopEnv, Microcontroller, Phase};
@@ -159,6 +159,14 @@ struct Fus {
 }
 
 impl Fus {
+    /// Per FU slot, in slot order, the op completing this cycle (unit by unit, not through
+    /// a per-slot dispatch like `issue`'s: this runs every cycle).
+    fn completed(&self) -> impl Iterator<Item = Option<Completion<'_>>> {
+        (self.adders.iter().map(Adder::completed))
+            .chain(self.multipliers.iter().map(Multiplier::completed))
+            .chain(self.divsqrts.iter().map(DivSqrt::completed))
+    }
+
     fn issue(&mut self, slot: usize, is: Issue<'_>) -> Result<(), ContractError> {
         let (a, m) = (self.adders.len(), self.multipliers.len());
         if slot < a {
@@ -224,12 +232,7 @@ impl<'a> Sources<'a> {
         mut f: impl FnMut(Dests, &'a [u32], Option<&'a [bool]>) -> Result<(), ContractError>,
     ) -> Result<(), ContractError> {
         let mask = |r: &'a InFlight| r.masked.then_some(&r.mask[..]);
-        // Unit by unit rather than through `Fus::completed`: this runs every cycle.
-        let fus = &self.fus;
-        let completions = (fus.adders.iter().map(|u| u.completed()))
-            .chain(fus.multipliers.iter().map(|u| u.completed()))
-            .chain(fus.divsqrts.iter().map(|u| u.completed()));
-        for (slot, c) in completions.enumerate() {
+        for (slot, c) in self.fus.completed().enumerate() {
             if let Some(c) = c {
                 f(slot_of(code, c.tag, |i| i.fu[slot]).dests, c.values, None)?;
             }

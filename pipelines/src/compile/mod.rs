@@ -257,11 +257,8 @@ fn search(
     // (it takes seconds for a big body, so it is not tried further out).
     let mut listed = base.clone();
     listed.list = true;
-    let mut listed_expanded = listed.clone();
-    listed_expanded.expand = true;
     let mut repaired = base.clone();
     repaired.repair = true;
-    repaired.expand = true;
     let mut searched = None;
     let tries = near_attempts
         .chain(far_attempts)
@@ -279,10 +276,10 @@ fn search(
                 at(graph, false, repairs),
                 at(graph, true, few),
                 at(&listed, false, repairs),
-                at(&listed_expanded, false, few),
+                at(&listed, true, few),
             ]
             .into_iter()
-            .chain(search_too.then(|| at(&repaired, false, few)))
+            .chain(search_too.then(|| at(&repaired, true, few)))
         });
     let outcomes: Box<dyn Iterator<Item = Result<Attempted, Retry>>> = if bounded.get() {
         // Without a fallback the budget counts schedules in order, so they go in turn.

@@ -184,8 +184,8 @@ impl StreamHost {
             // complete first.
             let records =
                 |p: &Processor, id: usize| p.controller().records()[id].completed.is_some();
-            self.pending
-                .retain(|&(id, _)| !records(processor::processor(&self.sim), id));
+            let processor = processor::processor(&self.sim);
+            self.pending.retain(|&(id, _)| !records(processor, id));
             let ids: Vec<usize> = self
                 .pending
                 .iter()
