@@ -126,6 +126,14 @@ impl<T> AsyncFifoState<T> {
         }
         (self.write_ptr_sync.newest - self.read_ptr) as usize
     }
+    /// Nothing pushed or popped this cycle and every synchroniser stage holding the
+    /// pointer it samples: edges of either clock change nothing until an end acts.
+    fn is_static(&self) -> bool {
+        self.pushed.is_none()
+            && !self.popped
+            && self.write_ptr_sync.holds_only(self.write_ptr)
+            && self.read_ptr_sync.holds_only(self.read_ptr)
+    }
     /// Empty, nothing pushed or popped this cycle, and every synchroniser stage holding
     /// the pointer it samples: an edge of either clock changes nothing.
     fn is_settled(&self) -> bool {
@@ -197,7 +205,7 @@ impl<T: Clone> AsyncFifoRx<T> {
 }
 
 impl<T> Channel for AsyncFifoState<T> {
-    fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError> {
+    fn commit(&mut self, rising: DomainSet) -> Result<bool, ContractError> {
         // A side whose clock does not rise, or that neither moves a value nor has a
         // synchroniser still catching up, changes nothing at this edge.
         let write_quiet = !rising.contains(self.write_domain)
@@ -205,7 +213,7 @@ impl<T> Channel for AsyncFifoState<T> {
         let read_quiet = !rising.contains(self.read_domain)
             || (!self.popped && self.write_ptr_sync.holds_only(self.write_ptr));
         if write_quiet && read_quiet {
-            return Ok(());
+            return Ok(self.is_static());
         }
         // Sample both pointers before either side updates them.
         let (write_ptr, read_ptr) = (self.write_ptr, self.read_ptr);
@@ -223,18 +231,11 @@ impl<T> Channel for AsyncFifoState<T> {
             }
             self.write_ptr_sync.sample(write_ptr);
         }
-        Ok(())
+        Ok(self.is_static())
     }
 
     fn domain(&self) -> DomainId {
         self.write_domain
-    }
-
-    fn is_static(&self) -> bool {
-        self.pushed.is_none()
-            && !self.popped
-            && self.write_ptr_sync.holds_only(self.write_ptr)
-            && self.read_ptr_sync.holds_only(self.read_ptr)
     }
 
     fn trace(&self, t: &mut Trace) {

@@ -11,6 +11,7 @@
 //! `(k + ½) / f`. Edges of several domains that fall at exactly the same instant are
 //! reported together as one [`Edge`].
 
+use std::cmp::Ordering;
 use std::fmt;
 
 /// Index of a clock domain within a design (0 is the core clock by convention).
@@ -91,21 +92,82 @@ pub struct Edge {
 
 const PS_PER_S: u128 = 1_000_000_000_000;
 
+/// Where one domain is in time.
+#[derive(Clone, Debug)]
+struct DomainTime {
+    freq_hz: u64,
+    /// The index of its next half-period edge (even: rising, odd: falling).
+    next_half: u64,
+    /// The time of that edge in picoseconds (rounded down) and the remainder of the
+    /// division that gives it, kept by adding one half-period at a time (a 128-bit division
+    /// per edge cost more than the rest of the scheduler).
+    next_ps: u64,
+    next_ps_rem: u64,
+    /// `PS_PER_S / 2f` as quotient and remainder.
+    half_period_ps: (u64, u64),
+    /// The number of rising edges so far.
+    cycles: u64,
+}
+
+impl DomainTime {
+    fn new(freq_hz: u64) -> Self {
+        let mut t = DomainTime {
+            freq_hz,
+            next_half: 0,
+            next_ps: 0,
+            next_ps_rem: 0,
+            half_period_ps: (0, 0),
+            cycles: 0,
+        };
+        t.half_period_ps = t.half_edge(1);
+        t
+    }
+
+    /// Time of half-period edge `half` in picoseconds, rounded down, and the remainder of
+    /// its division.
+    fn half_edge(&self, half: u64) -> (u64, u64) {
+        let denom = 2 * self.freq_hz as u128;
+        let num = half as u128 * PS_PER_S;
+        ((num / denom) as u64, (num % denom) as u64)
+    }
+
+    /// Sets the next half-period edge to `half`.
+    fn set_half(&mut self, half: u64) {
+        self.next_half = half;
+        (self.next_ps, self.next_ps_rem) = self.half_edge(half);
+    }
+
+    /// Moves the next edge on by one half-period: `next_ps` grows by `PS_PER_S / 2f`,
+    /// exactly, carrying the remainder.
+    #[inline]
+    fn step_half(&mut self) {
+        let denom = 2 * self.freq_hz;
+        let (q, r) = self.half_period_ps;
+        self.next_half += 1;
+        self.next_ps += q;
+        self.next_ps_rem += r;
+        if self.next_ps_rem >= denom {
+            self.next_ps_rem -= denom;
+            self.next_ps += 1;
+        }
+    }
+
+    /// How this domain's next edge compares in time with `other`'s: `a / 2fa` against
+    /// `b / 2fb` as `a·fb` against `b·fa`, exactly.
+    #[inline]
+    fn compare(&self, other: &DomainTime) -> Ordering {
+        let a = self.next_half as u128 * other.freq_hz as u128;
+        let b = other.next_half as u128 * self.freq_hz as u128;
+        a.cmp(&b)
+    }
+}
+
 /// The edge scheduler for a set of clock domains.
 #[derive(Clone, Debug)]
 pub struct Clocks {
     domains: Vec<ClockDomain>,
-    /// Per domain, the index of its next half-period edge (even: rising, odd: falling).
-    next_half: Vec<u64>,
-    /// Per domain, the time of that edge in picoseconds (rounded down) and the remainder
-    /// of the division that gives it, kept by adding one half-period at a time (a 128-bit
-    /// division per edge cost more than the rest of the scheduler).
-    next_ps: Vec<u64>,
-    next_ps_rem: Vec<u64>,
-    /// Per domain, `PS_PER_S / 2f` as quotient and remainder.
-    half_period_ps: Vec<(u64, u64)>,
-    /// Per domain, the number of rising edges so far.
-    cycles: Vec<u64>,
+    /// Per domain, in the same order (apart, so that stepping touches only these).
+    times: Vec<DomainTime>,
     time_ps: u64,
 }
 
@@ -125,18 +187,12 @@ impl Clocks {
                 return Err(ClockError::DuplicateName(d.name.clone()));
             }
         }
-        let n = domains.len();
-        let mut clocks = Clocks {
+        let times = domains.iter().map(|d| DomainTime::new(d.freq_hz)).collect();
+        Ok(Clocks {
             domains,
-            next_half: vec![0; n],
-            next_ps: vec![0; n],
-            next_ps_rem: vec![0; n],
-            half_period_ps: Vec::new(),
-            cycles: vec![0; n],
+            times,
             time_ps: 0,
-        };
-        clocks.half_period_ps = (0..n).map(|d| clocks.half_edge(d, 1)).collect();
-        Ok(clocks)
+        })
     }
 
     pub fn domains(&self) -> &[ClockDomain] {
@@ -163,7 +219,7 @@ impl Clocks {
 
     /// Rising edges of domain `d` so far.
     pub fn cycles(&self, d: DomainId) -> u64 {
-        self.cycles[d.0 as usize]
+        self.times[d.0 as usize].cycles
     }
 
     /// Time of the most recent edge, in picoseconds.
@@ -171,71 +227,36 @@ impl Clocks {
         self.time_ps
     }
 
-    /// Time of half-period edge `half` of domain `d`, in picoseconds, rounded down.
-    fn half_edge_ps(&self, d: usize, half: u64) -> u64 {
-        self.half_edge(d, half).0
-    }
-
-    /// [`half_edge_ps`](Self::half_edge_ps) and the remainder of its division.
-    fn half_edge(&self, d: usize, half: u64) -> (u64, u64) {
-        let denom = 2 * self.domains[d].freq_hz as u128;
-        let num = half as u128 * PS_PER_S;
-        ((num / denom) as u64, (num % denom) as u64)
-    }
-
-    /// Sets domain `d`'s next half-period edge to `half`.
-    fn set_half(&mut self, d: usize, half: u64) {
-        self.next_half[d] = half;
-        (self.next_ps[d], self.next_ps_rem[d]) = self.half_edge(d, half);
-    }
-
-    /// Moves domain `d`'s next edge on by one half-period: `next_ps` grows by
-    /// `PS_PER_S / 2f`, exactly, carrying the remainder.
-    #[inline]
-    fn step_half(&mut self, d: usize) {
-        let denom = 2 * self.domains[d].freq_hz;
-        let (q, r) = self.half_period_ps[d];
-        self.next_half[d] += 1;
-        self.next_ps[d] += q;
-        self.next_ps_rem[d] += r;
-        if self.next_ps_rem[d] >= denom {
-            self.next_ps_rem[d] -= denom;
-            self.next_ps[d] += 1;
-        }
-    }
-
     /// Advances to the next instant at which any clock has an edge.
     pub fn next_edge(&mut self) -> Edge {
-        // Edge time of domain i is next_half[i] / (2 f_i); compare a/fa < b/fb as a·fb < b·fa.
+        // One pass finds the earliest edge and every domain with an edge at the same
+        // instant, decided before any domain advances.
+        let times = &mut self.times[..];
         let mut first = 0;
-        for i in 1..self.domains.len() {
-            if self.earlier(i, first) {
-                first = i;
+        let mut fired = 1u64;
+        for (i, t) in times.iter().enumerate().skip(1) {
+            match t.compare(&times[first]) {
+                Ordering::Less => (first, fired) = (i, 1 << i),
+                Ordering::Equal => fired |= 1 << i,
+                Ordering::Greater => {}
             }
         }
         let mut edge = Edge {
-            time_ps: self.next_ps[first],
+            time_ps: times[first].next_ps,
             rising: DomainSet::default(),
             falling: DomainSet::default(),
         };
-        // Decide every domain against the same instant before advancing any of them.
-        let mut fired = 0u64;
-        for i in 0..self.domains.len() {
-            if i == first || self.simultaneous(i, first) {
-                fired |= 1 << i;
+        while fired != 0 {
+            let i = fired.trailing_zeros() as usize;
+            fired &= fired - 1;
+            let t = &mut times[i];
+            if t.next_half.is_multiple_of(2) {
+                edge.rising.insert(DomainId(i as u8));
+                t.cycles += 1;
+            } else {
+                edge.falling.insert(DomainId(i as u8));
             }
-        }
-        for i in 0..self.domains.len() {
-            if fired & (1 << i) != 0 {
-                let d = DomainId(i as u8);
-                if self.next_half[i].is_multiple_of(2) {
-                    edge.rising.insert(d);
-                    self.cycles[i] += 1;
-                } else {
-                    edge.falling.insert(d);
-                }
-                self.step_half(i);
-            }
+            t.step_half();
         }
         self.time_ps = edge.time_ps;
         edge
@@ -244,9 +265,9 @@ impl Clocks {
     /// Skips every pending falling edge, so the next [`next_edge`](Self::next_edge) is a
     /// rising one. Without a waveform to draw, falling edges change nothing.
     pub fn skip_falling_edges(&mut self) {
-        for d in 0..self.next_half.len() {
-            if self.next_half[d] & 1 == 1 {
-                self.step_half(d);
+        for t in &mut self.times {
+            if t.next_half & 1 == 1 {
+                t.step_half();
             }
         }
     }
@@ -263,7 +284,7 @@ impl Clocks {
         if n == 0 {
             return true;
         }
-        match self.cycles[0].checked_add(n) {
+        match self.times[0].cycles.checked_add(n) {
             Some(target) => self.skip_to(DomainId(0), target),
             None => false,
         }
@@ -291,11 +312,11 @@ impl Clocks {
         let Some(target) = self.target(d, cycles) else {
             return false;
         };
-        for (i, (c, at_t)) in target.into_iter().enumerate() {
-            self.cycles[i] = c;
-            self.set_half(i, 2 * c - at_t as u64);
+        for (t, (c, at_t)) in self.times.iter_mut().zip(target) {
+            t.cycles = c;
+            t.set_half(2 * c - at_t as u64);
         }
-        self.time_ps = self.half_edge_ps(d.0 as usize, 2 * (cycles - 1));
+        self.time_ps = self.times[d.0 as usize].half_edge(2 * (cycles - 1)).0;
         true
     }
 
@@ -303,7 +324,7 @@ impl Clocks {
     /// `cycles − 1` (0-based), and whether it has an edge at that very instant.
     fn target(&self, d: DomainId, cycles: u64) -> Option<Vec<(u64, bool)>> {
         let d = d.0 as usize;
-        if cycles <= self.cycles[d] || cycles > u64::MAX / 2 {
+        if cycles <= self.times[d].cycles || cycles > u64::MAX / 2 {
             return None;
         }
         // Edge r of d is at r / f_d; edge k of domain i is at or before it iff
@@ -321,21 +342,6 @@ impl Clocks {
             })
             .collect()
     }
-
-    fn cross(&self, i: usize, j: usize) -> (u128, u128) {
-        (
-            self.next_half[i] as u128 * self.domains[j].freq_hz as u128,
-            self.next_half[j] as u128 * self.domains[i].freq_hz as u128,
-        )
-    }
-    fn earlier(&self, i: usize, j: usize) -> bool {
-        let (a, b) = self.cross(i, j);
-        a < b
-    }
-    fn simultaneous(&self, i: usize, j: usize) -> bool {
-        let (a, b) = self.cross(i, j);
-        a == b
-    }
 }
 
 fn gcd(mut a: u64, mut b: u64) -> u64 {
@@ -348,6 +354,13 @@ fn gcd(mut a: u64, mut b: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every domain's half-period index and rising-edge count, and the time.
+    fn state(c: &Clocks) -> (Vec<u64>, Vec<u64>, u64) {
+        let halves = c.times.iter().map(|t| t.next_half).collect();
+        let cycles = c.times.iter().map(|t| t.cycles).collect();
+        (halves, cycles, c.time_ps)
+    }
 
     #[test]
     fn dram_edges_over_a_million_core_cycles_are_exact() {
@@ -404,9 +417,10 @@ mod tests {
             }
             let e = clocks.next_edge();
             for d in 0..3 {
+                let t = &clocks.times[d];
                 assert_eq!(
-                    clocks.next_ps[d],
-                    clocks.half_edge_ps(d, clocks.next_half[d]),
+                    t.next_ps,
+                    t.half_edge(t.next_half).0,
                     "domain {d} after edge {k}"
                 );
             }
@@ -414,7 +428,10 @@ mod tests {
                 .filter(|&d| {
                     e.rising.contains(DomainId(d as u8)) || e.falling.contains(DomainId(d as u8))
                 })
-                .map(|d| clocks.half_edge_ps(d, clocks.next_half[d] - 1))
+                .map(|d| {
+                    let t = &clocks.times[d];
+                    t.half_edge(t.next_half - 1).0
+                })
                 .collect::<Vec<_>>();
             assert!(first.iter().all(|&t| t == e.time_ps), "edge {k}");
         }
@@ -465,19 +482,7 @@ mod tests {
                 stepped.next_edge();
             }
             assert!(skipped.skip_rising_edges(n));
-            assert_eq!(
-                (
-                    skipped.next_half.clone(),
-                    skipped.cycles.clone(),
-                    skipped.time_ps
-                ),
-                (
-                    stepped.next_half.clone(),
-                    stepped.cycles.clone(),
-                    stepped.time_ps
-                ),
-                "n = {n}"
-            );
+            assert_eq!(state(&skipped), state(&stepped), "n = {n}");
             // And the next edge after the skip is the same one.
             assert_eq!(skipped.next_edge(), stepped.next_edge());
         }
@@ -533,14 +538,12 @@ mod tests {
                             let mut skipped = from.clone();
                             let counts = skipped.cycles_at(d, target).unwrap();
                             assert!(skipped.skip_to(d, target));
-                            let state =
-                                |c: &Clocks| (c.next_half.clone(), c.cycles.clone(), c.time_ps);
                             assert_eq!(
                                 state(&skipped),
                                 state(&stepped),
                                 "{domains:?} d {d:?} start {start} {with_falling} ahead {ahead}"
                             );
-                            assert_eq!(counts, stepped.cycles);
+                            assert_eq!(counts, state(&stepped).1);
                             // The edges after the skip are the same ones.
                             for _ in 0..2 * n + 3 {
                                 skipped.skip_falling_edges();
@@ -557,10 +560,10 @@ mod tests {
         // Never backwards or in place, and no overflow.
         let mut c = Clocks::new(default_domains()).unwrap();
         step_to(&mut c, DomainId(0), 10);
-        let before = (c.next_half.clone(), c.cycles.clone(), c.time_ps);
+        let before = state(&c);
         assert!(!c.skip_to(DomainId(0), 10) && !c.skip_to(DomainId(0), 3));
         assert!(!c.skip_to(DomainId(1), u64::MAX) && c.cycles_at(DomainId(0), 9).is_none());
-        assert_eq!((c.next_half.clone(), c.cycles.clone(), c.time_ps), before);
+        assert_eq!(state(&c), before);
     }
 
     #[test]

@@ -93,13 +93,13 @@ impl<T: Clone> FifoRx<T> {
 }
 
 impl<T> Channel for FifoState<T> {
-    fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError> {
+    fn commit(&mut self, rising: DomainSet) -> Result<bool, ContractError> {
         if rising.contains(self.domain) {
             self.items.drain(..self.popped);
             self.popped = 0;
             self.items.append(&mut self.pushed);
         }
-        Ok(())
+        Ok(false)
     }
 
     fn domain(&self) -> DomainId {

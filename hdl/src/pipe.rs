@@ -75,9 +75,9 @@ impl<T> PipeRx<T> {
 }
 
 impl<T> Channel for PipeState<T> {
-    fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError> {
+    fn commit(&mut self, rising: DomainSet) -> Result<bool, ContractError> {
         if !rising.contains(self.domain) {
-            return Ok(());
+            return Ok(false);
         }
         if let Some(e) = self.error.take() {
             return Err(e);
@@ -89,7 +89,7 @@ impl<T> Channel for PipeState<T> {
         let mut visible = self.stages.pop_front().expect("latency >= 1");
         std::mem::swap(&mut visible, &mut self.incoming);
         self.stages.push_back(visible);
-        Ok(())
+        Ok(false)
     }
 
     fn domain(&self) -> DomainId {

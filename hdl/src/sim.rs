@@ -36,15 +36,14 @@ pub trait Module: Any {
 
 /// Shared state between two modules that commits on clock edges (pipes, FIFOs).
 pub trait Channel {
-    fn commit(&mut self, rising: DomainSet) -> Result<(), ContractError>;
+    /// Ends the cycle of the domains in `rising`. Returns whether the channel is now
+    /// static: edges of any clock change nothing here until an endpoint next acts (and
+    /// raises the channel's wake flag), so the simulator stops committing it. (One call
+    /// rather than a second query: a design commits its crossings on every edge.)
+    fn commit(&mut self, rising: DomainSet) -> Result<bool, ContractError>;
     /// The domain whose cycle count locates this channel's errors.
     fn domain(&self) -> DomainId;
     fn trace(&self, t: &mut Trace);
-    /// Whether edges of any clock change nothing here until an endpoint next acts (and
-    /// raises the channel's wake flag): the simulator then stops committing it.
-    fn is_static(&self) -> bool {
-        false
-    }
 }
 
 /// A mistake in how a design is put together.
@@ -512,8 +511,7 @@ impl Sim {
             }
             wake.set(false);
             let mut c = c.borrow_mut();
-            c.commit(rising).map_err(|e| stamp(e, c.domain()))?;
-            *asleep = c.is_static();
+            *asleep = c.commit(rising).map_err(|e| stamp(e, c.domain()))?;
         }
         Ok(())
     }

@@ -159,12 +159,33 @@ struct Fus {
 }
 
 impl Fus {
-    /// Per FU slot, in slot order, the op completing this cycle (unit by unit, not through
-    /// a per-slot dispatch like `issue`'s: this runs every cycle).
-    fn completed(&self) -> impl Iterator<Item = Option<Completion<'_>>> {
-        (self.adders.iter().map(Adder::completed))
-            .chain(self.multipliers.iter().map(Multiplier::completed))
-            .chain(self.divsqrts.iter().map(DivSqrt::completed))
+    /// Calls `f` with the slot and the op of every unit completing one this cycle, in slot
+    /// order (unit by unit, not through a per-slot dispatch like `issue`'s, and by loops
+    /// rather than a chained iterator, which did not inline: this runs every cycle).
+    fn for_each_completed<'a>(
+        &'a self,
+        mut f: impl FnMut(usize, Completion<'a>) -> Result<(), ContractError>,
+    ) -> Result<(), ContractError> {
+        let mut slot = 0;
+        for u in &self.adders {
+            if let Some(c) = u.completed() {
+                f(slot, c)?;
+            }
+            slot += 1;
+        }
+        for u in &self.multipliers {
+            if let Some(c) = u.completed() {
+                f(slot, c)?;
+            }
+            slot += 1;
+        }
+        for u in &self.divsqrts {
+            if let Some(c) = u.completed() {
+                f(slot, c)?;
+            }
+            slot += 1;
+        }
+        Ok(())
     }
 
     fn issue(&mut self, slot: usize, is: Issue<'_>) -> Result<(), ContractError> {
@@ -232,11 +253,9 @@ impl<'a> Sources<'a> {
         mut f: impl FnMut(Dests, &'a [u32], Option<&'a [bool]>) -> Result<(), ContractError>,
     ) -> Result<(), ContractError> {
         let mask = |r: &'a InFlight| r.masked.then_some(&r.mask[..]);
-        for (slot, c) in self.fus.completed().enumerate() {
-            if let Some(c) = c {
-                f(slot_of(code, c.tag, |i| i.fu[slot]).dests, c.values, None)?;
-            }
-        }
+        self.fus.for_each_completed(|slot, c| {
+            f(slot_of(code, c.tag, |i| i.fu[slot]).dests, c.values, None)
+        })?;
         for (i, sp) in self.scratchpads.iter().enumerate() {
             if let Some(r) = sp.completed() {
                 f(

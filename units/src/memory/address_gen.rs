@@ -37,7 +37,7 @@ use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, 
 
 use super::MemPorts;
 use super::texture_cache::{Probe, TextureCache, Waiter};
-use crate::dram::{Reply, Request, Tag};
+use crate::dram::{Location, Reply, Request, Tag};
 use crate::srf::Srf;
 
 /// A line fill's reference tag: this bit set, the word address in the bits below.
@@ -161,10 +161,12 @@ pub struct AddressGenerator {
     rob_words: Vec<u64>,
     /// Line fills waiting for a DRAM port (word addresses).
     fills: VecDeque<u64>,
-    /// The index of the record being issued (indexed streams), once read.
     /// Indices of the current row's records (indexed streams).
     indices: Vec<u64>,
     indices_row: Option<usize>,
+    /// The last byte address mapped and its location: a reference that waits for a port
+    /// is mapped once, not in every cycle it waits.
+    mapped: Option<(u64, Location)>,
     flushing: bool,
     /// The operation ended at the last edge.
     finished: bool,
@@ -198,6 +200,7 @@ impl AddressGenerator {
             fills: VecDeque::new(),
             indices: Vec::new(),
             indices_row: None,
+            mapped: None,
             flushing: false,
             finished: false,
             buf: Vec::with_capacity(width),
@@ -386,15 +389,22 @@ impl AddressGenerator {
                 };
             let word = start + j;
             let byte = word * 4;
-            let Some(loc) = ports.params().map(byte) else {
-                return Err(self.error(
-                    "address",
-                    format!(
-                        "word {} of the stream is at byte address {byte:#x}, past the end of memory ({} bytes)",
-                        self.issued,
-                        ports.params().capacity_bytes()
-                    ),
-                ));
+            let loc = match self.mapped {
+                Some((b, loc)) if b == byte => loc,
+                _ => {
+                    let Some(loc) = ports.params().map(byte) else {
+                        return Err(self.error(
+                            "address",
+                            format!(
+                                "word {} of the stream is at byte address {byte:#x}, past the end of memory ({} bytes)",
+                                self.issued,
+                                ports.params().capacity_bytes()
+                            ),
+                        ));
+                    };
+                    self.mapped = Some((byte, loc));
+                    loc
+                }
             };
             let slot = self.issued % self.window;
             if let Some(c) = cache.as_deref_mut().filter(|_| cached) {
