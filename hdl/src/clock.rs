@@ -166,7 +166,8 @@ impl DomainTime {
 #[derive(Clone, Debug)]
 pub struct Clocks {
     domains: Vec<ClockDomain>,
-    /// Per domain, in the same order (apart, so that stepping touches only these).
+    /// Per domain, in the order of `domains`: where it is in time (apart from the names,
+    /// so that stepping touches only these records).
     times: Vec<DomainTime>,
     time_ps: u64,
 }
