@@ -4,6 +4,7 @@
 //! with latency `L` in cycle `t` leaves in cycle `t + L`; two values due in the same cycle
 //! would share one result port, which is a [`ContractError`].
 
+use crate::ring_position;
 use imagine_hdl::{ContractError, Violation};
 
 /// A value in flight: a word and a write-enable per cluster, and the owner's tag.
@@ -97,16 +98,10 @@ impl DelayLine {
         s.valid.then_some(s)
     }
 
-    /// The ring position `k < len` cycles after the head (a compare, not a division: this
-    /// runs for every delay line every cycle).
+    /// The ring position `k < len` cycles after the head.
     #[inline(always)]
     fn after(&self, k: usize) -> usize {
-        let i = self.head + k;
-        if i >= self.ring.len() {
-            i - self.ring.len()
-        } else {
-            i
-        }
+        ring_position::after(self.head, k, self.ring.len())
     }
 
     /// Values still in flight (including the one leaving this cycle).
@@ -117,8 +112,7 @@ impl DelayLine {
     /// Brings an empty line over `n` cycles: only the ring position turns.
     pub fn skip_idle(&mut self, n: u64) {
         debug_assert_eq!(self.in_flight, 0);
-        let len = self.ring.len();
-        self.head = (self.head + (n % len as u64) as usize) % len;
+        self.head = ring_position::after_many(self.head, n, self.ring.len());
     }
 
     #[inline]
@@ -130,7 +124,7 @@ impl DelayLine {
                 self.in_flight -= 1;
             }
         }
-        self.head = self.after(1);
+        self.head = ring_position::next(self.head, self.ring.len());
     }
 }
 

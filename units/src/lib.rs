@@ -45,6 +45,7 @@ pub mod microcode;
 pub mod microcontroller;
 pub mod ops;
 pub mod processor;
+mod ring_position;
 pub mod runner;
 pub mod s3;
 pub mod scratchpad;

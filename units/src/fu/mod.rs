@@ -53,6 +53,7 @@ use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation};
 
 use crate::arith::flags::Flags;
 use crate::ops::{Op, UnitClass};
+use crate::ring_position;
 
 pub use divsqrt::DivSqrt;
 pub use pipelined::{Adder, AdderKind, Multiplier, MultiplierKind, Pipelined, PipelinedKind};
@@ -278,12 +279,7 @@ impl Ring {
     /// The slot of an op completing `latency` cycles from now.
     #[inline(always)]
     pub fn slot_after(&self, latency: u32) -> usize {
-        let s = self.head + latency as usize;
-        if s >= self.slots.len() {
-            s - self.slots.len()
-        } else {
-            s
-        }
+        ring_position::after(self.head, latency as usize, self.slots.len())
     }
 
     /// The op completing in the current cycle.
@@ -297,18 +293,14 @@ impl Ring {
     #[inline(always)]
     pub fn advance(&mut self) {
         self.slots[self.head].valid = false;
-        self.head += 1;
-        if self.head == self.slots.len() {
-            self.head = 0;
-        }
+        self.head = ring_position::next(self.head, self.slots.len());
         self.cycle += 1;
     }
 
     /// Brings an empty ring over `n` cycles: the position turns and the cycle counts on.
     pub fn skip_idle(&mut self, n: u64) {
         debug_assert_eq!(self.in_flight(), 0);
-        let len = self.slots.len();
-        self.head = (self.head + (n % len as u64) as usize) % len;
+        self.head = ring_position::after_many(self.head, n, self.slots.len());
         self.cycle += n;
     }
 

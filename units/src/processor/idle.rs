@@ -55,7 +55,9 @@ pub fn run_until(
     let at = sim
         .module_index::<Processor>()
         .expect("the design holds a processor");
-    let maybe_idle = super::processor(sim).maybe_idle.clone();
+    let maybe_idle = (sim.module::<Processor>(at).expect("found above"))
+        .maybe_idle
+        .clone();
     let mut next_try = 0;
     while sim.core_cycles() < end {
         let before = sim.core_cycles();
