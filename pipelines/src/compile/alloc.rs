@@ -8,8 +8,11 @@
 //! interval makes the body a few passes long, and then each pass's copy of the value gets
 //! an entry of its own (modulo variable expansion).
 
+use std::ops::Range;
+
 use rustc_hash::FxHashMap as HashMap;
 
+use super::circle;
 use super::graph::{Graph, Loc, Source};
 use super::schedule::{Schedule, Slots};
 use crate::kernel::Region;
@@ -250,10 +253,11 @@ fn pack(
                 // The cycles each entry to choose is held: one entry for every pass of the
                 // unrolled loop body unless the value outlives the interval, when each pass
                 // gets an entry of its own.
-                let held: Vec<Vec<i64>> = match (region, ii, modulus) {
+                // (As runs of rows round the unrolled body.)
+                let held: Vec<Vec<Range<usize>>> = match (region, ii, modulus) {
                     (Region::Loop, Some(ii), Some(m)) => {
                         let passes = (0..out.unroll as i64)
-                            .map(|j| (w + j * ii..r + j * ii).map(|c| c.rem_euclid(m)));
+                            .map(|j| circle::cycles(w + j * ii, r + j * ii, m));
                         if r - w <= ii {
                             vec![passes.flatten().collect()]
                         } else {
@@ -279,7 +283,7 @@ fn pack(
                                 if bits.is_empty() {
                                     bits.resize(m as usize, false);
                                 }
-                                cycles.iter().all(|&c| !bits[c as usize])
+                                cycles.iter().all(|run| !bits[run.clone()].contains(&true))
                             }
                             _ => o.line[e]
                                 .iter()
@@ -300,8 +304,8 @@ fn pack(
                     };
                     match modulus {
                         Some(_) if region == Region::Loop => {
-                            for &c in cycles {
-                                o.modulo[e][c as usize] = true;
+                            for run in cycles {
+                                o.modulo[e][run.clone()].fill(true);
                             }
                         }
                         _ => o.line[e].push((region, w, r)),
@@ -341,7 +345,7 @@ type Arc = (usize, usize);
 
 /// The rows of `arc` round a circle of `m`.
 fn rows((start, len): Arc, m: usize) -> impl Iterator<Item = usize> {
-    (start..start + len).map(move |c| c % m)
+    circle::runs(start, len, m).flatten()
 }
 
 /// The rows of `arc` as a bit set.
@@ -613,8 +617,9 @@ impl Liveness {
             let w = pl.time + g.latency(u, desc);
             for &loc in &s.dests[u] {
                 let r = live_end(&last_read, u, loc, w);
-                for c in w..r {
-                    rows[index(slots, loc)][c.rem_euclid(ii) as usize] += 1;
+                let rows = &mut rows[index(slots, loc)];
+                for run in circle::cycles(w, r, ii) {
+                    rows[run].iter_mut().for_each(|x| *x += 1);
                 }
             }
         }

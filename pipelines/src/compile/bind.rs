@@ -360,18 +360,33 @@ fn split(
 /// Removes the fan-out copies a previous binding of `region` made: their readers read the
 /// copied value again.
 fn undo_fanout_copies(g: &mut Graph, region: Region) {
-    for c in g.in_region(region) {
-        if g.ops[c].copy_kind != Some(CopyKind::Fanout) {
-            continue;
+    let copies: Vec<usize> = g
+        .in_region(region)
+        .into_iter()
+        .filter(|&c| g.ops[c].copy_kind == Some(CopyKind::Fanout))
+        .collect();
+    if copies.is_empty() {
+        return;
+    }
+    let mut copied: Vec<Option<Source>> = vec![None; g.ops.len()];
+    for &c in &copies {
+        copied[c] = Some(g.ops[c].args[0].src);
+    }
+    // (A copy may copy another copy: its readers read the value first copied.)
+    let original = |mut src: Source| {
+        while let Source::Local(c) = src
+            && let Some(copied) = copied[c]
+        {
+            src = copied;
         }
-        let src = g.ops[c].args[0].src;
-        for o in 0..g.ops.len() {
-            for a in &mut g.ops[o].args {
-                if a.src == Source::Local(c) {
-                    a.src = src;
-                }
-            }
+        src
+    };
+    for op in &mut g.ops {
+        for a in &mut op.args {
+            a.src = original(a.src);
         }
+    }
+    for c in copies {
         g.ops[c].dead = true;
     }
 }

@@ -28,9 +28,11 @@
 //! on every core itself, goes alone. The search of a loop with no straight-line fallback
 //! counts its schedules against a budget, in order, and so tries them in turn.
 
+pub mod adjacency;
 pub mod alloc;
 pub mod bind;
 pub mod cache;
+pub mod circle;
 pub mod emit;
 pub mod graph;
 pub mod repair;

@@ -34,6 +34,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use imagine_units::desc::MachineDesc;
 use imagine_units::ops::UnitClass;
 
+use super::circle;
 use super::graph::{Edge, Graph, Input, Kind, Loc, Source};
 use super::schedule::Slots;
 
@@ -436,7 +437,7 @@ impl Problem {
         op.arg_locs[(slot * 2 + usize::from(swap)) * op.args.len() + i]
     }
     fn row(&self, t: i64) -> usize {
-        t.rem_euclid(self.ii) as usize
+        circle::row(t, self.ii)
     }
 }
 
@@ -469,6 +470,10 @@ struct State<'p> {
     chain_search: u32,
     chain_seen: Vec<u32>,
     chain_parent: Vec<Move>,
+    /// The operands' lifetimes before a move, and which of them are still there after
+    /// (kept between moves so that a move allocates nothing).
+    lifetimes_before: Vec<Lifetime>,
+    lifetime_matched: Vec<bool>,
     /// Weight of the waits against [`SCALE`].
     wait_weight: i64,
     over: i64,
@@ -504,6 +509,10 @@ struct Quick {
 /// An op's place: (op, cycle, slot, swap).
 type Move = (usize, i64, usize, bool);
 
+/// A value's entry in a location and when its lifetime there ends (`None` for a value held
+/// for the whole loop): (value, location, end).
+type Lifetime = (usize, Loc, Option<i64>);
+
 impl<'p> State<'p> {
     fn new(p: &'p Problem) -> Self {
         let n = p.ops.len();
@@ -531,6 +540,8 @@ impl<'p> State<'p> {
             chain_search: 0,
             chain_seen: vec![0; n],
             chain_parent: vec![(0, 0, 0, false); n],
+            lifetimes_before: Vec::new(),
+            lifetime_matched: Vec::new(),
             wait_weight: SCALE,
             over: 0,
             dest_over: 0,
@@ -598,29 +609,20 @@ impl<'p> State<'p> {
     /// Adds (`d` = 1) or removes (-1) value `x` live in location `k` over `[w, r)`.
     fn interval(&mut self, k: usize, w: i64, r: i64, d: i32) {
         let cap = self.p.cap[k] - self.kept[k];
-        let ii = self.p.ii;
-        let mut row = w.rem_euclid(ii) as usize;
-        let rows = ii as usize;
         let live = &mut self.live[k];
-        let mut crowd = 0i64;
-        for _ in w..r {
+        // (Counted, then updated, run by run: two plain passes the compiler vectorises.)
+        let mut crowd = 0usize;
+        for run in circle::cycles(w, r, self.p.ii) {
+            let run = &mut live[run];
             if d > 0 {
-                if live[row] >= cap {
-                    crowd += 1;
-                }
-                live[row] += 1;
+                crowd += run.iter().filter(|&&x| x >= cap).count();
+                run.iter_mut().for_each(|x| *x += 1);
             } else {
-                live[row] -= 1;
-                if live[row] >= cap {
-                    crowd -= 1;
-                }
-            }
-            row += 1;
-            if row == rows {
-                row = 0;
+                crowd += run.iter().filter(|&&x| x > cap).count();
+                run.iter_mut().for_each(|x| *x -= 1);
             }
         }
-        self.crowd += crowd;
+        self.crowd += i64::from(d) * crowd as i64;
         self.wait += i64::from(d) * (r - w);
     }
 
@@ -669,11 +671,10 @@ impl<'p> State<'p> {
     }
 
     /// The destinations of the placed operands of op `u` (`affected`, `u` excepted) and
-    /// when each lifetime there ends (`None` for a value held for the whole loop):
-    /// (value, location, end).
-    fn operand_lifetimes(&self, u: usize, affected: &[usize]) -> Vec<(usize, Loc, Option<i64>)> {
+    /// when each lifetime there ends, into `ends`.
+    fn operand_lifetimes(&self, u: usize, affected: &[usize], ends: &mut Vec<Lifetime>) {
         let p = self.p;
-        let mut ends = Vec::new();
+        ends.clear();
         for &x in affected {
             if x == u || !self.placed[x] {
                 continue;
@@ -684,7 +685,6 @@ impl<'p> State<'p> {
                 ends.push((x, l, end));
             }
         }
-        ends
     }
 
     /// Adds (`d` = 1) or removes (-1) what op `u` (placed) adds to its operands' values:
@@ -707,12 +707,7 @@ impl<'p> State<'p> {
 
     /// Brings the write ports and destination counts of op `u`'s operands from `before`
     /// (see [`Self::operand_lifetimes`]) to their destinations now that `u` moved.
-    fn update_operand_dests(
-        &mut self,
-        u: usize,
-        affected: &[usize],
-        before: &[(usize, Loc, Option<i64>)],
-    ) {
+    fn update_operand_dests(&mut self, u: usize, affected: &[usize], before: &[Lifetime]) {
         let p = self.p;
         for &x in affected {
             if x == u || !self.placed[x] {
@@ -745,14 +740,11 @@ impl<'p> State<'p> {
     /// [`Self::operand_lifetimes`]) to what they are now that `u` moved: only the cycles
     /// between the old and the new end change (an operand's landing stays), so a long
     /// lifetime costs no more than a short one.
-    fn update_operand_lifetimes(
-        &mut self,
-        u: usize,
-        affected: &[usize],
-        before: &[(usize, Loc, Option<i64>)],
-    ) {
+    fn update_operand_lifetimes(&mut self, u: usize, affected: &[usize], before: &[Lifetime]) {
         let p = self.p;
-        let mut matched = vec![false; before.len()];
+        let mut matched = std::mem::take(&mut self.lifetime_matched);
+        matched.clear();
+        matched.resize(before.len(), false);
         for &x in affected {
             if x == u || !self.placed[x] || p.ops[x].permanent {
                 continue;
@@ -782,6 +774,7 @@ impl<'p> State<'p> {
                 self.interval(p.loc_index(l), w, r, -1);
             }
         }
+        self.lifetime_matched = matched;
     }
 
     /// [`Self::value`] but for the lifetimes of its entries.
@@ -1102,7 +1095,8 @@ impl<'p> State<'p> {
     /// Takes op `u` out of the schedule.
     fn detach(&mut self, u: usize, affected: &[usize]) {
         // (Of its operands' values only what `u` reads changes.)
-        let before = self.operand_lifetimes(u, affected);
+        let mut before = std::mem::take(&mut self.lifetimes_before);
+        self.operand_lifetimes(u, affected, &mut before);
         self.value(u, -1);
         self.operand_reads(u, -1);
         self.op(u, -1);
@@ -1110,11 +1104,13 @@ impl<'p> State<'p> {
         self.note_reads(u);
         self.update_operand_dests(u, affected, &before);
         self.update_operand_lifetimes(u, affected, &before);
+        self.lifetimes_before = before;
     }
 
     /// Puts op `u` (out of the schedule) at cycle `t` on `slot`.
     fn attach(&mut self, u: usize, t: i64, slot: usize, swap: bool, affected: &[usize]) {
-        let before = self.operand_lifetimes(u, affected);
+        let mut before = std::mem::take(&mut self.lifetimes_before);
+        self.operand_lifetimes(u, affected, &mut before);
         self.t[u] = t;
         self.slot[u] = slot;
         self.swap[u] = swap;
@@ -1125,6 +1121,7 @@ impl<'p> State<'p> {
         self.operand_reads(u, 1);
         self.update_operand_dests(u, affected, &before);
         self.update_operand_lifetimes(u, affected, &before);
+        self.lifetimes_before = before;
     }
 
     /// What [`Self::quick`] needs to know of the placed ops around op `u` (out of the

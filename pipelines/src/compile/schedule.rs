@@ -28,6 +28,8 @@ use imagine_units::desc::MachineDesc;
 use imagine_units::microcode::check::Shape;
 use imagine_units::ops::{Op, UnitClass};
 
+use super::adjacency::Adjacency;
+use super::circle;
 use super::graph::{Arg, CopyKind, Edge, Graph, Input, Kind, Loc, Source};
 use crate::kernel::Region;
 
@@ -183,9 +185,13 @@ pub enum Failure {
 
 const FREE: u32 = u32::MAX;
 
-/// The modulo reservation table.
+/// The reservation table: a modulo table of `ii` rows for a loop, or for straight-line code
+/// a row per cycle, grown as ops are placed (see [`Table::row`]).
 struct Table {
-    modulus: i64,
+    /// The interval of a modulo table; `None` for straight-line code.
+    modulus: Option<i64>,
+    /// Rows held (a straight-line table grows).
+    rows: usize,
     fu: Vec<u32>,
     /// Each FU has one result port: ops of different latencies must not land together.
     fu_result: Vec<u32>,
@@ -204,40 +210,82 @@ struct Table {
 }
 
 impl Table {
-    fn new(modulus: i64, s: &Slots) -> Table {
-        let m = modulus as usize;
+    /// A modulo table of `ii` rows, or with `None` a straight-line one.
+    fn new(ii: Option<i64>, s: &Slots) -> Table {
         let (nfu, nsp, ncomm, nlrf) = (
             s.shape.fu_count(),
             s.shape.scratchpads,
             s.shape.comm_units,
             s.lrfs(),
         );
-        Table {
-            modulus,
-            fu: vec![FREE; m * nfu],
-            fu_result: vec![FREE; m * nfu],
-            sp: vec![FREE; m * nsp],
-            comm: vec![FREE; m * ncomm],
-            sout: vec![FREE; m],
-            imm: vec![FREE; m],
-            stream_words: vec![0; m],
-            conditional: vec![0; m],
-            ports: vec![FREE; m * nlrf],
+        let mut table = Table {
+            modulus: ii,
+            rows: 0,
+            fu: Vec::new(),
+            fu_result: Vec::new(),
+            sp: Vec::new(),
+            comm: Vec::new(),
+            sout: Vec::new(),
+            imm: Vec::new(),
+            stream_words: Vec::new(),
+            conditional: Vec::new(),
+            ports: Vec::new(),
             nfu,
             nsp,
             ncomm,
             nlrf,
+        };
+        table.grow(ii.map_or(LINE_ROWS, |ii| ii as usize));
+        table
+    }
+
+    fn grow(&mut self, rows: usize) {
+        self.rows = rows;
+        self.fu.resize(rows * self.nfu, FREE);
+        self.fu_result.resize(rows * self.nfu, FREE);
+        self.sp.resize(rows * self.nsp, FREE);
+        self.comm.resize(rows * self.ncomm, FREE);
+        self.sout.resize(rows, FREE);
+        self.imm.resize(rows, FREE);
+        self.stream_words.resize(rows, 0);
+        self.conditional.resize(rows, 0);
+        self.ports.resize(rows * self.nlrf, FREE);
+    }
+
+    /// The row of cycle `t`: modulo the interval, or in straight-line code the cycles from
+    /// 0 up and those before 0 (a constant placed just in time may go there) interleaved,
+    /// so that a straight-line table never wraps and holds only the rows its ops reach.
+    fn row(&self, t: i64) -> usize {
+        match self.modulus {
+            Some(ii) => circle::row(t, ii),
+            None if t >= 0 => 2 * t as usize,
+            None => (-2 * t - 1) as usize,
         }
     }
 
-    fn row(&self, t: i64) -> usize {
-        t.rem_euclid(self.modulus) as usize
+    /// Makes sure a straight-line table has the rows of cycles `from..=to`.
+    fn cover(&mut self, from: i64, to: i64) {
+        if self.modulus.is_some() {
+            return;
+        }
+        let needed = self.row(from).max(self.row(to)) + 1;
+        if needed > self.rows {
+            self.grow(needed.max(2 * self.rows));
+        }
+    }
+
+    /// The rows an op that holds its unit for `cycles` issue cycles holds.
+    fn issue_rows(&self, cycles: i64) -> i64 {
+        self.modulus.map_or(cycles, |ii| cycles.min(ii))
     }
 
     fn port(&self, lrf: u16, t: i64) -> u32 {
         self.ports[self.row(t) * self.nlrf + lrf as usize]
     }
 }
+
+/// Rows a straight-line table starts with (it grows as needed).
+const LINE_ROWS: usize = 512;
 
 /// Schedules the ops of `region` (bound to their slots by [`super::bind`]). `ii` is the
 /// loop's initiation interval (`None`: straight line). Copies the scheduler needs are added
@@ -306,10 +354,13 @@ enum Attempt {
 /// Longest latency path from each op to the end of the iteration (distance-0 edges).
 fn heights(n: usize, edges: &[Edge], order: &[usize]) -> Vec<i64> {
     let mut h = vec![0i64; n];
-    let mut succ: Vec<Vec<(usize, i64)>> = vec![Vec::new(); n];
-    for e in edges.iter().filter(|e| e.distance == 0) {
-        succ[e.from].push((e.to, e.latency));
-    }
+    let succ = Adjacency::new(
+        n,
+        edges
+            .iter()
+            .filter(|e| e.distance == 0)
+            .map(|e| (e.from, (e.to, e.latency))),
+    );
     for &u in order.iter().rev() {
         h[u] = succ[u]
             .iter()
@@ -324,11 +375,11 @@ fn heights(n: usize, edges: &[Edge], order: &[usize]) -> Vec<i64> {
 /// A topological order of the distance-0 edges.
 fn topo(n: usize, ops: &[usize], edges: &[Edge]) -> Vec<usize> {
     let mut indeg = vec![0usize; n];
-    let mut succ: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for e in edges.iter().filter(|e| e.distance == 0) {
+    let distance_0 = || edges.iter().filter(|e| e.distance == 0);
+    for e in distance_0() {
         indeg[e.to] += 1;
-        succ[e.from].push(e.to);
     }
+    let succ = Adjacency::new(n, distance_0().map(|e| (e.from, e.to)));
     let mut ready: Vec<usize> = ops.iter().copied().filter(|&o| indeg[o] == 0).collect();
     ready.reverse();
     let mut order = Vec::with_capacity(ops.len());
@@ -350,8 +401,8 @@ struct Dag {
     /// A topological order of the distance-0 edges.
     order: Vec<usize>,
     height: Vec<i64>,
-    preds: Vec<Vec<Edge>>,
-    succs: Vec<Vec<Edge>>,
+    preds: Adjacency<Edge>,
+    succs: Adjacency<Edge>,
 }
 
 impl Dag {
@@ -368,12 +419,8 @@ impl Dag {
                 sched.place[o] = None;
             }
         }
-        let mut preds: Vec<Vec<Edge>> = vec![Vec::new(); n];
-        let mut succs: Vec<Vec<Edge>> = vec![Vec::new(); n];
-        for e in edges {
-            preds[e.to].push(*e);
-            succs[e.from].push(*e);
-        }
+        let preds = Adjacency::new(n, edges.iter().map(|e| (e.to, *e)));
+        let succs = Adjacency::new(n, edges.iter().map(|e| (e.from, *e)));
         Dag {
             ops,
             order,
@@ -403,9 +450,9 @@ fn attempt_line(
         preds,
         succs,
     } = Dag::new(g, sched, region, &edges);
-    // A table longer than any region can be.
+    // How far past its earliest cycle an op is looked for a place.
     const LINE: i64 = 1 << 14;
-    let mut table = Table::new(LINE, slots);
+    let mut table = Table::new(None, slots);
     // A rematerialised constant is placed after its reader, just in time for it. (A
     // rematerialised scratchpad read, which has an operand, goes in order.)
     let just_in_time = |o: usize| g.ops[o].is_rematerialised_constant();
@@ -518,7 +565,7 @@ fn attempt_list_modulo(
         succs,
         ..
     } = &dag;
-    let mut table = Table::new(ii, slots);
+    let mut table = Table::new(Some(ii), slots);
     let reach = reach(g, ii, desc);
     let latency: Vec<i64> = (0..n).map(|o| g.latency(o, desc)).collect();
     let jit = |o: usize| g.ops[o].is_rematerialised_constant();
@@ -673,7 +720,7 @@ fn attempt_repair(
         g.ops[u].swap = swap;
     }
     super::bind::destinations(g, sched, region, slots);
-    let mut table = Table::new(ii, slots);
+    let mut table = Table::new(Some(ii), slots);
     for (&u, &(t, _, _)) in dag.ops.iter().zip(&places) {
         try_place(g, sched, &mut table, u, t, slots, desc).map_err(|b| {
             Attempt::Fail(Failure::NoSlot {
@@ -889,7 +936,7 @@ fn attempt_modulo(
         preds,
         succs,
     } = &dag;
-    let mut table = Table::new(ii, slots);
+    let mut table = Table::new(Some(ii), slots);
     let reach = reach(g, ii, desc);
     let readers = readers_of(g, ops);
     let jit = |o: usize| g.ops[o].just_in_time;
@@ -1214,7 +1261,7 @@ fn blockers(
     };
     match op.kind {
         Kind::Fu(o) => {
-            for k in 0..slots.issue_cycles(o).min(table.modulus) {
+            for k in 0..table.issue_rows(slots.issue_cycles(o)) {
                 held.push(table.fu[table.row(t + k) * table.nfu + slot]);
             }
             held.push(table.fu_result[table.row(write) * table.nfu + slot]);
@@ -1272,7 +1319,7 @@ fn sink(
     sched: &mut Schedule,
     table: &mut Table,
     order: &[usize],
-    succs: &[Vec<Edge>],
+    succs: &Adjacency<Edge>,
     ii: Option<i64>,
     slots: &Slots,
     desc: &MachineDesc,
@@ -1341,7 +1388,7 @@ fn unplace(
     let write = p.time + g.latency(u, desc);
     match op.kind {
         Kind::Fu(o) => {
-            for k in 0..slots.issue_cycles(o).min(table.modulus) {
+            for k in 0..table.issue_rows(slots.issue_cycles(o)) {
                 let r = table.row(p.time + k);
                 table.fu[r * table.nfu + p.slot] = FREE;
             }
@@ -1433,11 +1480,16 @@ fn try_place(
 ) -> Result<(), Busy> {
     let op = &g.ops[u];
     let slot = op.slot;
-    let row = table.row(t);
     let write = t + g.latency(u, desc);
+    let held_until = match op.kind {
+        Kind::Fu(o) => write.max(t + slots.issue_cycles(o) - 1),
+        _ => write,
+    };
+    table.cover(t, held_until);
+    let row = table.row(t);
     match op.kind {
         Kind::Fu(o) => {
-            for k in 0..slots.issue_cycles(o).min(table.modulus) {
+            for k in 0..table.issue_rows(slots.issue_cycles(o)) {
                 if table.fu[table.row(t + k) * table.nfu + slot] != FREE {
                     return Err(Busy::Unit(slot));
                 }
@@ -1489,7 +1541,7 @@ fn try_place(
     let id = u as u32;
     match op.kind {
         Kind::Fu(o) => {
-            for k in 0..slots.issue_cycles(o).min(table.modulus) {
+            for k in 0..table.issue_rows(slots.issue_cycles(o)) {
                 let r = table.row(t + k);
                 table.fu[r * table.nfu + slot] = id;
             }
@@ -1560,7 +1612,7 @@ pub fn relieve(
 ) -> bool {
     use super::alloc::{Liveness, index, last_reads};
     let Loc::Lrf(lrf) = loc else { return false };
-    let mut table = Table::new(ii, slots);
+    let mut table = Table::new(Some(ii), slots);
     for u in g.in_region(Region::Loop) {
         let Some(p) = sched.place[u] else {
             return false;
@@ -1636,8 +1688,11 @@ pub fn relieve(
                 };
                 let cap = slots.shape.lrf_sizes[d];
                 let room = |t: i64| {
-                    (held_from..t)
-                        .all(|c| live.kept[d] + live.rows[d][c.rem_euclid(ii) as usize] + 2 <= cap)
+                    circle::cycles(held_from, t, ii).all(|run| {
+                        live.rows[d][run]
+                            .iter()
+                            .all(|&x| live.kept[d] + x + 2 <= cap)
+                    })
                 };
                 // The latest cycle a copy may issue before `until`, not in `taken`'s row.
                 let slot = |until: i64, taken: Option<i64>| -> Option<i64> {
@@ -1842,6 +1897,10 @@ fn relax(
         } else {
             ops.iter().rev().copied().collect()
         };
+        // (Kept from op to op: a sweep allocates them once.)
+        let mut operands: Vec<(Option<i64>, i64)> = Vec::new();
+        let mut last_reads: Vec<i64> = Vec::new();
+        let mut candidates: Vec<(i64, i64, i64)> = Vec::new();
         for &u in &order {
             let Some(pl) = sched.place[u] else { continue };
             match g.ops[u].kind {
@@ -1879,27 +1938,22 @@ fn relax(
             // The waits of its operands (each until its last read, `u`'s at `t` among them)
             // and of its value (from its landing, `t` plus its latency, until its readers'
             // last read), as functions of `t`: what the other reads fix is found once.
-            let operands: Vec<(Option<i64>, i64)> = g.ops[u]
-                .args
-                .iter()
-                .filter_map(|a| match a.src {
-                    Source::Local(p) => at(p, sched).map(|tp| {
-                        let l = slots.operand_loc(g.ops[u].kind, pl.slot, pl.swap, a);
-                        (last_read_but(p, l, u, sched), tp + latency[p])
-                    }),
-                    _ => None,
-                })
-                .collect();
-            let last_reads: Vec<i64> = sched.dests[u]
-                .iter()
-                .filter_map(|&l| {
-                    readers[u]
-                        .iter()
-                        .filter(|&&r| reads_from(r, u, l, sched))
-                        .filter_map(|&r| at(r, sched))
-                        .max()
-                })
-                .collect();
+            operands.clear();
+            operands.extend(g.ops[u].args.iter().filter_map(|a| match a.src {
+                Source::Local(p) => at(p, sched).map(|tp| {
+                    let l = slots.operand_loc(g.ops[u].kind, pl.slot, pl.swap, a);
+                    (last_read_but(p, l, u, sched), tp + latency[p])
+                }),
+                _ => None,
+            }));
+            last_reads.clear();
+            last_reads.extend(sched.dests[u].iter().filter_map(|&l| {
+                readers[u]
+                    .iter()
+                    .filter(|&&r| reads_from(r, u, l, sched))
+                    .filter_map(|&r| at(r, sched))
+                    .max()
+            }));
             let cost = |t: i64| -> i64 {
                 let mut c = 0;
                 for &(others, lands) in &operands {
@@ -1912,11 +1966,13 @@ fn relax(
             };
             let now = cost(pl.time);
             // (Least wait first, then nearest.)
-            let mut candidates: Vec<(i64, i64, i64)> = (lo..=hi)
-                .filter(|&t| t != pl.time)
-                .map(|t| (cost(t), (t - pl.time).abs(), t))
-                .filter(|&(c, _, _)| c < now)
-                .collect();
+            candidates.clear();
+            candidates.extend(
+                (lo..=hi)
+                    .filter(|&t| t != pl.time)
+                    .map(|t| (cost(t), (t - pl.time).abs(), t))
+                    .filter(|&(c, _, _)| c < now),
+            );
             if candidates.is_empty() {
                 continue;
             }
