@@ -190,8 +190,6 @@ const FREE: u32 = u32::MAX;
 struct Table {
     /// The interval of a modulo table; `None` for straight-line code.
     modulus: Option<i64>,
-    /// Rows held (a straight-line table grows).
-    rows: usize,
     fu: Vec<u32>,
     /// Each FU has one result port: ops of different latencies must not land together.
     fu_result: Vec<u32>,
@@ -220,7 +218,6 @@ impl Table {
         );
         let mut table = Table {
             modulus: ii,
-            rows: 0,
             fu: Vec::new(),
             fu_result: Vec::new(),
             sp: Vec::new(),
@@ -239,8 +236,12 @@ impl Table {
         table
     }
 
+    /// Rows held (a straight-line table grows).
+    fn rows(&self) -> usize {
+        self.sout.len()
+    }
+
     fn grow(&mut self, rows: usize) {
-        self.rows = rows;
         self.fu.resize(rows * self.nfu, FREE);
         self.fu_result.resize(rows * self.nfu, FREE);
         self.sp.resize(rows * self.nsp, FREE);
@@ -269,8 +270,8 @@ impl Table {
             return;
         }
         let needed = self.row(from).max(self.row(to)) + 1;
-        if needed > self.rows {
-            self.grow(needed.max(2 * self.rows));
+        if needed > self.rows() {
+            self.grow(needed.max(2 * self.rows()));
         }
     }
 

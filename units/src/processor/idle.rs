@@ -55,7 +55,9 @@ pub fn run_until(
     let at = sim
         .module_index::<Processor>()
         .expect("the design holds a processor");
-    let maybe_idle = (sim.module::<Processor>(at).expect("found above"))
+    let maybe_idle = sim
+        .module::<Processor>(at)
+        .expect("found above")
         .maybe_idle
         .clone();
     let mut next_try = 0;
