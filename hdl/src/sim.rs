@@ -32,6 +32,13 @@ pub trait Module: Any {
     fn commit(&mut self);
     /// Reports the current value of every probe.
     fn trace(&self, _t: &mut Trace) {}
+    /// Whether a tracer is attached. A block keeps the latches that only its probes read
+    /// (operands of the last issue, the last write's data, ...) while one is, and may also
+    /// choose a faster path that gives the same results when none is (e.g. a divider that
+    /// computes its result at issue rather than stepping its recurrence core, whose
+    /// registers only a waveform shows). Blocks start with tracing on; [`Sim::new`] turns
+    /// it off and [`Sim::attach`] on again.
+    fn set_tracing(&mut self, _on: bool) {}
 }
 
 /// Shared state between two modules that commits on clock edges (pipes, FIFOs).
@@ -293,7 +300,7 @@ pub struct Sim {
 }
 
 impl Sim {
-    pub fn new(design: Design) -> Self {
+    pub fn new(mut design: Design) -> Self {
         let core = DomainId(0);
         let mut busy = 1u64 << core.0;
         for m in &design.modules {
@@ -301,6 +308,9 @@ impl Sim {
         }
         let module_domains = design.modules.iter().map(|m| m.domain()).collect();
         let asleep = vec![false; design.channels.len()];
+        for m in &mut design.modules {
+            m.set_tracing(false);
+        }
         Sim {
             design,
             module_domains,
@@ -319,6 +329,9 @@ impl Sim {
         #[cfg(feature = "probes")]
         {
             self.trace = Some(Trace::new(&self.design.probes, tracer));
+            for m in &mut self.design.modules {
+                m.set_tracing(true);
+            }
         }
         Ok(())
     }

@@ -9,7 +9,6 @@ use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, 
 use crate::delay::{DelayLine, InFlight};
 use crate::microcode::Permutation;
 
-#[derive(Debug)]
 pub struct CommUnit {
     path: String,
     lanes: usize,
@@ -21,8 +20,23 @@ pub struct CommUnit {
     lane_data: Vec<SignalId>,
     valid: SignalId,
     last_sent: bool,
+    /// A tracer is attached: the last words sent and their sources are latched.
+    tracing: bool,
     last_data: Vec<u32>,
     last_sources: Vec<u32>,
+}
+
+/// The network's state: the words on their way (not the probes' latches, which only a
+/// tracer reads).
+impl std::fmt::Debug for CommUnit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CommUnit")
+            .field("path", &self.path)
+            .field("line", &self.line)
+            .field("sent", &self.sent)
+            .field("last_sent", &self.last_sent)
+            .finish()
+    }
 }
 
 impl CommUnit {
@@ -50,6 +64,7 @@ impl CommUnit {
             lane_data,
             valid,
             last_sent: false,
+            tracing: true,
             last_data: vec![0; lanes],
             last_sources: vec![0; lanes],
         }
@@ -92,8 +107,10 @@ impl CommUnit {
                 *out = data[sources[c] as usize];
             }
         })?;
-        self.last_data.copy_from_slice(data);
-        self.last_sources.copy_from_slice(&self.sources);
+        if self.tracing {
+            self.last_data.copy_from_slice(data);
+            self.last_sources.copy_from_slice(&self.sources);
+        }
         Ok(())
     }
 
@@ -132,6 +149,12 @@ impl CommUnit {
     pub fn commit(&mut self) {
         self.line.commit();
         self.last_sent = std::mem::take(&mut self.sent);
+    }
+
+    /// Whether a tracer is attached (see [`imagine_hdl::Module::set_tracing`]): without one
+    /// the words sent and their sources are not latched for the probes.
+    pub fn set_tracing(&mut self, on: bool) {
+        self.tracing = on;
     }
 
     pub fn trace(&self, t: &mut Trace) {

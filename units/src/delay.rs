@@ -4,6 +4,7 @@
 //! with latency `L` in cycle `t` leaves in cycle `t + L`; two values due in the same cycle
 //! would share one result port, which is a [`ContractError`].
 
+use crate::lanes::{copy_mask, count};
 use crate::ring_position;
 use imagine_hdl::{ContractError, Violation};
 
@@ -53,6 +54,19 @@ impl DelayLine {
         mask: Option<&[bool]>,
         fill: impl FnOnce(&mut [u32]),
     ) -> Result<(), ContractError> {
+        self.insert_for::<0>(latency, tag, mask, fill)
+    }
+
+    /// [`insert`](Self::insert) compiled for `L` lanes ([`crate::lanes`]); `fill` gets a
+    /// slice of exactly the lane count.
+    #[inline(always)]
+    pub fn insert_for<const L: usize>(
+        &mut self,
+        latency: u32,
+        tag: u16,
+        mask: Option<&[bool]>,
+        fill: impl FnOnce(&mut [u32]),
+    ) -> Result<(), ContractError> {
         let len = self.ring.len();
         debug_assert!(
             (1..len).contains(&(latency as usize)),
@@ -73,11 +87,12 @@ impl DelayLine {
         }
         slot.valid = true;
         slot.tag = tag;
-        fill(&mut slot.values);
+        let n = count::<L>(slot.values.len());
+        fill(&mut slot.values[..n]);
         slot.masked = mask.is_some();
         match mask {
-            Some(m) => slot.mask.copy_from_slice(m),
-            None => slot.mask.fill(true),
+            Some(m) => copy_mask::<L>(&mut slot.mask, m),
+            None => slot.mask[..n].fill(true),
         }
         self.in_flight += 1;
         Ok(())

@@ -9,8 +9,16 @@
 
 use std::cell::Cell;
 
-use crate::lanes::copy_lanes;
+use crate::lanes::{copy_lanes, copy_mask, count, count_set};
 use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
+
+/// A port not used this cycle.
+const IDLE: u32 = u32::MAX;
+
+/// The entry a port uses this cycle, if any.
+fn port(entry: u32) -> Option<u16> {
+    (entry != IDLE).then_some(entry as u16)
+}
 
 #[derive(Debug)]
 pub struct Lrf {
@@ -19,16 +27,24 @@ pub struct Lrf {
     lanes: usize,
     /// Entry-major: `data[entry * lanes + lane]`.
     data: Vec<u32>,
-    /// The read port's use this cycle (a `Cell`, so reads share the file).
-    read_entry: Cell<Option<u16>>,
-    write_entry: Option<u16>,
+    /// The entry the read port reads this cycle (a `Cell`, so reads share the file) and the
+    /// entry the write port writes, or [`IDLE`]: one word each rather than an
+    /// `Option<u16>`, which is stored as two halves and read back whole (the processor then
+    /// waits for the store to reach the cache: a stall per access).
+    read_entry: Cell<u32>,
+    write_entry: u32,
     write_values: Vec<u32>,
     write_mask: Vec<bool>,
     /// The pending write goes only to the clusters `write_mask` selects.
     write_masked: bool,
     /// Words read and written so far, over all clusters (for bandwidth statistics).
-    words_read: u64,
+    words_read: Cell<u64>,
     words_written: u64,
+    /// A tracer is attached: the ports' use is latched for the probes each cycle. Without
+    /// one the cluster's reads (of a program that passed the microcode check, which reads
+    /// each file from its one slot, so the port cannot be asked twice) leave the port alone,
+    /// and a cycle's commit has something to do only where a write lands.
+    tracing: bool,
     probes: LrfProbes,
 }
 
@@ -86,13 +102,14 @@ impl Lrf {
             entries,
             lanes,
             data: vec![0; entries * lanes],
-            read_entry: Cell::new(None),
-            write_entry: None,
+            read_entry: Cell::new(IDLE),
+            write_entry: IDLE,
             write_values: vec![0; lanes],
             write_mask: vec![true; lanes],
             write_masked: false,
-            words_read: 0,
+            words_read: Cell::new(0),
             words_written: 0,
+            tracing: true,
             probes,
         }
     }
@@ -107,7 +124,13 @@ impl Lrf {
 
     /// Words read and written so far over all clusters: `(read, written)`.
     pub fn words_moved(&self) -> (u64, u64) {
-        (self.words_read, self.words_written)
+        (self.words_read.get(), self.words_written)
+    }
+
+    /// Whether a tracer is attached (see the field's doc and
+    /// [`imagine_hdl::Module::set_tracing`]).
+    pub fn set_tracing(&mut self, on: bool) {
+        self.tracing = on;
     }
 
     /// The error for a bad use of `port`; kept out of line so the ports stay small.
@@ -126,13 +149,35 @@ impl Lrf {
     /// Reads `entry` in every cluster (the read port, once per cycle).
     #[inline]
     pub fn read(&self, entry: u16) -> Result<&[u32], ContractError> {
-        let previous = self.read_entry.get();
-        if previous.is_some() || entry as usize >= self.entries {
-            return Err(self.port_error("read", entry, previous));
+        self.read_port::<0>(entry)
+    }
+
+    /// The cluster's read of an operand of a program that passed the microcode check,
+    /// compiled for `L` lanes ([`crate::lanes`]): the port's use is only kept when a tracer
+    /// is attached (see the `tracing` field).
+    #[inline(always)]
+    pub(crate) fn read_for<const L: usize>(&self, entry: u16) -> Result<&[u32], ContractError> {
+        if self.tracing || cfg!(feature = "inject-bugs") {
+            return self.read_port::<L>(entry);
         }
-        self.read_entry.set(Some(entry));
-        let start = entry as usize * self.lanes;
-        Ok(&self.data[start..start + self.lanes])
+        let n = count::<L>(self.lanes);
+        self.words_read.set(self.words_read.get() + n as u64);
+        let start = entry as usize * n;
+        Ok(&self.data[start..start + n])
+    }
+
+    /// The read port: refuses a second read in a cycle and an entry outside the file.
+    #[inline(always)]
+    fn read_port<const L: usize>(&self, entry: u16) -> Result<&[u32], ContractError> {
+        let previous = self.read_entry.get();
+        if previous != IDLE || entry as usize >= self.entries {
+            return Err(self.port_error("read", entry, port(previous)));
+        }
+        self.read_entry.set(u32::from(entry));
+        let n = count::<L>(self.lanes);
+        self.words_read.set(self.words_read.get() + n as u64);
+        let start = entry as usize * n;
+        Ok(&self.data[start..start + n])
     }
 
     /// Writes `values` (one per cluster) to `entry` at the edge, in the clusters whose
@@ -144,14 +189,25 @@ impl Lrf {
         values: &[u32],
         mask: Option<&[bool]>,
     ) -> Result<(), ContractError> {
-        if self.write_entry.is_some() || entry as usize >= self.entries {
-            return Err(self.port_error("write", entry, self.write_entry));
+        self.write_for::<0>(entry, values, mask)
+    }
+
+    /// [`write`](Self::write) compiled for `L` lanes ([`crate::lanes`]).
+    #[inline(always)]
+    pub(crate) fn write_for<const L: usize>(
+        &mut self,
+        entry: u16,
+        values: &[u32],
+        mask: Option<&[bool]>,
+    ) -> Result<(), ContractError> {
+        if self.write_entry != IDLE || entry as usize >= self.entries {
+            return Err(self.port_error("write", entry, port(self.write_entry)));
         }
-        self.write_entry = Some(entry);
-        copy_lanes(&mut self.write_values, values);
+        self.write_entry = u32::from(entry);
+        copy_lanes::<L>(&mut self.write_values, values);
         self.write_masked = mask.is_some();
         if let Some(m) = mask {
-            self.write_mask.copy_from_slice(m);
+            copy_mask::<L>(&mut self.write_mask, m);
         }
         Ok(())
     }
@@ -169,7 +225,7 @@ impl Lrf {
     /// Brings a file with no access pending over idle cycles, as their commits would: the
     /// probe latches of the last access clear.
     pub fn skip_idle(&mut self) {
-        debug_assert!(self.read_entry.get().is_none() && self.write_entry.is_none());
+        debug_assert!(self.read_entry.get() == IDLE && self.write_entry == IDLE);
         self.probes.last_read = None;
         self.probes.last_write = None;
     }
@@ -177,47 +233,67 @@ impl Lrf {
     /// Ends the cycle: the write lands; the ports' use is kept for the probes.
     #[inline]
     pub fn commit(&mut self) {
-        let p = &mut self.probes;
-        // Most files see no access in a cycle: leave them after the cheapest test.
-        if self.write_entry.is_none() && self.read_entry.get().is_none() {
-            p.last_read = None;
-            p.last_write = None;
+        self.commit_for::<0>()
+    }
+
+    /// [`commit`](Self::commit) compiled for `L` lanes ([`crate::lanes`]).
+    #[inline(always)]
+    pub(crate) fn commit_for<const L: usize>(&mut self) {
+        if !self.tracing && !cfg!(feature = "inject-bugs") {
+            // Only a write has anything to do (see the `tracing` field).
+            if self.write_entry != IDLE {
+                let e = std::mem::replace(&mut self.write_entry, IDLE);
+                self.land::<L>(e as u16);
+            }
             return;
         }
-        p.last_read = self.read_entry.take();
-        p.last_write = self.write_entry.take();
-        if p.last_read.is_some() {
-            self.words_read += self.lanes as u64;
+        // Most files see no access in a cycle: leave them after the cheapest test.
+        if self.write_entry == IDLE && self.read_entry.get() == IDLE {
+            self.probes.last_read = None;
+            self.probes.last_write = None;
+            return;
         }
-        if let Some(e) = p.last_write {
+        let last_read = port(self.read_entry.replace(IDLE));
+        let last_write = port(std::mem::replace(&mut self.write_entry, IDLE));
+        (self.probes.last_read, self.probes.last_write) = (last_read, last_write);
+        if let Some(e) = last_write {
             #[cfg(feature = "inject-bugs")]
-            if p.last_read == Some(e)
+            if last_read == Some(e)
                 && imagine_hdl::inject::active(
                     imagine_hdl::inject::Bug::LrfDropsWriteOnSameEntryRead,
                 )
             {
                 return;
             }
-            self.words_written += if self.write_masked {
-                self.write_mask.iter().filter(|&&m| m).count() as u64
-            } else {
-                self.lanes as u64
-            };
-            let start = e as usize * self.lanes;
-            let row = &mut self.data[start..start + self.lanes];
-            if self.write_masked {
-                for ((d, &v), &m) in row.iter_mut().zip(&self.write_values).zip(&self.write_mask) {
-                    if m {
-                        *d = v;
-                    }
-                }
-            } else {
-                copy_lanes(row, &self.write_values);
-            }
+            self.land::<L>(e);
             // The write buffers become the probe's copy; the next write refills the others.
+            let p = &mut self.probes;
             std::mem::swap(&mut p.last_values, &mut self.write_values);
             std::mem::swap(&mut p.last_mask, &mut self.write_mask);
             p.last_masked = self.write_masked;
+        }
+    }
+
+    /// The pending write to `e` lands.
+    #[inline(always)]
+    fn land<const L: usize>(&mut self, e: u16) {
+        let n = count::<L>(self.lanes);
+        self.words_written += if self.write_masked {
+            count_set::<L>(&self.write_mask) as u64
+        } else {
+            n as u64
+        };
+        let start = e as usize * n;
+        let row = &mut self.data[start..start + n];
+        if self.write_masked {
+            let (values, mask) = (&self.write_values[..n], &self.write_mask[..n]);
+            for ((d, &v), &m) in row.iter_mut().zip(values).zip(mask) {
+                if m {
+                    *d = v;
+                }
+            }
+        } else {
+            copy_lanes::<L>(row, &self.write_values);
         }
     }
 

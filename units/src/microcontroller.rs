@@ -26,7 +26,9 @@
 //! start or stop on any copy. A stream loop's words per pass are counted over its first
 //! pass (the check makes every pass read as many).
 //!
-//! State changes are computed during the cycle and committed at the edge, like every block.
+//! The cycle's decisions update the sequencer's state as they are made: nothing outside it
+//! reads that state before the edge, so the edge has nothing to copy, and a fetch that a
+//! stall discards is undone.
 
 use imagine_hdl::{
     ContractError, Display, Scope, SignalId, SignalKind, Trace, Violation, bits_for,
@@ -63,8 +65,8 @@ pub enum Phase {
     Finishing,
 }
 
-/// Sequencer state (committed) and its next value.
-#[derive(Debug, PartialEq, Eq)]
+/// Sequencer state.
+#[derive(Clone, Debug, PartialEq, Eq)]
 struct State {
     phase: Phase,
     pc: u16,
@@ -73,22 +75,16 @@ struct State {
     frames: Vec<Frame>,
 }
 
-/// `clone_from` reuses the loop stack's allocation: the sequencer copies its state every
-/// cycle.
-impl Clone for State {
-    fn clone(&self) -> Self {
-        State {
-            frames: self.frames.clone(),
-            ..*self
-        }
-    }
-
-    fn clone_from(&mut self, source: &Self) {
-        self.phase = source.phase;
-        self.pc = source.pc;
-        self.looped_back = source.looped_back;
-        self.frames.clone_from(&source.frames);
-    }
+/// What a cycle's fetch changed, so that a stall can take it back. The state is updated in
+/// place as the cycle decides (nothing outside the sequencer reads it before the edge), so
+/// that a cycle does not copy the loop stack; a fetch discarded by a stall is undone.
+#[derive(Clone, Copy, Debug)]
+struct Undo {
+    phase: Phase,
+    pc: u16,
+    looped_back: bool,
+    /// The fetch entered a loop (pushed its frame).
+    pushed: bool,
 }
 
 #[derive(Debug)]
@@ -104,10 +100,9 @@ pub struct Microcontroller {
     /// the loop's first instruction to the first that ends a pass of it): a record of `k`
     /// words is `k` rows, so a software-pipelined loop runs `rows / k` iterations.
     rows_per_pass: Vec<u64>,
-    q: State,
-    d: State,
-    /// `d` has been prepared from `q` this cycle.
-    dirty: bool,
+    state: State,
+    /// Set by the first decision of a cycle, cleared at the edge.
+    undo: Option<Undo>,
     probes: [SignalId; 5],
 }
 
@@ -153,9 +148,8 @@ impl Microcontroller {
             loop_depth,
             loop_end: Vec::new(),
             rows_per_pass: Vec::new(),
-            q: idle.clone(),
-            d: idle,
-            dirty: false,
+            state: idle,
+            undo: None,
             probes,
         }
     }
@@ -220,14 +214,11 @@ impl Microcontroller {
                 self.rows_per_pass[b] = reads.max(1) as u64;
             }
         }
-        self.q = State {
-            phase: Phase::Running,
-            pc: 0,
-            looped_back: false,
-            frames: Vec::new(),
-        };
-        self.d = self.q.clone();
-        self.dirty = false;
+        self.state.phase = Phase::Running;
+        self.state.pc = 0;
+        self.state.looped_back = false;
+        self.state.frames.clear();
+        self.undo = None;
         Ok(())
     }
 
@@ -239,11 +230,11 @@ impl Microcontroller {
     }
 
     pub fn phase(&self) -> Phase {
-        self.q.phase
+        self.state.phase
     }
 
     pub fn pc(&self) -> u16 {
-        self.q.pc
+        self.state.pc
     }
 
     /// Decides this cycle's instruction: enters or skips loops starting at `pc`. Returns the
@@ -254,18 +245,18 @@ impl Microcontroller {
         env: &impl LoopEnv,
     ) -> Result<Option<(u16, Liveness)>, ContractError> {
         self.prepare();
-        if self.q.phase != Phase::Running {
+        if self.state.phase != Phase::Running {
             return Ok(None);
         }
-        let mut pc = self.q.pc;
+        let mut pc = self.state.pc;
         // Enter loops that start here (a skipped loop may be followed by another).
         while let Some(LoopBegin { kind, stages }) = code[pc as usize].control.begin {
             // Reached by the back edge: the loop's frame exists (for a one-instruction body,
             // the instruction loops to itself).
-            if self.d.looped_back {
+            if self.state.looped_back {
                 break;
             }
-            if self.d.frames.len() == self.loop_depth {
+            if self.state.frames.len() == self.loop_depth {
                 return Err(self.malformed(pc as usize, "loops nested deeper than the loop stack"));
             }
             let iterations = match kind {
@@ -281,7 +272,10 @@ impl Microcontroller {
                 pc = end + 1;
                 continue;
             }
-            self.d.frames.push(Frame {
+            if let Some(u) = &mut self.undo {
+                u.pushed = true;
+            }
+            self.state.frames.push(Frame {
                 begin: pc,
                 end,
                 kind,
@@ -291,8 +285,8 @@ impl Microcontroller {
             });
             break;
         }
-        self.d.pc = pc;
-        let live = match self.d.frames.last() {
+        self.state.pc = pc;
+        let live = match self.state.frames.last() {
             Some(f) => {
                 #[cfg(feature = "inject-bugs")]
                 let f = &Frame {
@@ -324,8 +318,8 @@ impl Microcontroller {
         code: &[Instruction],
         env: &impl LoopEnv,
     ) -> Result<(), ContractError> {
-        let pc = self.d.pc;
-        self.d.looped_back = false;
+        let pc = self.state.pc;
+        self.state.looped_back = false;
         let Control {
             end,
             pass_end,
@@ -333,12 +327,12 @@ impl Microcontroller {
             ..
         } = code[pc as usize].control;
         if done {
-            self.d.phase = Phase::Finishing;
+            self.state.phase = Phase::Finishing;
             return Ok(());
         }
         if end || pass_end {
             let f = self
-                .d
+                .state
                 .frames
                 .last_mut()
                 .expect("an `end` or `pass` ends a pass of a frame");
@@ -353,55 +347,66 @@ impl Microcontroller {
             };
             if again && end {
                 // Back to the first instruction (this one, for a one-instruction body).
-                self.d.pc = f.begin;
-                self.d.looped_back = true;
+                self.state.pc = f.begin;
+                self.state.looped_back = true;
                 return Ok(());
             }
             if !again {
                 // Out of the loop, from its last instruction or from the middle of its body.
                 let exit = f.end;
-                self.d.frames.pop();
-                self.d.pc = exit + 1;
+                self.state.frames.pop();
+                self.state.pc = exit + 1;
                 return Ok(());
             }
             // Going on at a `pass_end`: the next pass starts on the next instruction.
         }
-        self.d.pc = pc + 1;
+        self.state.pc = pc + 1;
         Ok(())
     }
 
     /// The kernel has finished draining.
     pub fn finish(&mut self) {
         self.prepare();
-        self.d.phase = Phase::Idle;
+        self.state.phase = Phase::Idle;
     }
 
-    /// Forgets this cycle's decisions: the clusters stalled and nothing issued.
+    /// Forgets this cycle's decisions: the clusters stalled and nothing issued (called
+    /// after `fetch`, before `advance`).
     pub fn discard(&mut self) {
-        self.dirty = false;
+        if let Some(u) = self.undo.take() {
+            self.state.phase = u.phase;
+            self.state.pc = u.pc;
+            self.state.looped_back = u.looped_back;
+            if u.pushed {
+                self.state.frames.pop();
+            }
+        }
     }
 
+    /// Notes the state as it was before this cycle's first decision.
     fn prepare(&mut self) {
-        if !self.dirty {
-            self.d.clone_from(&self.q);
-            self.dirty = true;
+        if self.undo.is_none() {
+            self.undo = Some(Undo {
+                phase: self.state.phase,
+                pc: self.state.pc,
+                looped_back: self.state.looped_back,
+                pushed: false,
+            });
         }
     }
 
-    /// The edge: the next state computed this cycle (if any) becomes current. A cycle in
-    /// which nothing was fetched (a stall) leaves the state as it was.
+    /// The edge: the decisions of this cycle stand. A cycle in which the fetch was
+    /// discarded (a stall) leaves the state as it was.
     pub fn commit(&mut self) {
-        if std::mem::take(&mut self.dirty) {
-            std::mem::swap(&mut self.q, &mut self.d);
-        }
+        self.undo = None;
     }
 
     pub fn trace(&self, t: &mut Trace) {
         let [pc, phase, depth, pass, iterations] = self.probes;
-        t.value(pc, self.q.pc as u64);
-        t.value(phase, self.q.phase as u64);
-        t.value(depth, self.q.frames.len() as u64);
-        let top = self.q.frames.last();
+        t.value(pc, self.state.pc as u64);
+        t.value(phase, self.state.phase as u64);
+        t.value(depth, self.state.frames.len() as u64);
+        let top = self.state.frames.last();
         t.value(pass, top.map_or(0, |f| f.pass & 0xFFFF_FFFF));
         t.value(
             iterations,

@@ -184,8 +184,24 @@ macro_rules! op_table {
                 out: &mut [u32],
                 flags: &mut [Flags],
             ) {
-                let n = out.len();
-                let (a, b, c, flags) = (&a[..n], &b[..n], &c[..n], &mut flags[..n]);
+                self.eval_lanes_fixed::<0>(a, b, c, mode, out, flags)
+            }
+
+            /// [`eval_lanes`](Self::eval_lanes) compiled for `L` lanes (`out.len()` must
+            /// be `L`), or for any count where `L` is 0: see [`crate::lanes`].
+            #[inline]
+            pub fn eval_lanes_fixed<const L: usize>(
+                self,
+                a: &[u32],
+                b: &[u32],
+                c: &[u32],
+                mode: FpMode,
+                out: &mut [u32],
+                flags: &mut [Flags],
+            ) {
+                let n = crate::lanes::count::<L>(out.len());
+                let (a, b, c) = (&a[..n], &b[..n], &c[..n]);
+                let (out, flags) = (&mut out[..n], &mut flags[..n]);
                 // The fp32 adder and multiplier ops have lane datapaths of their own: a
                 // branch-free fast path over all lanes (evaluated several lanes at a time),
                 // then the complete datapath for the lanes it could not finish.

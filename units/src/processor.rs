@@ -398,6 +398,10 @@ impl Module for Processor {
         );
     }
 
+    fn set_tracing(&mut self, on: bool) {
+        self.machine.set_tracing(on);
+    }
+
     fn trace(&self, t: &mut Trace) {
         self.machine.trace(t);
         self.ags.iter().for_each(|a| a.trace(t));

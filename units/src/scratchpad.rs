@@ -7,8 +7,8 @@
 use imagine_hdl::{ContractError, Scope, SignalId, SignalKind, Trace, Violation, bits_for};
 
 use crate::delay::{DelayLine, InFlight};
+use crate::lanes::{copy_lanes, count};
 
-#[derive(Debug)]
 pub struct Scratchpad {
     path: String,
     words: usize,
@@ -28,15 +28,33 @@ pub struct Scratchpad {
     probes: SpProbes,
 }
 
-#[derive(Debug)]
 struct SpProbes {
     access: SignalId,
     write: SignalId,
     lane_addr: Vec<SignalId>,
     lane_data: Vec<SignalId>,
     last: Option<bool>,
+    /// A tracer is attached: the last access's addresses and data are latched.
+    tracing: bool,
     last_addr: Vec<u32>,
     last_data: Vec<u32>,
+}
+
+/// The scratchpad's state: its words and the accesses on their way (not the probes'
+/// latches, which only a tracer reads).
+impl std::fmt::Debug for Scratchpad {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scratchpad")
+            .field("path", &self.path)
+            .field("data", &self.data)
+            .field("reads", &self.reads)
+            .field("write_addrs", &self.write_addrs)
+            .field("write_data", &self.write_data)
+            .field("accessed", &self.accessed)
+            .field("reserved", &self.reserved)
+            .field("last_access", &self.probes.last)
+            .finish()
+    }
 }
 
 impl Scratchpad {
@@ -82,13 +100,15 @@ impl Scratchpad {
                 lane_addr,
                 lane_data,
                 last: None,
+                tracing: true,
                 last_addr: vec![0; lanes],
                 last_data: vec![0; lanes],
             },
         }
     }
 
-    fn addresses(
+    #[inline(always)]
+    fn addresses<const L: usize>(
         &mut self,
         base: u16,
         offsets: Option<&[u32]>,
@@ -100,12 +120,25 @@ impl Scratchpad {
                 1,
             ));
         }
-        for c in 0..self.lanes {
-            let addr = (base as u32).wrapping_add(offsets.map_or(0, |o| o[c]));
-            if mask[c] && addr as usize >= self.words - self.reserved {
-                return Err(self.address_error(c, addr));
+        let n = count::<L>(self.lanes);
+        let (mask, limit) = (&mask[..n], self.words - self.reserved);
+        let addrs = &mut self.addr_scratch[..n];
+        match offsets {
+            Some(o) => {
+                for (a, &o) in addrs.iter_mut().zip(&o[..n]) {
+                    *a = (base as u32).wrapping_add(o);
+                }
             }
-            self.addr_scratch[c] = addr;
+            None => addrs.fill(base as u32),
+        }
+        // One test over every cluster; which one is out of range only matters for the error.
+        let bad =
+            (addrs.iter().zip(mask)).fold(false, |bad, (&a, &m)| bad | (m & (a as usize >= limit)));
+        if bad {
+            let c = (addrs.iter().zip(mask))
+                .position(|(&a, &m)| m && a as usize >= limit)
+                .expect("found above");
+            return Err(self.address_error(c, self.addr_scratch[c]));
         }
         Ok(())
     }
@@ -153,20 +186,32 @@ impl Scratchpad {
         mask: &[bool],
         tag: u16,
     ) -> Result<(), ContractError> {
-        self.addresses(base, offsets, mask)?;
-        let (data, lanes, addrs) = (&self.data, self.lanes, &self.addr_scratch);
+        self.read_for::<0>(base, offsets, mask, tag)
+    }
+
+    /// [`read`](Self::read) compiled for `L` lanes ([`crate::lanes`]).
+    #[inline(always)]
+    pub(crate) fn read_for<const L: usize>(
+        &mut self,
+        base: u16,
+        offsets: Option<&[u32]>,
+        mask: &[bool],
+        tag: u16,
+    ) -> Result<(), ContractError> {
+        self.addresses::<L>(base, offsets, mask)?;
+        let n = count::<L>(self.lanes);
+        let (data, addrs, mask) = (&self.data, &self.addr_scratch[..n], &mask[..n]);
         let masked = mask.iter().any(|&m| !m).then_some(mask);
-        self.reads.insert(self.read_latency, tag, masked, |v| {
-            for c in 0..lanes {
-                v[c] = if mask[c] {
-                    data[addrs[c] as usize * lanes + c]
-                } else {
-                    0
-                };
-            }
-        })?;
+        self.reads
+            .insert_for::<L>(self.read_latency, tag, masked, |v| {
+                for (c, (v, (&a, &m))) in v.iter_mut().zip(addrs.iter().zip(mask)).enumerate() {
+                    *v = if m { data[a as usize * n + c] } else { 0 };
+                }
+            })?;
         self.probes.last = Some(false);
-        self.probes.last_addr.copy_from_slice(&self.addr_scratch);
+        if self.probes.tracing {
+            self.probes.last_addr.copy_from_slice(&self.addr_scratch);
+        }
         Ok(())
     }
 
@@ -178,17 +223,31 @@ impl Scratchpad {
         values: &[u32],
         mask: &[bool],
     ) -> Result<(), ContractError> {
-        self.addresses(base, offsets, mask)?;
+        self.write_for::<0>(base, offsets, values, mask)
+    }
+
+    /// [`write`](Self::write) compiled for `L` lanes ([`crate::lanes`]).
+    #[inline(always)]
+    pub(crate) fn write_for<const L: usize>(
+        &mut self,
+        base: u16,
+        offsets: Option<&[u32]>,
+        values: &[u32],
+        mask: &[bool],
+    ) -> Result<(), ContractError> {
+        self.addresses::<L>(base, offsets, mask)?;
         let addrs = &self.addr_scratch;
         self.write_addrs
-            .insert(self.write_latency, 0, Some(mask), |v| {
-                v.copy_from_slice(addrs)
+            .insert_for::<L>(self.write_latency, 0, Some(mask), |v| {
+                copy_lanes::<L>(v, addrs)
             })?;
         self.write_data
-            .insert(self.write_latency, 0, None, |v| v.copy_from_slice(values))?;
+            .insert_for::<L>(self.write_latency, 0, None, |v| copy_lanes::<L>(v, values))?;
         self.probes.last = Some(true);
-        self.probes.last_addr.copy_from_slice(&self.addr_scratch);
-        self.probes.last_data.copy_from_slice(values);
+        if self.probes.tracing {
+            self.probes.last_addr.copy_from_slice(&self.addr_scratch);
+            self.probes.last_data.copy_from_slice(values);
+        }
         Ok(())
     }
 
@@ -242,6 +301,12 @@ impl Scratchpad {
     }
 
     /// The committed word at `addr` in cluster `lane` (for inspection and tests).
+    /// Whether a tracer is attached (see [`imagine_hdl::Module::set_tracing`]): without one
+    /// the addresses and data of each access are not latched for the probes.
+    pub fn set_tracing(&mut self, on: bool) {
+        self.probes.tracing = on;
+    }
+
     pub fn peek(&self, addr: usize, lane: usize) -> u32 {
         self.data[addr * self.lanes + lane]
     }

@@ -21,9 +21,10 @@ pub trait StreamSink {
     ) -> Result<(), ContractError>;
 }
 
-/// Routes one result (a word per cluster, written where `mask` allows) to its destinations.
-#[inline]
-pub fn route(
+/// Routes one result (a word per cluster, written where `mask` allows) to its destinations;
+/// compiled for `L` lanes ([`crate::lanes`]).
+#[inline(always)]
+pub fn route<const L: usize>(
     dests: &Dests,
     values: &[u32],
     mask: Option<&[bool]>,
@@ -34,7 +35,7 @@ pub fn route(
 ) -> Result<(), ContractError> {
     for dest in dests.iter().flatten() {
         match *dest {
-            Dest::Lrf { lrf, entry } => lrfs[lrf as usize].write(entry, values, mask)?,
+            Dest::Lrf { lrf, entry } => lrfs[lrf as usize].write_for::<L>(entry, values, mask)?,
             Dest::Cc { index } => cc.write(index, values, mask.unwrap_or(all_lanes))?,
             Dest::Stream { stream } => streams.append(stream, values, mask)?,
         }

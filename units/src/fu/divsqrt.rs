@@ -37,6 +37,7 @@ use crate::arith::fp32::div::{DIV_STEPS, DivJob, div_finish, div_setup};
 use crate::arith::fp32::sqrt::{SQRT_STEPS, SqrtJob, sqrt_finish, sqrt_setup};
 use crate::arith::fp32::{FpMode, Setup};
 use crate::desc::MachineDesc;
+use crate::lanes::count;
 use crate::ops::{Op, UnitClass};
 
 /// Recurrence steps of the longer op.
@@ -108,7 +109,6 @@ struct CoreIds {
 }
 
 /// The divide/sqrt unit slot `name` in every cluster.
-#[derive(Debug)]
 pub struct DivSqrt {
     path: String,
     lanes: usize,
@@ -127,9 +127,52 @@ pub struct DivSqrt {
     values: Vec<u32>,
     flags: Vec<Flags>,
     issued: bool,
+    /// A tracer is attached: the recurrence core steps cycle by cycle and the issue latch
+    /// is kept, for the probes. Without one each lane's result is computed at issue by
+    /// the same recurrence run to its end ([`fp32::div`], [`fp32::sqrt`]: the same
+    /// setup, steps and rounding, so the same bits and flags), and only the timing is
+    /// modelled.
+    ///
+    /// [`fp32::div`]: crate::arith::fp32::div
+    /// [`fp32::sqrt`]: crate::arith::fp32::sqrt
+    tracing: bool,
     latch: IssueLatch,
     probes: UnitProbes,
     core_ids: Vec<CoreIds>,
+}
+
+/// The unit's state: what is in flight, each lane's job as the result it gives (a job in
+/// the recurrence core and one computed at issue are the same op on its way), and the
+/// result register; not the probes' latches or the core's digits, which only a tracer
+/// reads.
+impl std::fmt::Debug for DivSqrt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let n = self.lanes;
+        let in_flight: Vec<_> = (self.ring.slots.iter().enumerate())
+            .filter(|(_, s)| s.valid)
+            .map(|(i, s)| {
+                let results: Vec<_> = self.jobs[i * n..(i + 1) * n]
+                    .iter()
+                    .map(|j| {
+                        let mut j = *j;
+                        j.step(STEPS);
+                        j.finish(self.mode)
+                    })
+                    .collect();
+                (i, s, results)
+            })
+            .collect();
+        f.debug_struct("DivSqrt")
+            .field("path", &self.path)
+            .field("ring_head", &self.ring.head)
+            .field("ring_cycle", &self.ring.cycle)
+            .field("in_flight", &in_flight)
+            .field("last", &self.last)
+            .field("values", &self.values)
+            .field("flags", &self.flags)
+            .field("issued", &self.issued)
+            .finish()
+    }
 }
 
 impl DivSqrt {
@@ -174,6 +217,7 @@ impl DivSqrt {
             values: vec![0; lanes],
             flags: vec![Flags::NONE; lanes],
             issued: false,
+            tracing: true,
             latch: IssueLatch::new(lanes),
             probes,
             core_ids,
@@ -186,12 +230,35 @@ impl DivSqrt {
         if self.issued {
             return Err(second_issue(&self.path));
         }
-        let lat = match is.op {
-            Op::FDiv => self.latency_div,
-            Op::FSqrt => self.latency_sqrt,
-            op => return Err(wrong_class(&self.path, op, UnitClass::DivSqrt)),
+        if !matches!(is.op, Op::FDiv | Op::FSqrt) {
+            return Err(wrong_class(&self.path, is.op, UnitClass::DivSqrt));
+        }
+        let (a, b, c) = operands(&self.path, self.lanes, &is)?;
+        self.issue_checked::<0>(is.op, [a, b, c], is.tag)
+    }
+
+    /// [`issue`](Self::issue) for an op known to be `fdiv` or `fsqrt` with one word per lane
+    /// in each operand (the cluster issues only programs that passed the microcode check).
+    /// Still refused: a second issue in a cycle, an issue while the core is busy and a
+    /// writeback conflict, which depend on timing. Compiled for `L` lanes
+    /// ([`crate::lanes`]).
+    #[inline(always)]
+    pub(crate) fn issue_checked<const L: usize>(
+        &mut self,
+        op: Op,
+        operands: [&[u32]; 3],
+        tag: u16,
+    ) -> Result<(), ContractError> {
+        if self.issued {
+            return Err(second_issue(&self.path));
+        }
+        let lat = if op == Op::FDiv {
+            self.latency_div
+        } else {
+            self.latency_sqrt
         };
-        let (a, b, _) = operands(&self.path, self.lanes, &is)?;
+        let [a, b, c] = operands;
+        let is = Issue { op, a, b, c, tag };
         if let Some((t0, s0)) = self.last
             && self.ring.cycle < t0 + u64::from(self.interval)
         {
@@ -201,9 +268,15 @@ impl DivSqrt {
         if self.ring.slots[s].valid {
             return Err(self.ring.conflict(&self.path, is.op, lat));
         }
-        let n = self.lanes;
+        let n = count::<L>(self.lanes);
         let (jobs, mode) = (&mut self.jobs[s * n..(s + 1) * n], self.mode);
-        if is.op == Op::FDiv {
+        let (a, b) = (&a[..n], &b[..n]);
+        if !self.tracing {
+            for ((j, &x), &y) in jobs.iter_mut().zip(a).zip(b) {
+                let (r, f) = is.op.eval(x, y, 0, mode);
+                *j = LaneJob::Done(r, f);
+            }
+        } else if is.op == Op::FDiv {
             for ((j, &x), &y) in jobs.iter_mut().zip(a).zip(b) {
                 *j = match div_setup(x, y, mode) {
                     Setup::Done(r, f) => LaneJob::Done(r, f),
@@ -226,9 +299,21 @@ impl DivSqrt {
             issued: self.ring.cycle,
         };
         self.last = Some((self.ring.cycle, s));
-        self.latch.capture(&is);
+        if self.tracing {
+            self.latch.capture(&is);
+        }
         self.issued = true;
         Ok(())
+    }
+
+    /// Whether a tracer is attached (see the field's doc and
+    /// [`imagine_hdl::Module::set_tracing`]).
+    pub fn set_tracing(&mut self, on: bool) {
+        if self.tracing && !on {
+            // Jobs in the core would no longer be stepped: run them to their end now.
+            self.jobs.iter_mut().for_each(|j| j.step(STEPS));
+        }
+        self.tracing = on;
     }
 
     #[cold]
@@ -274,13 +359,13 @@ impl DivSqrt {
         let n = self.lanes;
         if let Some((t0, s)) = self.last {
             let age = self.ring.cycle - t0;
-            if age <= u64::from(self.interval) {
+            if age > u64::from(self.interval) {
+                self.last = None;
+            } else if self.tracing {
                 let k = self.steps_per_cycle;
                 for j in &mut self.jobs[s * n..(s + 1) * n] {
                     j.step(k);
                 }
-            } else {
-                self.last = None;
             }
         }
         if self.ring.current().is_some() {

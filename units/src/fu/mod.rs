@@ -372,7 +372,7 @@ impl IssueLatch {
         self.op = is.op;
         let arity = is.op.arity();
         for (dst, src) in self.operands.iter_mut().zip([is.a, is.b, is.c]).take(arity) {
-            crate::lanes::copy_lanes(dst, src);
+            crate::lanes::copy_lanes::<0>(dst, src);
         }
     }
 

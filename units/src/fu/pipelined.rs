@@ -25,6 +25,7 @@ use super::{
 use crate::arith::flags::Flags;
 use crate::arith::fp32::FpMode;
 use crate::desc::MachineDesc;
+use crate::lanes::count;
 use crate::ops::{Op, UnitClass};
 
 /// The unit class of a [`Pipelined`] unit, at the type level.
@@ -52,7 +53,6 @@ pub type Adder = Pipelined<AdderKind>;
 pub type Multiplier = Pipelined<MultiplierKind>;
 
 /// A fully pipelined unit of class `K::CLASS`, one copy per lane (cluster).
-#[derive(Debug)]
 pub struct Pipelined<K: PipelinedKind> {
     path: String,
     lanes: usize,
@@ -66,9 +66,25 @@ pub struct Pipelined<K: PipelinedKind> {
     flags: Vec<Flags>,
     /// An op was issued in the current cycle.
     issued: bool,
+    /// A tracer is attached: the issue latch is kept for the probes.
+    tracing: bool,
     latch: IssueLatch,
     probes: UnitProbes,
     _kind: PhantomData<K>,
+}
+
+/// The unit's state: what is in flight and the values on their way (not the probes'
+/// latches, which only a tracer reads).
+impl<K: PipelinedKind> std::fmt::Debug for Pipelined<K> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Pipelined")
+            .field("path", &self.path)
+            .field("ring", &self.ring)
+            .field("values", &self.values)
+            .field("flags", &self.flags)
+            .field("issued", &self.issued)
+            .finish()
+    }
 }
 
 impl<K: PipelinedKind> Pipelined<K> {
@@ -106,6 +122,7 @@ impl<K: PipelinedKind> Pipelined<K> {
             values: vec![0; depth * lanes],
             flags: vec![Flags::NONE; depth * lanes],
             issued: false,
+            tracing: true,
             latch: IssueLatch::new(lanes),
             probes: UnitProbes::new(scope, name, lanes, ports, 1..=max_latency),
             _kind: PhantomData,
@@ -118,10 +135,30 @@ impl<K: PipelinedKind> Pipelined<K> {
         if self.issued {
             return Err(second_issue(&self.path));
         }
-        let lat = self.latency[is.op.opcode() as usize];
-        if lat == 0 {
+        if self.latency[is.op.opcode() as usize] == 0 {
             return Err(wrong_class(&self.path, is.op, K::CLASS));
         }
+        let (a, b, c) = operands(&self.path, self.lanes, &is)?;
+        self.issue_checked::<0>(is.op, [a, b, c], is.tag)
+    }
+
+    /// [`issue`](Self::issue) for an op whose unit class and operands are known good (the
+    /// cluster issues only programs that passed the microcode check): `operands` are one
+    /// word per lane each, any of them where the op reads fewer. Still refused: a second
+    /// issue in a cycle and a writeback conflict, which depend on timing. Compiled for `L`
+    /// lanes ([`crate::lanes`]).
+    #[inline(always)]
+    pub(crate) fn issue_checked<const L: usize>(
+        &mut self,
+        op: Op,
+        operands: [&[u32]; 3],
+        tag: u16,
+    ) -> Result<(), ContractError> {
+        if self.issued {
+            return Err(second_issue(&self.path));
+        }
+        let lat = self.latency[op.opcode() as usize];
+        debug_assert!(lat > 0, "`{op}` checked for this unit class");
         #[cfg(feature = "inject-bugs")]
         let lat = if lat < self.max_latency
             && imagine_hdl::inject::active(imagine_hdl::inject::Bug::PipelineShortOpsOneCycleLate)
@@ -130,14 +167,14 @@ impl<K: PipelinedKind> Pipelined<K> {
         } else {
             lat
         };
-        let (a, b, c) = operands(&self.path, self.lanes, &is)?;
+        let [a, b, c] = operands;
         let s = self.ring.slot_after(lat);
         if self.ring.slots[s].valid {
-            return Err(self.ring.conflict(&self.path, is.op, lat));
+            return Err(self.ring.conflict(&self.path, op, lat));
         }
-        let n = self.lanes;
+        let n = count::<L>(self.lanes);
         let range = s * n..(s + 1) * n;
-        is.op.eval_lanes(
+        op.eval_lanes_fixed::<L>(
             a,
             b,
             c,
@@ -146,7 +183,7 @@ impl<K: PipelinedKind> Pipelined<K> {
             &mut self.flags[range],
         );
         #[cfg(feature = "inject-bugs")]
-        if is.op == Op::Add16x2
+        if op == Op::Add16x2
             && imagine_hdl::inject::active(imagine_hdl::inject::Bug::PackedAddCarriesAcrossLanes)
         {
             for (v, (&x, &y)) in self.values[s * n..(s + 1) * n]
@@ -158,14 +195,22 @@ impl<K: PipelinedKind> Pipelined<K> {
         }
         self.ring.slots[s] = Slot {
             valid: true,
-            op: is.op,
-            tag: is.tag,
+            op,
+            tag,
             latency: lat,
             issued: self.ring.cycle,
         };
-        self.latch.capture(&is);
+        if self.tracing {
+            self.latch.capture(&Issue { op, a, b, c, tag });
+        }
         self.issued = true;
         Ok(())
+    }
+
+    /// Whether a tracer is attached (see [`imagine_hdl::Module::set_tracing`]): without
+    /// one the operands of each issue are not latched for the probes.
+    pub fn set_tracing(&mut self, on: bool) {
+        self.tracing = on;
     }
 
     /// The op completing in the current cycle, if any (from committed state).

@@ -21,6 +21,8 @@
 //! After the `Done` instruction the machine waits for every result in flight, then flushes
 //! the output stream buffers into the SRF; then the kernel is over.
 
+mod decode;
+
 use std::fmt;
 use std::sync::Arc;
 
@@ -30,14 +32,16 @@ use crate::ccfile::CcFile;
 use crate::comm::CommUnit;
 use crate::delay::{DelayLine, InFlight};
 use crate::desc::MachineDesc;
-use crate::fu::{Adder, Completion, DivSqrt, Issue, Multiplier};
+use crate::fu::{Adder, Completion, DivSqrt, Multiplier};
+use crate::lanes::{copy_lanes, copy_mask, count, count_set};
 use crate::lrf::Lrf;
-use crate::microcode::{Dest, Dests, ImmValue, Instruction, Permutation, Program, StreamDir};
+use crate::microcode::{Dest, Dests, ImmValue, Program, StreamDir};
 use crate::microcontroller::{LoopEnv, Microcontroller, Phase};
 use crate::ops::Op;
 use crate::scratchpad::Scratchpad;
 use crate::srf::Srf;
 use crate::switch::{StreamSink, route};
+use decode::{Decoded, DecodedInst, FuUnit, Inputs};
 
 /// Where a kernel's stream lives in the SRF: its first word and its length (inputs) or the
 /// room reserved for it (outputs).
@@ -87,8 +91,7 @@ impl KernelStats {
 
 struct Kernel {
     program: Arc<Program>,
-    /// Some result goes from the switch straight to an output stream.
-    switch_writes_streams: bool,
+    decoded: Arc<Decoded>,
     bindings: Vec<StreamBinding>,
     stats: KernelStats,
     flushing: bool,
@@ -188,14 +191,23 @@ impl Fus {
         Ok(())
     }
 
-    fn issue(&mut self, slot: usize, is: Issue<'_>) -> Result<(), ContractError> {
-        let (a, m) = (self.adders.len(), self.multipliers.len());
-        if slot < a {
-            self.adders[slot].issue(is)
-        } else if slot < a + m {
-            self.multipliers[slot - a].issue(is)
-        } else {
-            self.divsqrts[slot - a - m].issue(is)
+    /// Issues a checked op (see [`Pipelined::issue_checked`]) to `unit`.
+    ///
+    /// [`Pipelined::issue_checked`]: crate::fu::Pipelined::issue_checked
+    #[inline(always)]
+    fn issue<const L: usize>(
+        &mut self,
+        unit: FuUnit,
+        op: Op,
+        operands: [&[u32]; 3],
+        tag: u16,
+    ) -> Result<(), ContractError> {
+        match unit {
+            FuUnit::Adder(i) => self.adders[i as usize].issue_checked::<L>(op, operands, tag),
+            FuUnit::Multiplier(i) => {
+                self.multipliers[i as usize].issue_checked::<L>(op, operands, tag)
+            }
+            FuUnit::DivSqrt(i) => self.divsqrts[i as usize].issue_checked::<L>(op, operands, tag),
         }
     }
 
@@ -227,6 +239,12 @@ impl Fus {
         self.divsqrts.iter_mut().for_each(|u| u.commit());
     }
 
+    fn set_tracing(&mut self, on: bool) {
+        self.adders.iter_mut().for_each(|u| u.set_tracing(on));
+        self.multipliers.iter_mut().for_each(|u| u.set_tracing(on));
+        self.divsqrts.iter_mut().for_each(|u| u.set_tracing(on));
+    }
+
     fn trace(&self, t: &mut Trace) {
         self.adders.iter().for_each(|u| u.trace(t));
         self.multipliers.iter().for_each(|u| u.trace(t));
@@ -245,60 +263,43 @@ struct Sources<'a> {
 
 impl<'a> Sources<'a> {
     /// Calls `f` with the destinations, words and cluster mask of every result leaving a
-    /// unit this cycle. A result's destinations are those of the instruction that issued
-    /// it (its tag).
+    /// unit this cycle. A result's destinations are those its slot had in the instruction
+    /// that issued it (its tag).
+    #[inline]
     fn for_each_due(
         &self,
-        code: &'a [Instruction],
-        mut f: impl FnMut(Dests, &'a [u32], Option<&'a [bool]>) -> Result<(), ContractError>,
+        decoded: &'a Decoded,
+        mut f: impl FnMut(&'a Dests, &'a [u32], Option<&'a [bool]>) -> Result<(), ContractError>,
     ) -> Result<(), ContractError> {
+        let ports = decoded.ports_of;
         let mask = |r: &'a InFlight| r.masked.then_some(&r.mask[..]);
-        self.fus.for_each_completed(|slot, c| {
-            f(slot_of(code, c.tag, |i| i.fu[slot]).dests, c.values, None)
-        })?;
+        self.fus
+            .for_each_completed(|slot, c| f(decoded.route(c.tag, slot), c.values, None))?;
         for (i, sp) in self.scratchpads.iter().enumerate() {
             if let Some(r) = sp.completed() {
-                f(
-                    slot_of(code, r.tag, |ins| ins.sp[i]).dests,
-                    &r.values,
-                    mask(r),
-                )?;
+                f(decoded.route(r.tag, ports.sp + i), &r.values, mask(r))?;
             }
         }
         for (i, cu) in self.comms.iter().enumerate() {
             if let Some(r) = cu.completed() {
-                f(
-                    slot_of(code, r.tag, |ins| ins.comm[i]).dests,
-                    &r.values,
-                    None,
-                )?;
+                f(decoded.route(r.tag, ports.comm + i), &r.values, None)?;
             }
         }
         for (i, line) in self.stream_reads.iter().enumerate() {
             if let Some(r) = line.current() {
-                f(
-                    slot_of(code, r.tag, |ins| ins.sin[i]).dests,
-                    &r.values,
-                    mask(r),
-                )?;
+                f(decoded.route(r.tag, ports.sin + i), &r.values, mask(r))?;
             }
         }
         if let Some(r) = self.immediates.current() {
-            f(slot_of(code, r.tag, |ins| ins.imm).dests, &r.values, None)?;
+            f(decoded.route(r.tag, ports.imm), &r.values, None)?;
         }
         Ok(())
     }
 }
 
-/// The slot of instruction `tag` that issued a result now leaving its unit.
-#[inline]
-fn slot_of<'a, S: 'a>(
-    code: &'a [Instruction],
-    tag: u16,
-    slot: impl FnOnce(&'a Instruction) -> Option<S>,
-) -> S {
-    slot(&code[tag as usize]).expect("a result in flight comes from an issued slot")
-}
+/// Programs kept in issue form (a frame's pipeline has a few dozen kernels at most; a
+/// caller that starts copies of programs, as `Machine::start` makes, does not grow the set).
+const DECODED_PROGRAMS: usize = 64;
 
 /// The machine.
 pub struct Machine {
@@ -316,6 +317,10 @@ pub struct Machine {
     uc: Microcontroller,
     /// Boxed: each cycle takes it out of the machine and puts it back.
     kernel: Option<Box<Kernel>>,
+    /// The programs started so far in issue form (a program is decoded the first time it
+    /// starts, not on every call). Each entry holds its program, so the program's address
+    /// identifies it as long as the entry lives.
+    decoded: Vec<(Arc<Program>, Arc<Decoded>)>,
     /// LRF indices of each slot's inputs.
     fu_inputs: Vec<[usize; 2]>,
     sp_inputs: Vec<[usize; 2]>,
@@ -395,6 +400,7 @@ impl Machine {
                 desc.microcontroller.loop_depth,
             ),
             kernel: None,
+            decoded: Vec::new(),
             fu_inputs,
             sp_inputs,
             comm_inputs,
@@ -509,30 +515,19 @@ impl Machine {
         self.uc
             .start(&program.code)
             .map_err(|e| StartError(e.to_string()))?;
+        let decoded = self.decoded_form(&program);
         // Conditional streams keep two scratchpad words per conditional word per cycle
         // for their buffers (ARCHITECTURE §4).
-        let conditional = program.code.iter().any(|i| {
-            i.sin.iter().flatten().any(|s| s.cond.is_some())
-                || i.sout.is_some_and(|s| s.cond.is_some())
-        });
-        let buffers = if conditional {
+        let buffers = if decoded.conditional_streams {
             2 * self.desc.srf.conditional_words_per_cycle
         } else {
             0
         };
         self.scratchpads[0].reserve_for_conditional_streams(buffers);
         let fu_slots = self.fu_inputs.len();
-        let to_stream = |d: &Dests| d.iter().flatten().any(|d| matches!(d, Dest::Stream { .. }));
-        let switch_writes_streams = program.code.iter().any(|i| {
-            i.fu.iter().flatten().any(|s| to_stream(&s.dests))
-                || i.sp.iter().flatten().any(|s| to_stream(&s.dests))
-                || i.comm.iter().flatten().any(|s| to_stream(&s.dests))
-                || i.sin.iter().flatten().any(|s| to_stream(&s.dests))
-                || i.imm.is_some_and(|s| to_stream(&s.dests))
-        });
         self.kernel = Some(Box::new(Kernel {
-            switch_writes_streams,
             program,
+            decoded,
             bindings: bindings.to_vec(),
             stats: KernelStats {
                 fu_ops: vec![0; fu_slots],
@@ -541,6 +536,31 @@ impl Machine {
             flushing: false,
         }));
         Ok(())
+    }
+
+    /// `program` in issue form, decoded the first time it starts.
+    fn decoded_form(&mut self, program: &Arc<Program>) -> Arc<Decoded> {
+        if let Some((_, d)) = self.decoded.iter().find(|(p, _)| Arc::ptr_eq(p, program)) {
+            return d.clone();
+        }
+        let c = &self.desc.cluster;
+        let d = Arc::new(Decoded::new(
+            program,
+            &Inputs {
+                fu: &self.fu_inputs,
+                sp: &self.sp_inputs,
+                comm: &self.comm_inputs,
+                sout: self.sout_input,
+                sin: self.stream_reads.len(),
+                adders: c.adders,
+                multipliers: c.multipliers,
+            },
+        ));
+        if self.decoded.len() == DECODED_PROGRAMS {
+            self.decoded.remove(0);
+        }
+        self.decoded.push((program.clone(), d.clone()));
+        d
     }
 
     /// Unbinds the stream buffers of the last kernel (once it is idle), so the memory
@@ -595,15 +615,10 @@ impl Machine {
     /// stepped them).
     #[cfg(test)]
     pub(crate) fn debug_state(&self) -> String {
-        let kernel = self.kernel.as_ref().map(|k| {
-            (
-                &k.program.name,
-                &k.bindings,
-                &k.stats,
-                k.flushing,
-                k.switch_writes_streams,
-            )
-        });
+        let kernel = self
+            .kernel
+            .as_ref()
+            .map(|k| (&k.program.name, &k.bindings, &k.stats, k.flushing));
         format!(
             "srf {:?}\nadders {:?}\nmultipliers {:?}\ndivsqrts {:?}\nlrfs {:?}\ncc {:?}\n\
              scratchpads {:?}\ncomms {:?}\nstream_reads {:?}\nimmediates {:?}\nuc {:?}\n\
@@ -661,13 +676,11 @@ impl Machine {
     fn must_stall(
         &self,
         kernel: &Kernel,
-        inst: &Instruction,
+        inst: &DecodedInst,
         live: crate::microcontroller::Liveness,
     ) -> Result<bool, ContractError> {
-        if !kernel.switch_writes_streams
-            && inst.sin.iter().all(Option::is_none)
-            && inst.sout.is_none()
-        {
+        let decoded = &*kernel.decoded;
+        if !decoded.switch_writes_streams && !inst.streams {
             return Ok(false);
         }
         // Words per stream this cycle (u32: a cycle moves at most a few words per cluster,
@@ -675,30 +688,29 @@ impl Machine {
         let mut need_in = [0u32; crate::desc::MAX_KERNEL_STREAMS];
         let mut need_out = [0u32; crate::desc::MAX_KERNEL_STREAMS];
         let lanes = self.lanes as u32;
-        for s in inst.sin.iter().flatten().filter(|s| live.live(s.stage)) {
+        for s in decoded.sin(inst).iter().filter(|s| live.live(s.stage)) {
             need_in[s.stream as usize] += match s.cond {
                 None => lanes,
                 Some(cc) => self.cc.read(cc)?.iter().filter(|&&b| b).count() as u32,
             };
         }
-        if let Some(s) = inst.sout.filter(|s| live.live(s.stage)) {
+        if let Some((s, _)) = inst.sout.filter(|(s, _)| live.live(s.stage)) {
             need_out[s.stream as usize] += match s.cond {
                 None => lanes,
                 Some(cc) => self.cc.read(cc)?.iter().filter(|&&b| b).count() as u32,
             };
         }
         // Results due this cycle that go to output streams.
-        if kernel.switch_writes_streams {
-            self.sources()
-                .for_each_due(&kernel.program.code, |dests, _, mask| {
-                    for d in dests.iter().flatten() {
-                        if let Dest::Stream { stream } = d {
-                            need_out[*stream as usize] +=
-                                mask.map_or(lanes, |m| m.iter().filter(|&&b| b).count() as u32);
-                        }
+        if decoded.switch_writes_streams {
+            self.sources().for_each_due(decoded, |dests, _, mask| {
+                for d in dests.iter().flatten() {
+                    if let Dest::Stream { stream } = d {
+                        need_out[*stream as usize] +=
+                            mask.map_or(lanes, |m| m.iter().filter(|&&b| b).count() as u32);
                     }
-                    Ok(())
-                })?;
+                }
+                Ok(())
+            })?;
         }
         for (stream, &need) in need_in
             .iter()
@@ -736,7 +748,7 @@ impl Machine {
     }
 
     /// Routes every result due this cycle through the switch.
-    fn writeback(&mut self, code: &[Instruction]) -> Result<(), ContractError> {
+    fn writeback<const L: usize>(&mut self, decoded: &Decoded) -> Result<(), ContractError> {
         // Borrow the sources and the destinations field by field: they are disjoint.
         let sources = Sources {
             fus: &self.fus,
@@ -750,8 +762,8 @@ impl Machine {
             lanes: self.lanes,
         };
         let (lrfs, cc, all_lanes) = (&mut self.lrfs, &mut self.cc, &self.all_lanes);
-        sources.for_each_due(code, |dests, values, mask| {
-            route(&dests, values, mask, all_lanes, lrfs, cc, &mut streams)
+        sources.for_each_due(decoded, |dests, values, mask| {
+            route::<L>(dests, values, mask, all_lanes, lrfs, cc, &mut streams)
         })
     }
 
@@ -766,124 +778,112 @@ impl Machine {
     }
 
     /// Issues the live slots of instruction `pc`.
-    fn issue(
+    #[inline(always)]
+    fn issue<const L: usize>(
         &mut self,
         kernel: &mut Kernel,
         pc: u16,
         live: crate::microcontroller::Liveness,
     ) -> Result<(), ContractError> {
-        let inst = &kernel.program.code[pc as usize];
+        let decoded = &*kernel.decoded;
+        let inst = decoded.inst(pc);
         let stats = &mut kernel.stats;
         stats.instructions += 1;
-        stats.loop_passes += inst.control.ends_pass() as u64;
-        for (slot, fu) in inst.fu.iter().enumerate() {
-            let Some(fu) = fu else { continue };
-            if !live.live(fu.stage) {
+        stats.loop_passes += inst.ends_pass as u64;
+        for f in decoded.fu(inst) {
+            if !live.live(f.stage) {
                 stats.squashed += 1;
                 continue;
             }
-            let [la, lb] = self.fu_inputs[slot];
-            let arity = fu.op.arity();
             // Operands go from the LRF read ports straight to the unit's input latches.
-            let a = self.lrfs[la].read(fu.a)?;
-            let b: &[u32] = if arity >= 2 {
-                self.lrfs[lb].read(fu.b)?
-            } else {
-                &[]
+            let a = self.lrfs[f.a.lrf as usize].read_for::<L>(f.a.entry)?;
+            let b = match f.b {
+                Some(b) => self.lrfs[b.lrf as usize].read_for::<L>(b.entry)?,
+                None => a,
             };
-            let is = if fu.op == Op::Select {
+            let operands = match f.select {
                 // select(cond, a, b): the condition code is the first operand.
-                let cond = &mut self.buf[2];
-                for (dst, &bit) in cond.iter_mut().zip(self.cc.read(fu.cc)?) {
-                    *dst = bit as u32;
+                Some(cc) => {
+                    let n = count::<L>(self.lanes);
+                    let cond = &mut self.buf[2][..n];
+                    for (dst, &bit) in cond.iter_mut().zip(&self.cc.read(cc)?[..n]) {
+                        *dst = bit as u32;
+                    }
+                    [&cond[..], a, b]
                 }
-                Issue {
-                    op: fu.op,
-                    a: cond,
-                    b: a,
-                    c: b,
-                    tag: pc,
-                }
-            } else {
-                Issue {
-                    op: fu.op,
-                    a,
-                    b,
-                    c: &[],
-                    tag: pc,
-                }
+                None => [a, b, a],
             };
-            self.fus.issue(slot, is)?;
-            stats.fu_ops[slot] += 1;
+            self.fus.issue::<L>(f.unit, f.op, operands, pc)?;
+            stats.fu_ops[f.slot as usize] += 1;
         }
-        for (i, sp) in inst.sp.iter().enumerate() {
-            let Some(sp) = sp else { continue };
+        for sp in decoded.sp(inst) {
             if !live.live(sp.stage) {
                 stats.squashed += 1;
                 continue;
             }
-            let [laddr, ldata] = self.sp_inputs[i];
+            let i = sp.index as usize;
             let [offsets, data, _] = &mut self.buf;
             let offsets = match sp.offset {
                 Some(e) => {
-                    offsets.copy_from_slice(self.lrfs[laddr].read(e)?);
+                    copy_lanes::<L>(offsets, self.lrfs[e.lrf as usize].read_for::<L>(e.entry)?);
                     Some(&offsets[..])
                 }
                 None => None,
             };
-            if sp.write {
-                data.copy_from_slice(self.lrfs[ldata].read(sp.data)?);
-                self.scratchpads[i].write(sp.base, offsets, data, &self.all_lanes)?;
-            } else {
-                self.scratchpads[i].read(sp.base, offsets, &self.all_lanes, pc)?;
+            match sp.data {
+                Some(e) => {
+                    copy_lanes::<L>(data, self.lrfs[e.lrf as usize].read_for::<L>(e.entry)?);
+                    self.scratchpads[i].write_for::<L>(sp.base, offsets, data, &self.all_lanes)?;
+                }
+                None => self.scratchpads[i].read_for::<L>(sp.base, offsets, &self.all_lanes, pc)?,
             }
         }
-        for (i, cs) in inst.comm.iter().enumerate() {
-            let Some(cs) = cs else { continue };
+        for cs in decoded.comm(inst) {
             if !live.live(cs.stage) {
                 stats.squashed += 1;
                 continue;
             }
-            let [ldata, lperm] = self.comm_inputs[i];
             let [data, perm, _] = &mut self.buf;
-            data.copy_from_slice(self.lrfs[ldata].read(cs.data)?);
-            let regs = match cs.perm {
-                Permutation::PerCluster(e) => {
-                    perm.copy_from_slice(self.lrfs[lperm].read(e)?);
+            copy_lanes::<L>(
+                data,
+                self.lrfs[cs.data.lrf as usize].read_for::<L>(cs.data.entry)?,
+            );
+            let regs = match cs.sources {
+                Some(e) => {
+                    copy_lanes::<L>(perm, self.lrfs[e.lrf as usize].read_for::<L>(e.entry)?);
                     Some(&perm[..])
                 }
-                _ => None,
+                None => None,
             };
-            self.comms[i].send(data, cs.perm, regs, pc)?;
+            self.comms[cs.index as usize].send(data, cs.perm, regs, pc)?;
         }
         let stream_latency = self.desc.latency.stream;
         // The network and the scratchpad carry every conditional access of the instruction
         // (up to `srf.conditional_words_per_cycle`, as the program check allows): claimed
         // once, by the first.
         let mut claimed = false;
-        for (i, s) in inst.sin.iter().enumerate() {
-            let Some(s) = s else { continue };
+        for s in decoded.sin(inst) {
             if !live.live(s.stage) {
                 stats.squashed += 1;
                 continue;
             }
-            let stream = s.stream as usize;
+            let (i, stream) = (s.index as usize, s.stream as usize);
             match s.cond {
                 None => {
                     let words = self.srf.read(stream, self.lanes)?;
                     self.stream_reads[i]
-                        .insert(stream_latency, pc, None, |v| v.copy_from_slice(words))?;
+                        .insert_for::<L>(stream_latency, pc, None, |v| copy_lanes::<L>(v, words))?;
                 }
                 Some(cc) => {
                     // Conditional input: clusters whose code is set take the next elements
                     // in cluster order, routed over the intercluster network and buffered
                     // in the scratchpad.
                     self.claim_for_conditional_streams(&mut claimed)?;
-                    self.mask.copy_from_slice(self.cc.read(cc)?);
-                    let n = self.mask.iter().filter(|&&b| b).count();
+                    copy_mask::<L>(&mut self.mask, self.cc.read(cc)?);
+                    let n = count_set::<L>(&self.mask);
                     let words = self.srf.read_conditional(stream, n)?;
                     let mask = &self.mask;
-                    self.stream_reads[i].insert(stream_latency, pc, Some(mask), |v| {
+                    self.stream_reads[i].insert_for::<L>(stream_latency, pc, Some(mask), |v| {
                         let mut next = words.iter();
                         for (dst, &m) in v.iter_mut().zip(mask) {
                             *dst = if m { *next.next().expect("n words") } else { 0 };
@@ -892,14 +892,14 @@ impl Machine {
                 }
             }
         }
-        if let Some(s) = inst.sout {
+        if let Some((s, data)) = inst.sout {
             if live.live(s.stage) {
                 if s.cond.is_some() {
                     // Conditional output is compacted over the intercluster network and
                     // buffered in the scratchpad.
                     self.claim_for_conditional_streams(&mut claimed)?;
                 }
-                let data = self.lrfs[self.sout_input].read(s.data)?;
+                let data = self.lrfs[data.lrf as usize].read_for::<L>(data.entry)?;
                 let mask = match s.cond {
                     Some(cc) => Some(self.cc.read(cc)?),
                     None => None,
@@ -915,12 +915,13 @@ impl Machine {
         }
         if let Some(imm) = inst.imm {
             if live.live(imm.stage) {
-                self.immediates.insert(1, pc, None, |v| match imm.value {
-                    ImmValue::Const(x) => v.fill(x),
-                    ImmValue::ClusterId => {
-                        v.iter_mut().enumerate().for_each(|(c, x)| *x = c as u32)
-                    }
-                })?;
+                self.immediates
+                    .insert_for::<L>(1, pc, None, |v| match imm.value {
+                        ImmValue::Const(x) => v.fill(x),
+                        ImmValue::ClusterId => {
+                            v.iter_mut().enumerate().for_each(|(c, x)| *x = c as u32)
+                        }
+                    })?;
             } else {
                 stats.squashed += 1;
             }
@@ -943,17 +944,41 @@ impl Machine {
         let Some(mut kernel) = self.kernel.take() else {
             return Ok(());
         };
-        let result = self.kernel_cycle(&mut kernel);
+        // The per-cycle path compiled for this machine's cluster count (`crate::lanes`).
+        let result = match self.lanes {
+            8 => self.kernel_cycle::<8>(&mut kernel),
+            16 => self.kernel_cycle::<16>(&mut kernel),
+            32 => self.kernel_cycle::<32>(&mut kernel),
+            _ => self.kernel_cycle::<0>(&mut kernel),
+        };
         self.kernel = Some(kernel);
         result
     }
 
-    fn kernel_cycle(&mut self, kernel: &mut Kernel) -> Result<(), ContractError> {
+    /// The edge, compiled for `L` lanes (`crate::lanes`): every block commits; in a stall
+    /// the clusters' units hold.
+    #[inline(always)]
+    fn commit_for<const L: usize>(&mut self) {
+        self.srf.commit();
+        self.uc.commit();
+        if self.stalled {
+            return;
+        }
+        self.fus.commit();
+        self.lrfs.iter_mut().for_each(|u| u.commit_for::<L>());
+        self.cc.commit();
+        self.scratchpads.iter_mut().for_each(|u| u.commit());
+        self.comms.iter_mut().for_each(|u| u.commit());
+        self.stream_reads.iter_mut().for_each(|u| u.commit());
+        self.immediates.commit();
+    }
+
+    fn kernel_cycle<const L: usize>(&mut self, kernel: &mut Kernel) -> Result<(), ContractError> {
         match self.uc.phase() {
             Phase::Idle => return Ok(()),
             Phase::Finishing => {
                 kernel.stats.cycles += 1;
-                self.writeback(&kernel.program.code)?;
+                self.writeback::<L>(&kernel.decoded)?;
                 if self.in_flight() == 0 && !kernel.flushing {
                     kernel.flushing = true;
                     for (i, s) in kernel.program.streams.iter().enumerate() {
@@ -986,14 +1011,14 @@ impl Machine {
         let Some((pc, live)) = self.uc.fetch(&kernel.program.code, &env)? else {
             return Ok(());
         };
-        if self.must_stall(kernel, &kernel.program.code[pc as usize], live)? {
+        if self.must_stall(kernel, kernel.decoded.inst(pc), live)? {
             self.uc.discard();
             self.stalled = true;
             kernel.stats.stall_cycles += 1;
             return Ok(());
         }
-        self.writeback(&kernel.program.code)?;
-        self.issue(kernel, pc, live)?;
+        self.writeback::<L>(&kernel.decoded)?;
+        self.issue::<L>(kernel, pc, live)?;
         let env = Env {
             srf: &self.srf,
             cc: &self.cc,
@@ -1015,18 +1040,19 @@ impl Module for Machine {
     }
 
     fn commit(&mut self) {
-        self.srf.commit();
-        self.uc.commit();
-        if self.stalled {
-            return;
+        match self.lanes {
+            8 => self.commit_for::<8>(),
+            16 => self.commit_for::<16>(),
+            32 => self.commit_for::<32>(),
+            _ => self.commit_for::<0>(),
         }
-        self.fus.commit();
-        self.lrfs.iter_mut().for_each(|u| u.commit());
-        self.cc.commit();
-        self.scratchpads.iter_mut().for_each(|u| u.commit());
-        self.comms.iter_mut().for_each(|u| u.commit());
-        self.stream_reads.iter_mut().for_each(|u| u.commit());
-        self.immediates.commit();
+    }
+
+    fn set_tracing(&mut self, on: bool) {
+        self.fus.set_tracing(on);
+        self.lrfs.iter_mut().for_each(|u| u.set_tracing(on));
+        self.scratchpads.iter_mut().for_each(|u| u.set_tracing(on));
+        self.comms.iter_mut().for_each(|u| u.set_tracing(on));
     }
 
     fn trace(&self, t: &mut Trace) {
