@@ -87,14 +87,8 @@ pub fn add_lanes(a: &[u32], b: &[u32], mode: FpMode, out: &mut [u32], flags: &mu
     // The mode is the same on every lane: one loop per mode, the IEEE one without the flush.
     if mode.flush_to_zero {
         let flush = |x| flush_input(x, FpMode::FTZ);
-        host_lanes(
-            a,
-            b,
-            out,
-            flags,
-            |a, b| add_lane(flush(a), flush(b)),
-            bit_level,
-        );
+        let host = |a, b| add_lane(flush(a), flush(b));
+        host_lanes(a, b, out, flags, host, bit_level);
     } else {
         host_lanes(a, b, out, flags, add_lane, bit_level);
     }
@@ -133,14 +127,8 @@ pub fn mul_lanes(a: &[u32], b: &[u32], mode: FpMode, out: &mut [u32], flags: &mu
     let bit_level = |a, b| super::mul(a, b, mode);
     if mode.flush_to_zero {
         let flush = |x| flush_input(x, FpMode::FTZ);
-        host_lanes(
-            a,
-            b,
-            out,
-            flags,
-            |a, b| mul_lane(flush(a), flush(b)),
-            bit_level,
-        );
+        let host = |a, b| mul_lane(flush(a), flush(b));
+        host_lanes(a, b, out, flags, host, bit_level);
     } else {
         host_lanes(a, b, out, flags, mul_lane, bit_level);
     }
