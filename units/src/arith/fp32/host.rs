@@ -67,7 +67,7 @@
 //! `ok` is clear take the bit-level op. The lanes after the last whole group take the host
 //! path one at a time, with the same fallback.
 
-use super::{Flags, FpMode, SIGN, flush_input, is_normal, lane_groups};
+use super::{Flags, FpMode, LANE_GROUP, SIGN, flush_input, is_normal, lane_groups};
 
 /// True on the targets whose `f32`/`f64` arithmetic is IEEE 754 binary32/binary64 with
 /// round-to-nearest-even and gradual underflow, as this module requires (see the module doc).
@@ -134,8 +134,11 @@ pub fn mul_lanes(a: &[u32], b: &[u32], mode: FpMode, out: &mut [u32], flags: &mu
     }
 }
 
-/// The lane loop of this module: `host` on every lane of every whole group, `host` on each
-/// leftover lane, and `bit_level` wherever `host` clears its `ok` bit.
+/// The lane loop of this module: `host` on every lane, and `bit_level` wherever `host` clears
+/// its `ok` bit; the whole groups of lanes in vectors, the lanes after them one by one.
+///
+/// # Panics
+/// If `a` or `b` is shorter than `out`, or `flags` is not as long as `out`.
 #[inline(always)]
 fn host_lanes(
     a: &[u32],
@@ -145,13 +148,31 @@ fn host_lanes(
     host: impl Fn(u32, u32) -> (u32, Flags, bool),
     bit_level: impl Fn(u32, u32) -> (u32, Flags),
 ) {
-    // `lane_groups` sends the leftover lanes, and the lanes of a group whose `ok` is clear, to
-    // its last closure; the latter (rare) lanes thus repeat the host operation, harmlessly.
-    let one = |a, b| match host(a, b) {
-        (bits, flags, true) => (bits, flags),
-        _ => bit_level(a, b),
-    };
-    lane_groups(a, b, out, flags, |_, _| true, &host, one);
+    let n = out.len();
+    assert_eq!(flags.len(), n, "one flag set per lane");
+    let whole = n - n % LANE_GROUP;
+    let (a_groups, a_left) = a[..n].split_at(whole);
+    let (b_groups, b_left) = b[..n].split_at(whole);
+    let (out_groups, out_left) = out.split_at_mut(whole);
+    let (flags_groups, flags_left) = flags.split_at_mut(whole);
+    // No operand pre-check: the host path takes every operand class, deciding by the result.
+    let every_group = |_, _| true;
+    let (host, bit_level) = (&host, &bit_level);
+    lane_groups(
+        a_groups,
+        b_groups,
+        out_groups,
+        flags_groups,
+        every_group,
+        host,
+        bit_level,
+    );
+    for i in 0..a_left.len() {
+        (out_left[i], flags_left[i]) = match host(a_left[i], b_left[i]) {
+            (bits, flags, true) => (bits, flags),
+            _ => bit_level(a_left[i], b_left[i]),
+        };
+    }
 }
 
 /// `a + b` by the host (see the module doc): the sum, its flags, and `ok`, set where they are

@@ -216,7 +216,7 @@ pub(crate) fn unpack_normalised(a: u32) -> (i32, u32) {
 }
 
 /// Lanes per group of [`lane_loop`] (two 4-lane vector registers).
-const LANE_GROUP: usize = 8;
+pub(crate) const LANE_GROUP: usize = 8;
 
 /// The lane loop of the `*_lanes` datapaths (one op issued to a unit in every cluster):
 /// `out[i], flags[i] = one(a[i], b[i])` for every lane, where `one` is the op on one set of
