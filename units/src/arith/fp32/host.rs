@@ -29,8 +29,8 @@
 //!   sum; one below 2^−126 in magnitude is a subnormal number and is delivered exactly. A
 //!   normal `s` therefore comes from an exact sum of at least 2^−126: not tiny.
 //! * `s` zero: by the same argument the exact sum was zero (a non-zero sum never rounds to
-//!   zero), and IEEE 754 §6.3 gives the bit-level adder's sign: `+0` for `x + (−x)` under
-//!   round-to-nearest, the common sign for `±0 + ±0`. No flag.
+//!   zero), so no flag; its sign is IEEE 754 §6.3's, as the bit-level adder's: `+0` for
+//!   `x + (−x)` under round-to-nearest, the common sign for `±0 + ±0`.
 //! * Inexact, without computing the rounding error (the full TwoSum, Knuth TAOCP vol. 2
 //!   §4.2.2): `s` is inexact exactly when `RN(s − x) ≠ y` or `RN(s − y) ≠ x`. If `s` is exact
 //!   both differences are exact and equal the other operand. If not, for the operand of larger
@@ -44,23 +44,23 @@
 //! lane takes it when `|p| >= 2^−126` and `r` is finite (not tiny before rounding, so not
 //! tiny after; no overflow; no NaN or infinite operand, which make `p` NaN or infinite), or
 //! when `p` is zero (a zero operand times a finite one: an exact zero whose sign is the XOR of
-//! the operands', no flag). Inexact is `f64(r) ≠ p`. Products below 2^−126 fall back, among
-//! them those that round up to the smallest normal, whose underflow flag depends on tininess
-//! after rounding.
+//! the operands', no flag). Inexact is `f64(r) ≠ p`. Non-zero products below 2^−126 fall
+//! back, among them those that round up to the smallest normal, whose underflow flag depends
+//! on tininess after rounding.
 //!
-//! **Flush-to-zero.** The input half ([`flush_input`]) is applied before the host operation,
+//! **Flush-to-zero.** The input half (`flush_input`) is applied before the host operation,
 //! as the bit-level datapaths do; the output half only changes results that are subnormal or
 //! rounded to zero from a non-zero value, which never take the host's answer.
 //!
 //! # Where it falls back
 //!
 //! To the bit-level op ([`super::add()`], [`super::sub()`], [`super::mul()`]) lane by lane:
-//! NaN or infinite operands, overflow, a subnormal sum (an underflowing one, or any in
-//! flush-to-zero mode), a non-zero product below 2^−126.
+//! NaN or infinite operands, overflow, a subnormal sum (exact, but flushed in flush-to-zero
+//! mode), a non-zero product below 2^−126 (subnormal, zero or the smallest normal).
 //!
 //! # Lanes
 //!
-//! Lanes go in groups of eight through the shared lane loop ([`super::lane_groups`]) with no
+//! Lanes go in groups of eight through the shared lane loop (`lane_groups`) with no
 //! operand pre-check (the host path accepts every operand class and decides from the result):
 //! every whole group takes the host path on all its lanes without a branch — vector
 //! instructions, eight `f32` lanes or twice four `f64` lanes at a time — then the lanes whose
