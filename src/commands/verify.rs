@@ -11,7 +11,7 @@ use clap::{Args, Parser, Subcommand};
 use imagine_units::arith::fp32::FpMode;
 use imagine_units::desc::MachineDesc;
 use imagine_verif::blocks::{self, BLOCKS, Config, Report, WaveRequest};
-use imagine_verif::testfloat::{FpuOp, check_stream_with_mode};
+use imagine_verif::testfloat::{Datapath, FpuOp, check_stream_on};
 
 #[derive(Subcommand)]
 pub enum VerifyCommand {
@@ -31,6 +31,12 @@ pub enum VerifyCommand {
         /// Check the flush-to-zero mode instead of IEEE subnormals
         #[arg(long)]
         ftz: bool,
+        /// What evaluates the vectors: `bit-level`, the fp32 datapath one case at a time (the
+        /// model of record), or `host`, the machine op over lanes with the host floating-point
+        /// fast path of fadd, fsub and fmul (`Op::eval_lanes_host`), in vectors of 1, 3, 8,
+        /// 16, 32 and 37 lanes in turn
+        #[arg(long, default_value = "bit-level", value_parser = |d: &str| d.parse::<Datapath>())]
+        datapath: Datapath,
         /// How many mismatches to print
         #[arg(long, default_value_t = 20)]
         show: usize,
@@ -86,24 +92,27 @@ pub fn run(c: VerifyCommand) -> Result<ExitCode> {
         VerifyCommand::Fpu {
             op: None,
             ftz: false,
+            datapath: Datapath::BitLevel,
             run,
             ..
         } => run_one(blocks::find("fpu").expect("registered"), &run),
         VerifyCommand::Fpu { op: None, .. } => {
             bail!(
-                "--ftz applies to vectors on stdin (`imagine verify fpu OP --ftz`); the fpu block testbench takes the machine's mode"
+                "--ftz and --datapath apply to vectors on stdin (`imagine verify fpu OP --ftz --datapath host`); the fpu block testbench takes the machine's mode and the units' datapath"
             )
         }
         VerifyCommand::Fpu {
             op: Some(op),
             ftz,
+            datapath,
             show,
             ..
         } => {
             let mode = if ftz { FpMode::FTZ } else { FpMode::IEEE };
             let stdout = io::stdout();
             let mut out = stdout.lock();
-            let summary = check_stream_with_mode(op, mode, io::stdin().lock(), &mut out, show)
+            let input = io::stdin().lock();
+            let summary = check_stream_on(op, mode, datapath, input, &mut out, show)
                 .with_context(|| format!("reading {op} vectors from stdin"))?;
             writeln!(out, "{summary}")?;
             if summary.total() == 0 {

@@ -10,7 +10,9 @@
 //!
 //! The `eval_lanes_8` group measures the machine simulator's inner loop: one
 //! [`Op::eval_lanes`] call on 8 lanes (one unit slot across the 8 clusters) of mixed normal
-//! operands. Its throughput is in calls, so `1 / thrpt` is the time of one 8-lane call.
+//! operands, and (`fadd/host`, ...) the same call through [`Op::eval_lanes_host`], the host
+//! floating-point fast path. Its throughput is in calls, so `1 / thrpt` is the time of one
+//! 8-lane call.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use imagine_units::arith::fp32::testgen::{SPECIALS, SplitMix64};
@@ -116,17 +118,26 @@ fn bench(c: &mut Criterion) {
     g.throughput(Throughput::Elements(SETS as u64));
     g.warm_up_time(Duration::from_millis(500));
     g.measurement_time(Duration::from_secs(2));
-    for op in [Op::FAdd, Op::FSub, Op::FMul] {
+    for (op, host) in [Op::FAdd, Op::FSub, Op::FMul]
+        .map(|op| [(op, false), (op, true)])
+        .concat()
+    {
         let mut out = [0u32; LANES];
         let mut flags = [Flags::NONE; LANES];
-        g.bench_function(op.name(), |bch| {
+        let name = format!("{op}{}", if host { "/host" } else { "" });
+        g.bench_function(name, |bch| {
             let (a, b) = (black_box(&a[..]), black_box(&b[..]));
             bch.iter(|| {
                 // The op and mode are run-time values, as in the machine.
                 let (op, mode) = black_box((op, FpMode::IEEE));
                 for (a, b) in a.iter().zip(b) {
                     // Opaque outputs: every lane must be computed and stored.
-                    op.eval_lanes(a, b, a, mode, black_box(&mut out), black_box(&mut flags));
+                    let (out, flags) = (black_box(&mut out), black_box(&mut flags));
+                    if host {
+                        op.eval_lanes_host(a, b, a, mode, out, flags);
+                    } else {
+                        op.eval_lanes(a, b, a, mode, out, flags);
+                    }
                 }
             })
         });

@@ -398,6 +398,35 @@ impl Op {
     /// Width of an opcode field (and of the `op` probes of the units).
     pub const OPCODE_BITS: u32 = imagine_hdl::bits_for((Op::ALL.len() - 1) as u64);
 
+    /// [`Op::eval_lanes`] with the host floating-point fast path ([`fp32::host`]) for
+    /// [`Op::FAdd`], [`Op::FSub`] and [`Op::FMul`]: the same result words and flags on every
+    /// lane (proven, and cross-checked against SoftFloat), computed with the host's IEEE
+    /// arithmetic where that is exact and by the bit-level datapath elsewhere. Every other op
+    /// is [`Op::eval_lanes`]. The bit-level [`Op::eval_lanes`] stays the model of record.
+    ///
+    /// # Panics
+    /// As [`Op::eval_lanes`]: if a slice is shorter than `out` or `flags` is not as long as
+    /// `out`.
+    #[inline]
+    pub fn eval_lanes_host(
+        self,
+        a: &[u32],
+        b: &[u32],
+        c: &[u32],
+        mode: FpMode,
+        out: &mut [u32],
+        flags: &mut [Flags],
+    ) {
+        let n = out.len();
+        let (a, b, c, flags) = (&a[..n], &b[..n], &c[..n], &mut flags[..n]);
+        match self {
+            Op::FAdd => fp32::host::add_lanes(a, b, mode, out, flags),
+            Op::FSub => fp32::host::sub_lanes(a, b, mode, out, flags),
+            Op::FMul => fp32::host::mul_lanes(a, b, mode, out, flags),
+            _ => self.eval_lanes(a, b, c, mode, out, flags),
+        }
+    }
+
     /// The op's latency in core cycles under `l`.
     #[inline]
     pub const fn latency(self, l: &Latency) -> u32 {

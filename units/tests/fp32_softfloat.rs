@@ -11,72 +11,137 @@
 //! bit patterns in IEEE mode, and [`FTZ`] biased cases in flush-to-zero mode against the
 //! SoftFloat-based FTZ reference (`reference::eval_ftz`). Result bits and all five flags must
 //! match exactly.
+//!
+//! The bit-level datapath is checked one operation at a time (`testfloat::Op::eval`). The ops
+//! with a host fast path ([`HOST_OPS`]) are checked again, on the same cases, through
+//! `Op::eval_lanes_host` in vectors of [`LANE_COUNTS`] lanes in turn (whole groups of the host
+//! path's vectors and leftover lanes).
 #![cfg(feature = "softfloat")]
 
 use imagine_units::arith::fp32::testfloat::{Case, Op, format_case};
 use imagine_units::arith::fp32::testgen::SplitMix64;
-use imagine_units::arith::fp32::{FpMode, reference};
+use imagine_units::arith::fp32::{Flags, FpMode, reference};
+use imagine_units::ops::Op as MachineOp;
 use std::time::Instant;
 
 const BIASED: usize = 2_000_000;
 const UNIFORM: usize = 2_000_000;
 const FTZ: usize = 1_000_000;
 
+/// The ops with a host fast path, and the machine ops that carry them.
+const HOST_OPS: [(Op, MachineOp); 3] = [
+    (Op::Add, MachineOp::FAdd),
+    (Op::Sub, MachineOp::FSub),
+    (Op::Mul, MachineOp::FMul),
+];
+
+/// The lane counts of the host path's vectors, in turn.
+const LANE_COUNTS: [usize; 6] = [1, 3, 8, 16, 32, 37];
+
+/// How operands are drawn for an op.
+type Draw = fn(Op, &mut SplitMix64) -> (u32, u32);
+
+/// The parts of one op's cross-check: how many cases, drawn how, in which mode.
+const PARTS: [(usize, Draw, FpMode); 3] = [
+    (BIASED, Op::biased_operands, FpMode::IEEE),
+    (UNIFORM, Op::uniform_operands, FpMode::IEEE),
+    (FTZ, Op::biased_operands, FpMode::FTZ),
+];
+
+/// SoftFloat's result and flags for `op` on `(a, b)` under `mode`.
+fn softfloat(op: Op, a: u32, b: u32, mode: FpMode) -> (u32, Flags) {
+    if mode.flush_to_zero {
+        reference::eval_ftz(op, a, b)
+    } else {
+        reference::eval(op, a, b)
+    }
+}
+
+/// The cases of one cross-check that differ from SoftFloat: a count and the first few.
+#[derive(Default)]
+struct Mismatches {
+    failed: usize,
+    shown: Vec<String>,
+}
+
+impl Mismatches {
+    /// Compare our `got` for `op` on `(a, b)` under `mode` with SoftFloat's.
+    fn check(&mut self, op: Op, (a, b): (u32, u32), mode: FpMode, got: (u32, Flags)) {
+        let want = softfloat(op, a, b, mode);
+        if got == want {
+            return;
+        }
+        self.failed += 1;
+        if self.shown.len() < 10 {
+            let case = Case {
+                a,
+                b,
+                result: want.0,
+                flags: want.1,
+            };
+            self.shown.push(format!(
+                "{}{}  got {:08X} {}",
+                if mode.flush_to_zero { "[ftz] " } else { "" },
+                format_case(op, &case),
+                got.0,
+                got.1
+            ));
+        }
+    }
+
+    /// Report the tally of `what` (e.g. `f32_add`) and fail on any mismatch.
+    fn finish(self, what: &str, start: Instant) {
+        let total: usize = PARTS.iter().map(|&(n, _, _)| n).sum();
+        let failed = self.failed;
+        eprintln!(
+            "{what}: {} passed, {failed} failed ({:.2?})",
+            total - failed,
+            start.elapsed()
+        );
+        assert!(
+            failed == 0,
+            "{what}: {failed} of {total} cases differ from SoftFloat \
+             (expected result and flags shown, then ours):\n{}",
+            self.shown.join("\n")
+        );
+    }
+}
+
+/// The bit-level datapath, one operation at a time.
 fn check(op: Op, seed: u64) {
     let start = Instant::now();
     let mut rng = SplitMix64::new(seed);
-    let mut failures = Vec::new();
-    let mut failed = 0usize;
-    let mut run = |a: u32, b: u32, mode: FpMode| {
-        let want = if mode.flush_to_zero {
-            reference::eval_ftz(op, a, b)
-        } else {
-            reference::eval(op, a, b)
-        };
-        let got = op.eval(a, b, mode);
-        if got != want {
-            failed += 1;
-            if failures.len() < 10 {
-                let c = Case {
-                    a,
-                    b,
-                    result: want.0,
-                    flags: want.1,
-                };
-                failures.push(format!(
-                    "{}{}  got {:08X} {}",
-                    if mode.flush_to_zero { "[ftz] " } else { "" },
-                    format_case(op, &c),
-                    got.0,
-                    got.1
-                ));
-            }
+    let mut mismatches = Mismatches::default();
+    for (cases, draw, mode) in PARTS {
+        for _ in 0..cases {
+            let (a, b) = draw(op, &mut rng);
+            mismatches.check(op, (a, b), mode, op.eval(a, b, mode));
         }
-    };
-    for _ in 0..BIASED {
-        let (a, b) = op.biased_operands(&mut rng);
-        run(a, b, FpMode::IEEE);
     }
-    for _ in 0..UNIFORM {
-        let (a, b) = op.uniform_operands(&mut rng);
-        run(a, b, FpMode::IEEE);
+    mismatches.finish(op.name(), start);
+}
+
+/// The host fast path (`eval_lanes_host`) of `machine_op`, which carries `op`, on the cases
+/// [`check`] draws from the same seed, in vectors of [`LANE_COUNTS`] lanes in turn.
+fn check_host(op: Op, machine_op: MachineOp, seed: u64) {
+    let start = Instant::now();
+    let mut rng = SplitMix64::new(seed);
+    let mut mismatches = Mismatches::default();
+    let mut lane_counts = LANE_COUNTS.into_iter().cycle();
+    let (mut out, mut flags) = ([0; 37], [Flags::NONE; 37]);
+    for (cases, draw, mode) in PARTS {
+        let mut left = cases;
+        while left > 0 {
+            let n = lane_counts.next().expect("a cycle").min(left);
+            let (a, b): (Vec<u32>, Vec<u32>) = (0..n).map(|_| draw(op, &mut rng)).unzip();
+            machine_op.eval_lanes_host(&a, &b, &a, mode, &mut out[..n], &mut flags[..n]);
+            for i in 0..n {
+                mismatches.check(op, (a[i], b[i]), mode, (out[i], flags[i]));
+            }
+            left -= n;
+        }
     }
-    for _ in 0..FTZ {
-        let (a, b) = op.biased_operands(&mut rng);
-        run(a, b, FpMode::FTZ);
-    }
-    let total = BIASED + UNIFORM + FTZ;
-    eprintln!(
-        "{op}: {} passed, {failed} failed ({:.2?})",
-        total - failed,
-        start.elapsed()
-    );
-    assert!(
-        failed == 0,
-        "{op}: {failed} of {total} cases differ from SoftFloat \
-         (expected result and flags shown, then ours):\n{}",
-        failures.join("\n")
-    );
+    mismatches.finish(&format!("{} (host, lanes)", op.name()), start);
 }
 
 macro_rules! cross_check {
@@ -110,6 +175,37 @@ cross_check! {
 #[test]
 fn every_op_is_cross_checked() {
     assert_eq!(Op::ALL.len(), 13);
+}
+
+/// The host fast path of each op that has one, on the cases of its bit-level cross-check.
+macro_rules! cross_check_host {
+    ($($name:ident => $index:expr, $seed:expr;)*) => {
+        $(
+            #[test]
+            fn $name() {
+                let (op, machine_op) = HOST_OPS[$index];
+                check_host(op, machine_op, $seed);
+            }
+        )*
+    };
+}
+
+cross_check_host! {
+    host_f32_add => 0, 1;
+    host_f32_sub => 1, 2;
+    host_f32_mul => 2, 3;
+}
+
+/// Every op with a host fast path has a cross-check above, on the right op.
+#[test]
+fn every_host_op_is_cross_checked() {
+    assert_eq!(HOST_OPS.len(), 3);
+    for (op, machine_op) in HOST_OPS {
+        assert_eq!(
+            machine_op.eval(0x3F80_0000, 0x4000_0000, 0, FpMode::IEEE),
+            op.eval(0x3F80_0000, 0x4000_0000, FpMode::IEEE)
+        );
+    }
 }
 
 /// All 2^32 inputs of `f32_sqrt` (IEEE mode), split over the available cores.

@@ -11,9 +11,14 @@
 //!
 //! Blank lines and lines starting with `#` are skipped. A malformed line stops the check with
 //! [`TestFloatError::Parse`] naming the line; nothing panics on bad input.
+//!
+//! [`Datapath`] chooses what is checked: the bit-level datapath one case at a time (the
+//! default), or the machine's lane entry point with the host floating-point fast path
+//! ([`imagine_units::ops::Op::eval_lanes_host`]), the cases going through it in vectors of
+//! [`HOST_LANE_COUNTS`] lanes in turn.
 
-use imagine_units::arith::fp32::FpMode;
 use imagine_units::arith::fp32::testfloat::{Case, Op, format_case, format_result, parse_case};
+use imagine_units::arith::fp32::{Flags, FpMode};
 use std::fmt;
 use std::io::{BufRead, Write};
 use std::str::FromStr;
@@ -95,7 +100,58 @@ impl FpuOp {
     pub const fn arity(self) -> usize {
         self.unit_op().arity()
     }
+
+    /// The machine op that carries this op.
+    pub fn machine_op(self) -> imagine_units::ops::Op {
+        crate::blocks::fpu::unit_op(self.unit_op())
+    }
 }
+
+/// Which evaluation of the fp32 ops a check runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Datapath {
+    /// The bit-level datapath (`arith::fp32`), one case at a time: the model of record.
+    #[default]
+    BitLevel,
+    /// The machine op over lanes with the host floating-point fast path
+    /// (`Op::eval_lanes_host`; the bit-level lane datapath for ops without one).
+    Host,
+}
+
+impl Datapath {
+    /// Every datapath.
+    pub const ALL: [Datapath; 2] = [Datapath::BitLevel, Datapath::Host];
+
+    /// The name `--datapath` takes.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Datapath::BitLevel => "bit-level",
+            Datapath::Host => "host",
+        }
+    }
+}
+
+impl fmt::Display for Datapath {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Datapath {
+    type Err = String;
+
+    /// `bit-level` or `host`.
+    fn from_str(s: &str) -> Result<Datapath, String> {
+        Datapath::ALL
+            .into_iter()
+            .find(|d| d.name() == s)
+            .ok_or_else(|| format!("unknown datapath `{s}` (expected bit-level or host)"))
+    }
+}
+
+/// The lane counts of the vectors [`Datapath::Host`] evaluates, in turn: a single cluster,
+/// leftover lanes only, whole groups of the host path's vectors, and groups with leftovers.
+pub const HOST_LANE_COUNTS: [usize; 6] = [1, 3, 8, 16, 32, 37];
 
 impl fmt::Display for FpuOp {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -203,27 +259,57 @@ pub fn check_stream(
     check_stream_with_mode(op, FpMode::IEEE, input, mismatches_out, max_reported)
 }
 
-/// Check a stream of TestFloat vectors for `op` under `mode`.
+/// Check a stream of TestFloat vectors for `op` under `mode` on the bit-level datapath; see
+/// [`check_stream_on`].
+pub fn check_stream_with_mode(
+    op: FpuOp,
+    mode: FpMode,
+    input: impl BufRead,
+    mismatches_out: &mut impl Write,
+    max_reported: usize,
+) -> Result<Summary, TestFloatError> {
+    check_stream_on(
+        op,
+        mode,
+        Datapath::BitLevel,
+        input,
+        mismatches_out,
+        max_reported,
+    )
+}
+
+/// Check a stream of TestFloat vectors for `op` under `mode` on `datapath`.
 ///
 /// Every case is checked; the first `max_reported` mismatches are written to
-/// `mismatches_out`, one line each:
+/// `mismatches_out`, one line each, in line order:
 ///
 /// ```text
 /// line 12: f32_add 3F800000 40000000: expected 40400000 flags 00, got 40400001 flags 01
 /// ```
 ///
 /// Returns the pass/fail counts, or an error for an unreadable stream, a malformed line
-/// (with its number), or a failed write.
-pub fn check_stream_with_mode(
+/// (with its number; the cases before it are checked and reported first), or a failed write.
+pub fn check_stream_on(
     op: FpuOp,
     mode: FpMode,
+    datapath: Datapath,
     mut input: impl BufRead,
     mismatches_out: &mut impl Write,
     max_reported: usize,
 ) -> Result<Summary, TestFloatError> {
     let unit = op.unit_op();
-    let mut summary = Summary::default();
-    let mut reported = 0usize;
+    let mut checker = Checker {
+        op,
+        mode,
+        datapath,
+        summary: Summary::default(),
+        reported: 0,
+        max_reported,
+        batch: Vec::new(),
+    };
+    // The bit-level datapath takes a case at a time, the host path vectors of lanes.
+    let mut batch_sizes = HOST_LANE_COUNTS.into_iter().cycle();
+    let mut batch_size = batch_sizes.next().expect("a lane count");
     let mut buf = Vec::with_capacity(64);
     let mut line_no = 0u64;
     loop {
@@ -232,41 +318,98 @@ pub fn check_stream_with_mode(
             break;
         }
         line_no += 1;
-        let line = std::str::from_utf8(&buf).map_err(|_| TestFloatError::Parse {
-            line: line_no,
-            message: "not valid UTF-8".into(),
-        })?;
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let case = parse_case(unit, line).map_err(|e| TestFloatError::Parse {
-            line: line_no,
-            message: format!("{e} (in `{line}`)"),
-        })?;
-        let (result, flags) = unit.eval(case.a, case.b, mode);
-        if result == case.result && flags == case.flags {
-            summary.passed += 1;
-            continue;
-        }
-        summary.failed += 1;
-        if reported < max_reported {
-            reported += 1;
-            let operands = format_case(unit, &Case { result: 0, ..case });
-            // The formatted case ends with "<result> <flags>": keep only the operands.
-            let operands: Vec<&str> = operands.split(' ').take(unit.arity()).collect();
-            writeln!(
-                mismatches_out,
-                "line {line_no}: {op} {}: expected {} flags {}, got {} flags {}",
-                operands.join(" "),
-                format_result(unit, case.result),
-                case.flags,
-                format_result(unit, result),
-                flags,
-            )?;
+        match parse_line(unit, &buf) {
+            Ok(None) => {}
+            Ok(Some(case)) => {
+                checker.batch.push((line_no, case));
+                if datapath == Datapath::BitLevel || checker.batch.len() == batch_size {
+                    checker.check_batch(mismatches_out)?;
+                    batch_size = batch_sizes.next().expect("a cycle");
+                }
+            }
+            Err(message) => {
+                checker.check_batch(mismatches_out)?;
+                return Err(TestFloatError::Parse {
+                    line: line_no,
+                    message,
+                });
+            }
         }
     }
-    Ok(summary)
+    checker.check_batch(mismatches_out)?;
+    Ok(checker.summary)
+}
+
+/// One input line: a case, `None` for a blank or comment line, or what is wrong with it.
+fn parse_line(op: Op, bytes: &[u8]) -> Result<Option<Case>, String> {
+    let line = std::str::from_utf8(bytes).map_err(|_| "not valid UTF-8".to_string())?;
+    let line = line.trim();
+    if line.is_empty() || line.starts_with('#') {
+        return Ok(None);
+    }
+    parse_case(op, line)
+        .map(Some)
+        .map_err(|e| format!("{e} (in `{line}`)"))
+}
+
+/// The state of one [`check_stream_on`]: the counts so far and the cases read but not yet
+/// evaluated, with their line numbers.
+struct Checker {
+    op: FpuOp,
+    mode: FpMode,
+    datapath: Datapath,
+    summary: Summary,
+    reported: usize,
+    max_reported: usize,
+    batch: Vec<(u64, Case)>,
+}
+
+impl Checker {
+    /// Evaluate the pending cases on the datapath, count and report them, and clear them.
+    fn check_batch(&mut self, mismatches_out: &mut impl Write) -> Result<(), TestFloatError> {
+        let unit = self.op.unit_op();
+        let got: Vec<(u32, Flags)> = match self.datapath {
+            Datapath::BitLevel => self
+                .batch
+                .iter()
+                .map(|(_, case)| unit.eval(case.a, case.b, self.mode))
+                .collect(),
+            Datapath::Host => {
+                let a: Vec<u32> = self.batch.iter().map(|(_, case)| case.a).collect();
+                let b: Vec<u32> = self.batch.iter().map(|(_, case)| case.b).collect();
+                let (mut out, mut flags) = (vec![0; a.len()], vec![Flags::NONE; a.len()]);
+                self.op
+                    .machine_op()
+                    .eval_lanes_host(&a, &b, &a, self.mode, &mut out, &mut flags);
+                out.into_iter().zip(flags).collect()
+            }
+        };
+        for (&(line_no, case), (result, flags)) in self.batch.iter().zip(got) {
+            if result == case.result && flags == case.flags {
+                self.summary.passed += 1;
+                continue;
+            }
+            self.summary.failed += 1;
+            if self.reported < self.max_reported {
+                self.reported += 1;
+                let operands = format_case(unit, &Case { result: 0, ..case });
+                // The formatted case ends with "<result> <flags>": keep only the operands.
+                let operands: Vec<&str> = operands.split(' ').take(unit.arity()).collect();
+                writeln!(
+                    mismatches_out,
+                    "line {line_no}: {} {}: expected {} flags {}, got {} flags {}",
+                    self.op,
+                    operands.join(" "),
+                    format_result(unit, case.result),
+                    case.flags,
+                    format_result(unit, result),
+                    flags,
+                )?;
+            }
+        }
+        self.batch.clear();
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -522,5 +665,101 @@ mod tests {
             ieee.failed > 0,
             "FTZ vectors should exercise flushing: {ieee}"
         );
+    }
+
+    #[test]
+    fn datapaths_parse_and_name_themselves() {
+        for d in Datapath::ALL {
+            assert_eq!(d.name().parse::<Datapath>(), Ok(d));
+            assert_eq!(d.to_string(), d.name());
+        }
+        assert_eq!(Datapath::default(), Datapath::BitLevel);
+        assert!(
+            "fast"
+                .parse::<Datapath>()
+                .unwrap_err()
+                .contains("bit-level")
+        );
+    }
+
+    #[test]
+    fn machine_ops_carry_their_testfloat_ops() {
+        for op in FpuOp::ALL {
+            let (a, b) = (0x3F80_0000, 0x4000_0000);
+            assert_eq!(
+                op.machine_op().eval(a, b, a, FpMode::IEEE),
+                op.unit_op().eval(a, b, FpMode::IEEE),
+                "{op}"
+            );
+        }
+    }
+
+    /// The host datapath passes every committed vector file, IEEE and FTZ, in lanes.
+    #[test]
+    fn committed_softfloat_vectors_pass_on_the_host_datapath() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../units/tests/vectors");
+        let ftz_ops = [FpuOp::F32Add, FpuOp::F32Sub, FpuOp::F32Mul];
+        let files = FpuOp::ALL
+            .map(|op| (op, FpMode::IEEE, format!("{op}.txt")))
+            .into_iter()
+            .chain(ftz_ops.map(|op| (op, FpMode::FTZ, format!("ftz_{op}.txt"))));
+        for (op, mode, name) in files {
+            let text = std::fs::read(dir.join(&name)).expect("a vector file");
+            let mut report = Vec::new();
+            let s = check_stream_on(op, mode, Datapath::Host, &text[..], &mut report, 5)
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert!(
+                s.total() >= 500 && s.is_success(),
+                "{name}: {s}\n{}",
+                String::from_utf8_lossy(&report)
+            );
+        }
+    }
+
+    /// Both datapaths count and report the same mismatches, in line order, and report those
+    /// before a malformed line before its error.
+    #[test]
+    fn datapaths_report_alike() {
+        // Lines 2, 5 and 9 are wrong (vectors of 1, 3 and 8 lanes on the host: lines 1, 2-4,
+        // 5-12); line 14 is malformed.
+        let mut text = String::new();
+        for line in 1..=13 {
+            let wrong = [2, 5, 9].contains(&line);
+            text += if wrong {
+                "3F800000 40000000 40400001 00\n"
+            } else {
+                "3F800000 40000000 40400000 00\n"
+            };
+        }
+        let check = |datapath, text: &str| {
+            let mut report = Vec::new();
+            let r = check_stream_on(
+                FpuOp::F32Add,
+                FpMode::IEEE,
+                datapath,
+                text.as_bytes(),
+                &mut report,
+                10,
+            );
+            (
+                r.map_err(|e| e.to_string()),
+                String::from_utf8(report).expect("utf-8"),
+            )
+        };
+        let (summary, report) = check(Datapath::Host, &text);
+        assert_eq!(
+            summary,
+            Ok(Summary {
+                passed: 10,
+                failed: 3
+            })
+        );
+        let lines: Vec<&str> = report.lines().map(|l| &l[..7]).collect();
+        assert_eq!(lines, ["line 2:", "line 5:", "line 9:"]);
+        assert_eq!(check(Datapath::BitLevel, &text), (summary, report.clone()));
+        text += "3F800000\n";
+        let (error, host_report) = check(Datapath::Host, &text);
+        assert!(error.unwrap_err().starts_with("line 14: "));
+        assert_eq!(host_report, report);
     }
 }

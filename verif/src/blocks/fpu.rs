@@ -100,7 +100,7 @@ const FTZ: &[(TfOp, &str)] = &[
 ];
 
 /// The unit op that carries a TestFloat function.
-fn unit_op(op: TfOp) -> Op {
+pub(crate) fn unit_op(op: TfOp) -> Op {
     match op {
         TfOp::Add => Op::FAdd,
         TfOp::Sub => Op::FSub,

@@ -1,10 +1,15 @@
 //! IEEE 754-2008 binary32 combinational datapath on raw bit patterns.
 //!
 //! Every op is a pure function `u32` bits in, `u32` bits (or `bool`) and [`Flags`] out. No host
-//! floating point is used anywhere: the blocks are the integer datapaths a hardware FPU is
-//! built from — unpack/classify, alignment shifter with sticky, significand adder, multiplier
-//! array, digit-recurrence divider / square-rooter, leading-zero normaliser, and one shared
-//! round-and-pack stage ([`round`]).
+//! floating point is used by the datapath: the blocks are the integer datapaths a hardware FPU
+//! is built from — unpack/classify, alignment shifter with sticky, significand adder,
+//! multiplier array, digit-recurrence divider / square-rooter, leading-zero normaliser, and one
+//! shared round-and-pack stage ([`round`]).
+//!
+//! The one exception is [`host`], an alternative evaluation of the add, sub and mul lane
+//! datapaths for the simulator's speed: it computes the cases it can prove bit-identical
+//! (result and flags) with the host's IEEE arithmetic and hands every other lane to the
+//! bit-level datapath, which stays the model of record.
 //!
 //! # Arithmetic contract (ARCHITECTURE §4)
 //!
@@ -63,6 +68,7 @@ pub mod add;
 pub mod compare;
 pub mod convert;
 pub mod div;
+pub mod host;
 pub mod mul;
 pub mod round;
 pub mod sign;
@@ -210,7 +216,7 @@ pub(crate) fn unpack_normalised(a: u32) -> (i32, u32) {
 }
 
 /// Lanes per group of [`lane_loop`] (two 4-lane vector registers).
-const LANE_GROUP: usize = 8;
+pub(crate) const LANE_GROUP: usize = 8;
 
 /// The lane loop of the `*_lanes` datapaths (one op issued to a unit in every cluster):
 /// `out[i], flags[i] = one(a[i], b[i])` for every lane, where `one` is the op on one set of
@@ -236,6 +242,33 @@ pub(crate) fn lane_loop(
     fast: impl Fn(u32, u32) -> (u32, Flags, bool),
     one: impl Fn(u32, u32) -> (u32, Flags),
 ) {
+    lane_groups(
+        a,
+        b,
+        out,
+        flags,
+        |a, b| is_normal(a) & is_normal(b),
+        fast,
+        one,
+    );
+}
+
+/// [`lane_loop`] with the group test given: a group takes `fast` on every lane when every
+/// lane's operands pass `worth_trying` (a fast path that accepts every operand class passes
+/// `|_, _| true`, and then every whole group takes it).
+///
+/// # Panics
+/// If `a` or `b` is shorter than `out`, or `flags` is not as long as `out`.
+#[inline(always)]
+pub(crate) fn lane_groups(
+    a: &[u32],
+    b: &[u32],
+    out: &mut [u32],
+    flags: &mut [Flags],
+    worth_trying: impl Fn(u32, u32) -> bool,
+    fast: impl Fn(u32, u32) -> (u32, Flags, bool),
+    one: impl Fn(u32, u32) -> (u32, Flags),
+) {
     let n = out.len();
     let (a, b) = (&a[..n], &b[..n]);
     assert_eq!(flags.len(), n, "one flag set per lane");
@@ -244,11 +277,11 @@ pub(crate) fn lane_loop(
     let (og, or) = out.as_chunks_mut::<LANE_GROUP>();
     let (fg, fr) = flags.as_chunks_mut::<LANE_GROUP>();
     for (((a, b), out), flags) in ag.iter().zip(bg).zip(og.iter_mut()).zip(fg.iter_mut()) {
-        let mut normal = true;
+        let mut try_fast = true;
         for i in 0..LANE_GROUP {
-            normal &= is_normal(a[i]) & is_normal(b[i]);
+            try_fast &= worth_trying(a[i], b[i]);
         }
-        if normal {
+        if try_fast {
             let (mut ok, mut all_ok) = ([false; LANE_GROUP], true);
             for i in 0..LANE_GROUP {
                 (out[i], flags[i], ok[i]) = fast(a[i], b[i]);
