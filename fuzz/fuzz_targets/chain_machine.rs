@@ -24,7 +24,7 @@ fuzz_target!(|data: &[u8]| {
     let inputs = input_streams(&program, 16 * desc.cluster.count);
     let options = RunOptions {
         max_cycles: MAX_CYCLES,
-        on_start: None,
+        ..RunOptions::default()
     };
     let _ = run_kernel(&desc, &program, &inputs, options);
 });

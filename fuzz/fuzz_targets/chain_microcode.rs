@@ -20,7 +20,7 @@ fuzz_target!(init: write_seeds_if_asked(seeds), |data: &[u8]| {
     let inputs = input_streams(&program, 64);
     let options = RunOptions {
         max_cycles: MAX_CYCLES,
-        on_start: None,
+        ..RunOptions::default()
     };
     let _ = run_kernel(desc, &program, &inputs, options);
 });

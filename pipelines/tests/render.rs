@@ -6,6 +6,7 @@ use imagine_pipelines::opengl::render::{RenderOptions, render_with};
 use imagine_pipelines::scene::model::{Cull, DepthTest, Scene};
 use imagine_pipelines::scene::{self, LoadOptions, parse_tri, window_scene};
 use imagine_units::desc::MachineDesc;
+use imagine_units::ops::Datapath;
 
 /// Render options with a compile cache under the target directory, so that the tests share
 /// the kernels they compile (and a re-run compiles nothing).
@@ -482,6 +483,59 @@ fn frames_are_the_same_cycle_for_cycle_in_either_evaluation_order() {
             forward.stats.cycles > 0 && reversed.stats.skipped_cycles == 0,
             "{what}"
         );
+    }
+}
+
+/// Reads every probe change and keeps none: a tracer attached for the whole run.
+struct Discard;
+
+impl imagine_hdl::Tracer for Discard {
+    fn start(
+        &mut self,
+        _: &imagine_hdl::ProbeRegistry,
+        _: &[imagine_hdl::ClockDomain],
+    ) -> std::io::Result<()> {
+        Ok(())
+    }
+    fn time(&mut self, _: u64, _: u64) {}
+    fn change(&mut self, _: imagine_hdl::SignalId, _: &[u64]) {}
+    fn finish(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// Speed changes nothing else: the host's floating point in place of the bit-level
+/// datapath, and a tracer attached (which makes every block latch what its probes show,
+/// step the divider's recurrence each cycle, keep the clusters awake and take the bit-level
+/// datapath), give the same image, cycles and statistics — on an untextured and a textured
+/// scene (the textured one divides).
+#[test]
+fn frames_are_the_same_with_a_tracer_and_on_either_datapath() {
+    let cases = [
+        (rate1_16x16(), MachineDesc::gold8()),
+        (advs1_24x24(), MachineDesc::resolve("gold16").unwrap()),
+    ];
+    for (scene, desc) in cases {
+        let render = |datapath, traced: bool| {
+            let options = RenderOptions {
+                datapath,
+                ..cached()
+            };
+            let on_start = traced.then(|| -> imagine_units::runner::OnStart {
+                Box::new(|sim| sim.attach(Box::new(Discard)).map_err(|e| e.to_string()))
+            });
+            render_with(&scene, &desc, options, on_start, |_, _| {}).unwrap()
+        };
+        let fast = render(Datapath::Host, false);
+        for (datapath, traced) in [(Datapath::BitLevel, false), (Datapath::Host, true)] {
+            let other = render(datapath, traced);
+            let what = format!(
+                "{} on {}, {datapath}, traced {traced}",
+                scene.name, desc.name
+            );
+            assert_eq!(fast.pixels, other.pixels, "{what}");
+            assert_eq!(machine_results(&fast), machine_results(&other), "{what}");
+        }
     }
 }
 

@@ -13,12 +13,13 @@ use imagine_pipelines::opengl::render::{RenderOptions, render_with};
 use imagine_pipelines::scene::{self, LoadOptions};
 use imagine_units::desc::MachineDesc;
 use imagine_units::limits::MAX_DEMO_CYCLES;
+use imagine_units::ops::Datapath;
 use imagine_units::runner::{RunOptions, run_kernel};
 use imagine_units::workloads::compute_dense;
 
 /// Runs the compute-dense loop on `machine` for about `cycles` core cycles (VCD off) and
 /// reports simulated cycles per host second and the op rate it implies.
-pub fn machine(machine: &str, cycles: u64) -> Result<ExitCode> {
+pub fn machine(machine: &str, cycles: u64, datapath: Datapath) -> Result<ExitCode> {
     if !(1..=MAX_DEMO_CYCLES).contains(&cycles) {
         bail!("--cycles {cycles}: must be 1..={MAX_DEMO_CYCLES} (MAX_DEMO_CYCLES)");
     }
@@ -34,6 +35,7 @@ pub fn machine(machine: &str, cycles: u64) -> Result<ExitCode> {
         RunOptions {
             max_cycles: cycles * 2 + 1000,
             on_start: None,
+            datapath,
         },
     )?;
     let host = start.elapsed().as_secs_f64();
@@ -42,6 +44,7 @@ pub fn machine(machine: &str, cycles: u64) -> Result<ExitCode> {
     let ops: u64 = s.fu_ops.iter().sum();
     let rate = s.cycles as f64 / host;
     println!("machine            {}", desc.name);
+    println!("datapath           {datapath}");
     println!("simulated cycles   {}", s.cycles);
     println!("host time          {host:.3} s");
     println!("simulated rate     {:.2} M cycles/s", rate / 1e6);

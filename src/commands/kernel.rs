@@ -77,6 +77,8 @@ pub enum KernelCommand {
         max_cycles: u64,
         #[command(flatten)]
         waves: WaveArgs,
+        #[command(flatten)]
+        datapath: super::datapath::DatapathArg,
     },
     /// List the kernels: the library's, then every kernel of the OpenGL pipeline as
     /// `render SCENE` builds it (SPHERE's unless --scene), under the names of the render's
@@ -237,6 +239,7 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
             format,
             max_cycles,
             waves,
+            datapath,
         } => {
             waves.check_outputs(&mut Outputs::default())?;
             let desc = MachineDesc::resolve(&machine)?;
@@ -247,6 +250,7 @@ pub fn run(c: KernelCommand) -> Result<ExitCode> {
                 on_start: Some(Box::new(move |sim| {
                     waves.attach(sim).map(|_| ()).map_err(|e| format!("{e:#}"))
                 })),
+                datapath: datapath.datapath,
             };
             let start = Instant::now();
             let run = run_kernel(&desc, &program, &streams, options)?;

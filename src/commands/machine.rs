@@ -23,6 +23,8 @@ pub enum MachineCommand {
         /// Core cycles to simulate
         #[arg(long, default_value_t = 4_000_000)]
         cycles: u64,
+        #[command(flatten)]
+        datapath: super::datapath::DatapathArg,
     },
 }
 
@@ -35,8 +37,12 @@ pub fn run(c: MachineCommand) -> Result<ExitCode> {
             }
         }
         MachineCommand::Show { name } => print!("{}", describe(&MachineDesc::resolve(&name)?)),
-        MachineCommand::Bench { machine, cycles } => {
-            return super::bench::machine(&machine, cycles);
+        MachineCommand::Bench {
+            machine,
+            cycles,
+            datapath,
+        } => {
+            return super::bench::machine(&machine, cycles, datapath.datapath);
         }
     }
     Ok(ExitCode::SUCCESS)

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod compare;
+pub mod datapath;
 pub mod demo;
 pub mod dram;
 pub mod kernel;

@@ -88,6 +88,8 @@ pub struct RenderArgs {
     pub(super) stop_length: Option<f32>,
     #[command(flatten)]
     waves: WaveArgs,
+    #[command(flatten)]
+    pub(super) datapath: super::datapath::DatapathArg,
     /// Dump the cycles of a call of kernel NAME (the render runs once to find it on the
     /// timeline, then again dumping them); a name of the kernel breakdown
     #[arg(
@@ -204,6 +206,7 @@ fn render_options(a: &RenderArgs) -> RenderOptions {
         timeline: a.timeline.is_some(),
         record_dram: a.dram_trace.is_some(),
         rasterizer: a.rasterizer,
+        datapath: a.datapath.datapath,
         ..RenderOptions::default()
     }
 }

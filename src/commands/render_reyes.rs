@@ -57,6 +57,7 @@ pub fn run(a: &RenderArgs, desc: &MachineDesc, scene: &Scene) -> Result<ExitCode
         } else {
             CompileCache::from_env()
         },
+        datapath: a.datapath.datapath,
         ..ReyesOptions::default()
     };
     let start = Instant::now();

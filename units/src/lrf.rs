@@ -20,7 +20,6 @@ fn port(entry: u32) -> Option<u16> {
     (entry != IDLE).then_some(entry as u16)
 }
 
-#[derive(Debug)]
 pub struct Lrf {
     path: String,
     entries: usize,
@@ -62,6 +61,30 @@ struct LrfProbes {
     last_values: Vec<u32>,
     last_mask: Vec<bool>,
     last_masked: bool,
+}
+
+/// The file's state: its words, the pending write and the counts (not the write buffers
+/// between writes, which are swapped with the probes' latches while tracing, nor the
+/// latches themselves, which only a tracer reads).
+impl std::fmt::Debug for Lrf {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let pending = port(self.write_entry).map(|e| {
+            let n = self.lanes;
+            (
+                e,
+                &self.write_values[..n],
+                self.write_masked.then(|| &self.write_mask[..n]),
+            )
+        });
+        f.debug_struct("Lrf")
+            .field("path", &self.path)
+            .field("data", &self.data)
+            .field("read_entry", &port(self.read_entry.get()))
+            .field("pending_write", &pending)
+            .field("words_read", &self.words_read.get())
+            .field("words_written", &self.words_written)
+            .finish()
+    }
 }
 
 impl Lrf {

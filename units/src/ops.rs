@@ -184,17 +184,17 @@ macro_rules! op_table {
                 out: &mut [u32],
                 flags: &mut [Flags],
             ) {
-                self.eval_lanes_fixed::<0>(a, b, c, mode, out, flags)
+                self.eval_lanes_fixed::<0>(Datapath::BitLevel, [a, b, c], mode, out, flags)
             }
 
-            /// [`eval_lanes`](Self::eval_lanes) compiled for `L` lanes (`out.len()` must
-            /// be `L`), or for any count where `L` is 0: see [`crate::lanes`].
+            /// [`eval_lanes`](Self::eval_lanes) on `datapath`, compiled for `L` lanes
+            /// (`out.len()` must be `L`), or for any count where `L` is 0: see
+            /// [`crate::lanes`].
             #[inline]
             pub fn eval_lanes_fixed<const L: usize>(
                 self,
-                a: &[u32],
-                b: &[u32],
-                c: &[u32],
+                datapath: Datapath,
+                [a, b, c]: [&[u32]; 3],
                 mode: FpMode,
                 out: &mut [u32],
                 flags: &mut [Flags],
@@ -204,11 +204,33 @@ macro_rules! op_table {
                 let (out, flags) = (&mut out[..n], &mut flags[..n]);
                 // The fp32 adder and multiplier ops have lane datapaths of their own: a
                 // branch-free fast path over all lanes (evaluated several lanes at a time),
-                // then the complete datapath for the lanes it could not finish.
-                match self {
-                    Op::FAdd => return fp32::add::add_lanes(a, b, mode, out, flags),
-                    Op::FSub => return fp32::add::sub_lanes(a, b, mode, out, flags),
-                    Op::FMul => return fp32::mul::mul_lanes(a, b, mode, out, flags),
+                // then the complete datapath for the lanes it could not finish; or the host
+                // fast path.
+                match (self, datapath) {
+                    (Op::FAdd, Datapath::BitLevel) => {
+                        return fp32::add::add_lanes(a, b, mode, out, flags);
+                    }
+                    (Op::FSub, Datapath::BitLevel) => {
+                        return fp32::add::sub_lanes(a, b, mode, out, flags);
+                    }
+                    (Op::FMul, Datapath::BitLevel) => {
+                        return fp32::mul::mul_lanes(a, b, mode, out, flags);
+                    }
+                    (Op::FAdd, Datapath::Host) => {
+                        return fp32::host::add_lanes(a, b, mode, out, flags);
+                    }
+                    (Op::FSub, Datapath::Host) => {
+                        return fp32::host::sub_lanes(a, b, mode, out, flags);
+                    }
+                    (Op::FMul, Datapath::Host) => {
+                        return fp32::host::mul_lanes(a, b, mode, out, flags);
+                    }
+                    (Op::FDiv, Datapath::Host) => {
+                        return fp32::host::div_lanes(a, b, mode, out, flags);
+                    }
+                    (Op::FSqrt, Datapath::Host) => {
+                        return fp32::host::sqrt_lanes(a, mode, out, flags);
+                    }
                     _ => {}
                 }
                 match self {
@@ -394,12 +416,56 @@ op_table! {
     Mov = "mov", Adder, Int, 1, |a, _, _, _| w(a);
 }
 
+/// What evaluates `fadd`, `fsub`, `fmul`, `fdiv` and `fsqrt` over lanes: the bit-level datapath
+/// ([`crate::arith::fp32`], the model of record) or the host floating-point fast path
+/// ([`fp32::host`]: the same words and flags, proven and cross-checked against SoftFloat,
+/// computed with the host's IEEE arithmetic where that is exact). Every other op has one
+/// datapath.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Datapath {
+    #[default]
+    BitLevel,
+    Host,
+}
+
+impl Datapath {
+    /// Every datapath.
+    pub const ALL: [Datapath; 2] = [Datapath::BitLevel, Datapath::Host];
+
+    /// The name `--datapath` takes.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Datapath::BitLevel => "bit-level",
+            Datapath::Host => "host",
+        }
+    }
+}
+
+impl fmt::Display for Datapath {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Datapath {
+    type Err = String;
+
+    /// `bit-level` or `host`.
+    fn from_str(s: &str) -> Result<Datapath, String> {
+        Datapath::ALL
+            .into_iter()
+            .find(|d| d.name() == s)
+            .ok_or_else(|| format!("unknown datapath `{s}` (expected bit-level or host)"))
+    }
+}
+
 impl Op {
     /// Width of an opcode field (and of the `op` probes of the units).
     pub const OPCODE_BITS: u32 = imagine_hdl::bits_for((Op::ALL.len() - 1) as u64);
 
     /// [`Op::eval_lanes`] with the host floating-point fast path ([`fp32::host`]) for
-    /// [`Op::FAdd`], [`Op::FSub`] and [`Op::FMul`]: the same result words and flags on every
+    /// [`Op::FAdd`], [`Op::FSub`], [`Op::FMul`], [`Op::FDiv`] and [`Op::FSqrt`]: the same
+    /// result words and flags on every
     /// lane (proven, and cross-checked against SoftFloat), computed with the host's IEEE
     /// arithmetic where that is exact and by the bit-level datapath elsewhere. Every other op
     /// is [`Op::eval_lanes`]. The bit-level [`Op::eval_lanes`] stays the model of record.
@@ -417,14 +483,7 @@ impl Op {
         out: &mut [u32],
         flags: &mut [Flags],
     ) {
-        let n = out.len();
-        let (a, b, c, flags) = (&a[..n], &b[..n], &c[..n], &mut flags[..n]);
-        match self {
-            Op::FAdd => fp32::host::add_lanes(a, b, mode, out, flags),
-            Op::FSub => fp32::host::sub_lanes(a, b, mode, out, flags),
-            Op::FMul => fp32::host::mul_lanes(a, b, mode, out, flags),
-            _ => self.eval_lanes(a, b, c, mode, out, flags),
-        }
+        self.eval_lanes_fixed::<0>(Datapath::Host, [a, b, c], mode, out, flags)
     }
 
     /// The op's latency in core cycles under `l`.

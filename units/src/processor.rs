@@ -180,6 +180,11 @@ impl Processor {
         self.skipped
     }
 
+    /// What computes the clusters' fp32 ops without a tracer ([`Machine::set_datapath`]).
+    pub fn set_datapath(&mut self, datapath: crate::ops::Datapath) {
+        self.machine.set_datapath(datapath);
+    }
+
     /// Whether [`run_until`] may jump over idle time (`false`: step every cycle).
     pub fn set_skip_idle(&mut self, on: bool) {
         self.skip_idle = on;

@@ -9,6 +9,7 @@ use imagine_hdl::{ClockDomain, ContractError, Design, Sim};
 use crate::desc::MachineDesc;
 use crate::machine::{KernelStats, Machine, StreamBinding};
 use crate::microcode::{Program, StreamDir};
+use crate::ops::Datapath;
 
 /// A kernel run that could not be set up or did not complete.
 #[derive(Debug)]
@@ -46,6 +47,8 @@ pub struct RunOptions {
     /// Give up after this many core cycles.
     pub max_cycles: u64,
     pub on_start: Option<OnStart>,
+    /// What computes the fp32 ops without a tracer ([`Machine::set_datapath`]).
+    pub datapath: Datapath,
 }
 
 impl Default for RunOptions {
@@ -53,6 +56,7 @@ impl Default for RunOptions {
         RunOptions {
             max_cycles: 10_000_000,
             on_start: None,
+            datapath: Datapath::Host,
         }
     }
 }
@@ -79,6 +83,7 @@ pub fn run_kernel(
     ];
     let mut design = Design::new("top", domains).map_err(|e| RunError::Setup(e.to_string()))?;
     let mut machine = Machine::new(&mut design.scope(), desc);
+    machine.set_datapath(options.datapath);
     let bindings = place_streams(desc, program, inputs)?;
     let mut next_input = inputs.iter();
     for (s, b) in program.streams.iter().zip(&bindings) {

@@ -29,10 +29,12 @@ const UNIFORM: usize = 2_000_000;
 const FTZ: usize = 1_000_000;
 
 /// The ops with a host fast path, and the machine ops that carry them.
-const HOST_OPS: [(Op, MachineOp); 3] = [
+const HOST_OPS: [(Op, MachineOp); 5] = [
     (Op::Add, MachineOp::FAdd),
     (Op::Sub, MachineOp::FSub),
     (Op::Mul, MachineOp::FMul),
+    (Op::Div, MachineOp::FDiv),
+    (Op::Sqrt, MachineOp::FSqrt),
 ];
 
 /// The lane counts of the host path's vectors, in turn.
@@ -194,12 +196,14 @@ cross_check_host! {
     host_f32_add => 0, 1;
     host_f32_sub => 1, 2;
     host_f32_mul => 2, 3;
+    host_f32_div => 3, 4;
+    host_f32_sqrt => 4, 5;
 }
 
 /// Every op with a host fast path has a cross-check above, on the right op.
 #[test]
 fn every_host_op_is_cross_checked() {
-    assert_eq!(HOST_OPS.len(), 3);
+    assert_eq!(HOST_OPS.len(), 5);
     for (op, machine_op) in HOST_OPS {
         assert_eq!(
             machine_op.eval(0x3F80_0000, 0x4000_0000, 0, FpMode::IEEE),

@@ -14,7 +14,7 @@ fn run(machine: &str, text: &str, inputs: &[Vec<u32>]) -> Result<KernelRun, RunE
         inputs,
         RunOptions {
             max_cycles: 100_000,
-            on_start: None,
+            ..RunOptions::default()
         },
     )
 }

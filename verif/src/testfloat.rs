@@ -107,47 +107,11 @@ impl FpuOp {
     }
 }
 
-/// Which evaluation of the fp32 ops a check runs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum Datapath {
-    /// The bit-level datapath (`arith::fp32`), one case at a time: the model of record.
-    #[default]
-    BitLevel,
-    /// The machine op over lanes with the host floating-point fast path
-    /// (`Op::eval_lanes_host`; the bit-level lane datapath for ops without one).
-    Host,
-}
-
-impl Datapath {
-    /// Every datapath.
-    pub const ALL: [Datapath; 2] = [Datapath::BitLevel, Datapath::Host];
-
-    /// The name `--datapath` takes.
-    pub const fn name(self) -> &'static str {
-        match self {
-            Datapath::BitLevel => "bit-level",
-            Datapath::Host => "host",
-        }
-    }
-}
-
-impl fmt::Display for Datapath {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for Datapath {
-    type Err = String;
-
-    /// `bit-level` or `host`.
-    fn from_str(s: &str) -> Result<Datapath, String> {
-        Datapath::ALL
-            .into_iter()
-            .find(|d| d.name() == s)
-            .ok_or_else(|| format!("unknown datapath `{s}` (expected bit-level or host)"))
-    }
-}
+/// Which evaluation of the fp32 ops a check runs: [`Datapath::BitLevel`] checks the
+/// fp32 datapath one case at a time (the model of record), [`Datapath::Host`] the machine op
+/// over lanes with the host floating-point fast path (`Op::eval_lanes_host`; the bit-level
+/// lane datapath for ops without one).
+pub use imagine_units::ops::Datapath;
 
 /// The lane counts of the vectors [`Datapath::Host`] evaluates, in turn: a single cluster,
 /// leftover lanes only, whole groups of the host path's vectors, and groups with leftovers.

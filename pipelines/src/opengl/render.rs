@@ -64,6 +64,7 @@ use imagine_units::dram::trace::TraceRequest;
 use imagine_units::dram::{DramChannel, ReplayReport};
 use imagine_units::hwrast::{RasterJob, RasterState};
 use imagine_units::machine::{KernelStats, StreamBinding};
+use imagine_units::ops::Datapath;
 use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
 
@@ -199,6 +200,8 @@ pub struct RenderOptions {
     pub record_dram: bool,
     /// The rasterizer kernels: barycentric (`xyprep`, `xyrast`) or scanline.
     pub rasterizer: Rasterizer,
+    /// What computes the clusters' fp32 ops without a tracer (the same frame either way).
+    pub datapath: Datapath,
 }
 
 /// The rasterizer kernels a frame runs (machines with a hardware rasterizer use it
@@ -257,6 +260,7 @@ impl Default for RenderOptions {
             cache: CompileCache::disabled(),
             max_cycles: MAX_RUN_CYCLES,
             step_idle: false,
+            datapath: Datapath::Host,
             reverse_eval_order: false,
             batch: None,
             timeline: false,
@@ -1784,7 +1788,9 @@ fn run_frame(
         None
     };
     let mut host = StreamHost::new(desc, lib, dram, on_start, options.max_cycles)?;
-    processor::processor_mut(host.sim_mut()).set_skip_idle(!options.step_idle);
+    let processor = processor::processor_mut(host.sim_mut());
+    processor.set_skip_idle(!options.step_idle);
+    processor.set_datapath(options.datapath);
     if options.record_dram {
         for c in host.sim_mut().modules_of_mut::<DramChannel>() {
             c.start_recording();

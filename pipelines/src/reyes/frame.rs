@@ -40,6 +40,7 @@ use glam::DMat4;
 use imagine_units::desc::MachineDesc;
 use imagine_units::limits::MAX_RUN_CYCLES;
 use imagine_units::machine::StreamBinding;
+use imagine_units::ops::Datapath;
 use imagine_units::processor;
 use imagine_units::stream_controller::StreamInstr;
 
@@ -88,6 +89,8 @@ pub struct ReyesOptions {
     /// Give up the run (load, clear, frame and read-back) after this many core cycles.
     pub max_cycles: u64,
     pub cache: CompileCache,
+    /// What computes the clusters' fp32 ops (the same frame either way).
+    pub datapath: Datapath,
 }
 
 impl Default for ReyesOptions {
@@ -98,6 +101,7 @@ impl Default for ReyesOptions {
             split_levels: None,
             max_cycles: MAX_RUN_CYCLES,
             cache: CompileCache::disabled(),
+            datapath: Datapath::Host,
         }
     }
 }
@@ -831,7 +835,9 @@ pub fn render_patches(
     let framebuffer = dram.buffer("framebuffer", (fb_pixels * PIXEL_WORDS) as u64)?;
 
     let mut h = StreamHost::new(desc, lib, dram, None, options.max_cycles)?;
-    processor::processor_mut(h.sim_mut()).set_skip_idle(true);
+    let processor = processor::processor_mut(h.sim_mut());
+    processor.set_skip_idle(true);
+    processor.set_datapath(options.datapath);
     let mut stats = ReyesStats {
         patches: patches.len(),
         ..ReyesStats::default()

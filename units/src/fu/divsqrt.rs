@@ -38,7 +38,7 @@ use crate::arith::fp32::sqrt::{SQRT_STEPS, SqrtJob, sqrt_finish, sqrt_setup};
 use crate::arith::fp32::{FpMode, Setup};
 use crate::desc::MachineDesc;
 use crate::lanes::count;
-use crate::ops::{Op, UnitClass};
+use crate::ops::{Datapath, Op, UnitClass};
 
 /// Recurrence steps of the longer op.
 const STEPS: u32 = if DIV_STEPS > SQRT_STEPS {
@@ -128,14 +128,19 @@ pub struct DivSqrt {
     flags: Vec<Flags>,
     issued: bool,
     /// A tracer is attached: the recurrence core steps cycle by cycle and the issue latch
-    /// is kept, for the probes. Without one each lane's result is computed at issue by
-    /// the same recurrence run to its end ([`fp32::div`], [`fp32::sqrt`]: the same
-    /// setup, steps and rounding, so the same bits and flags), and only the timing is
-    /// modelled.
+    /// is kept, for the probes. Without one each lane's result is computed at issue, on
+    /// `datapath`, and only the timing is modelled: the bit-level datapath is the same
+    /// recurrence run to its end ([`fp32::div`], [`fp32::sqrt`]: the same setup, steps and
+    /// rounding), the host fast path gives the same bits and flags ([`fp32::host`]).
     ///
     /// [`fp32::div`]: crate::arith::fp32::div
     /// [`fp32::sqrt`]: crate::arith::fp32::sqrt
+    /// [`fp32::host`]: crate::arith::fp32::host
     tracing: bool,
+    datapath: Datapath,
+    /// The results computed at issue, before they become the lanes' jobs.
+    values_at_issue: Vec<u32>,
+    flags_at_issue: Vec<Flags>,
     latch: IssueLatch,
     probes: UnitProbes,
     core_ids: Vec<CoreIds>,
@@ -218,6 +223,9 @@ impl DivSqrt {
             flags: vec![Flags::NONE; lanes],
             issued: false,
             tracing: true,
+            datapath: Datapath::Host,
+            values_at_issue: vec![0; lanes],
+            flags_at_issue: vec![Flags::NONE; lanes],
             latch: IssueLatch::new(lanes),
             probes,
             core_ids,
@@ -272,8 +280,12 @@ impl DivSqrt {
         let (jobs, mode) = (&mut self.jobs[s * n..(s + 1) * n], self.mode);
         let (a, b) = (&a[..n], &b[..n]);
         if !self.tracing {
-            for ((j, &x), &y) in jobs.iter_mut().zip(a).zip(b) {
-                let (r, f) = is.op.eval(x, y, 0, mode);
+            let (values, flags) = (
+                &mut self.values_at_issue[..n],
+                &mut self.flags_at_issue[..n],
+            );
+            op.eval_lanes_fixed::<L>(self.datapath, [a, b, a], mode, values, flags);
+            for ((j, &r), &f) in jobs.iter_mut().zip(&*values).zip(&*flags) {
                 *j = LaneJob::Done(r, f);
             }
         } else if is.op == Op::FDiv {
@@ -314,6 +326,12 @@ impl DivSqrt {
             self.jobs.iter_mut().for_each(|j| j.step(STEPS));
         }
         self.tracing = on;
+    }
+
+    /// What computes results at issue when no tracer is attached (the host fast path unless
+    /// told otherwise; the same words and flags either way).
+    pub fn set_datapath(&mut self, datapath: Datapath) {
+        self.datapath = datapath;
     }
 
     #[cold]

@@ -26,7 +26,7 @@ use crate::arith::flags::Flags;
 use crate::arith::fp32::FpMode;
 use crate::desc::MachineDesc;
 use crate::lanes::count;
-use crate::ops::{Op, UnitClass};
+use crate::ops::{Datapath, Op, UnitClass};
 
 /// The unit class of a [`Pipelined`] unit, at the type level.
 pub trait PipelinedKind: 'static {
@@ -66,8 +66,11 @@ pub struct Pipelined<K: PipelinedKind> {
     flags: Vec<Flags>,
     /// An op was issued in the current cycle.
     issued: bool,
-    /// A tracer is attached: the issue latch is kept for the probes.
+    /// A tracer is attached: the issue latch is kept for the probes, and the bit-level
+    /// datapath computes every op, whatever `datapath` says.
     tracing: bool,
+    /// What computes `fadd`, `fsub` and `fmul` without a tracer.
+    datapath: Datapath,
     latch: IssueLatch,
     probes: UnitProbes,
     _kind: PhantomData<K>,
@@ -123,6 +126,7 @@ impl<K: PipelinedKind> Pipelined<K> {
             flags: vec![Flags::NONE; depth * lanes],
             issued: false,
             tracing: true,
+            datapath: Datapath::Host,
             latch: IssueLatch::new(lanes),
             probes: UnitProbes::new(scope, name, lanes, ports, 1..=max_latency),
             _kind: PhantomData,
@@ -174,10 +178,15 @@ impl<K: PipelinedKind> Pipelined<K> {
         }
         let n = count::<L>(self.lanes);
         let range = s * n..(s + 1) * n;
+        // A waveform shows the model of record: the bit-level datapath.
+        let datapath = if self.tracing {
+            Datapath::BitLevel
+        } else {
+            self.datapath
+        };
         op.eval_lanes_fixed::<L>(
-            a,
-            b,
-            c,
+            datapath,
+            [a, b, c],
             self.mode,
             &mut self.values[range.clone()],
             &mut self.flags[range],
@@ -211,6 +220,12 @@ impl<K: PipelinedKind> Pipelined<K> {
     /// one the operands of each issue are not latched for the probes.
     pub fn set_tracing(&mut self, on: bool) {
         self.tracing = on;
+    }
+
+    /// What computes `fadd`, `fsub` and `fmul` when no tracer is attached (the host fast
+    /// path unless told otherwise; the same words and flags either way).
+    pub fn set_datapath(&mut self, datapath: Datapath) {
+        self.datapath = datapath;
     }
 
     /// The op completing in the current cycle, if any (from committed state).

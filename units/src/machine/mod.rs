@@ -32,12 +32,12 @@ use crate::ccfile::CcFile;
 use crate::comm::CommUnit;
 use crate::delay::{DelayLine, InFlight};
 use crate::desc::MachineDesc;
-use crate::fu::{Adder, Completion, DivSqrt, Multiplier};
+use crate::fu::{Adder, DivSqrt, Multiplier};
 use crate::lanes::{copy_lanes, copy_mask, count, count_set};
 use crate::lrf::Lrf;
 use crate::microcode::{Dest, Dests, ImmValue, Program, StreamDir};
 use crate::microcontroller::{LoopEnv, Microcontroller, Phase};
-use crate::ops::Op;
+use crate::ops::{Datapath, Op};
 use crate::scratchpad::Scratchpad;
 use crate::srf::Srf;
 use crate::switch::{StreamSink, route};
@@ -162,35 +162,6 @@ struct Fus {
 }
 
 impl Fus {
-    /// Calls `f` with the slot and the op of every unit completing one this cycle, in slot
-    /// order (unit by unit, not through a per-slot dispatch like `issue`'s, and by loops
-    /// rather than a chained iterator, which did not inline: this runs every cycle).
-    fn for_each_completed<'a>(
-        &'a self,
-        mut f: impl FnMut(usize, Completion<'a>) -> Result<(), ContractError>,
-    ) -> Result<(), ContractError> {
-        let mut slot = 0;
-        for u in &self.adders {
-            if let Some(c) = u.completed() {
-                f(slot, c)?;
-            }
-            slot += 1;
-        }
-        for u in &self.multipliers {
-            if let Some(c) = u.completed() {
-                f(slot, c)?;
-            }
-            slot += 1;
-        }
-        for u in &self.divsqrts {
-            if let Some(c) = u.completed() {
-                f(slot, c)?;
-            }
-            slot += 1;
-        }
-        Ok(())
-    }
-
     /// Issues a checked op (see [`Pipelined::issue_checked`]) to `unit`.
     ///
     /// [`Pipelined::issue_checked`]: crate::fu::Pipelined::issue_checked
@@ -239,6 +210,18 @@ impl Fus {
         self.divsqrts.iter_mut().for_each(|u| u.commit());
     }
 
+    fn set_datapath(&mut self, datapath: Datapath) {
+        self.adders
+            .iter_mut()
+            .for_each(|u| u.set_datapath(datapath));
+        self.multipliers
+            .iter_mut()
+            .for_each(|u| u.set_datapath(datapath));
+        self.divsqrts
+            .iter_mut()
+            .for_each(|u| u.set_datapath(datapath));
+    }
+
     fn set_tracing(&mut self, on: bool) {
         self.adders.iter_mut().for_each(|u| u.set_tracing(on));
         self.multipliers.iter_mut().for_each(|u| u.set_tracing(on));
@@ -261,37 +244,114 @@ struct Sources<'a> {
     immediates: &'a DelayLine,
 }
 
+/// What takes each result leaving a unit in a cycle: its destinations, one word per
+/// cluster, and the clusters that write it (`None`: all).
+trait ResultSink<'a> {
+    fn take(
+        &mut self,
+        dests: &'a Dests,
+        values: &'a [u32],
+        mask: Option<&'a [bool]>,
+    ) -> Result<(), ContractError>;
+}
+
+impl<'a, F> ResultSink<'a> for F
+where
+    F: FnMut(&'a Dests, &'a [u32], Option<&'a [bool]>) -> Result<(), ContractError>,
+{
+    #[inline(always)]
+    fn take(
+        &mut self,
+        dests: &'a Dests,
+        values: &'a [u32],
+        mask: Option<&'a [bool]>,
+    ) -> Result<(), ContractError> {
+        self(dests, values, mask)
+    }
+}
+
+/// The intracluster switch as the cycle's result sink, compiled for `L` lanes
+/// (`crate::lanes`): each result goes to its LRF entries, condition codes and output
+/// streams. (A trait method that is always inlined, where a closure called from every
+/// source's loop was not: this runs for every result.)
+struct Switch<'b, const L: usize> {
+    lrfs: &'b mut [Lrf],
+    cc: &'b mut CcFile,
+    all_lanes: &'b [bool],
+    streams: Streams<'b>,
+}
+
+impl<'a, const L: usize> ResultSink<'a> for Switch<'_, L> {
+    #[inline(always)]
+    fn take(
+        &mut self,
+        dests: &'a Dests,
+        values: &'a [u32],
+        mask: Option<&'a [bool]>,
+    ) -> Result<(), ContractError> {
+        let all_lanes = self.all_lanes;
+        route::<L>(
+            dests,
+            values,
+            mask,
+            all_lanes,
+            self.lrfs,
+            self.cc,
+            &mut self.streams,
+        )
+    }
+}
+
 impl<'a> Sources<'a> {
-    /// Calls `f` with the destinations, words and cluster mask of every result leaving a
-    /// unit this cycle. A result's destinations are those its slot had in the instruction
-    /// that issued it (its tag).
-    #[inline]
+    /// Hands `sink` the destinations, words and cluster mask of every result leaving a unit
+    /// this cycle, in port order. A result's destinations are those its slot had in the
+    /// instruction that issued it (its tag).
+    #[inline(always)]
     fn for_each_due(
         &self,
         decoded: &'a Decoded,
-        mut f: impl FnMut(&'a Dests, &'a [u32], Option<&'a [bool]>) -> Result<(), ContractError>,
+        sink: &mut impl ResultSink<'a>,
     ) -> Result<(), ContractError> {
         let ports = decoded.ports_of;
         let mask = |r: &'a InFlight| r.masked.then_some(&r.mask[..]);
-        self.fus
-            .for_each_completed(|slot, c| f(decoded.route(c.tag, slot), c.values, None))?;
+        // The FU slots: adders, multipliers, divide/sqrt units, by loops rather than a
+        // chained iterator, which did not inline.
+        let mut slot = 0;
+        for u in &self.fus.adders {
+            if let Some(c) = u.completed() {
+                sink.take(decoded.route(c.tag, slot), c.values, None)?;
+            }
+            slot += 1;
+        }
+        for u in &self.fus.multipliers {
+            if let Some(c) = u.completed() {
+                sink.take(decoded.route(c.tag, slot), c.values, None)?;
+            }
+            slot += 1;
+        }
+        for u in &self.fus.divsqrts {
+            if let Some(c) = u.completed() {
+                sink.take(decoded.route(c.tag, slot), c.values, None)?;
+            }
+            slot += 1;
+        }
         for (i, sp) in self.scratchpads.iter().enumerate() {
             if let Some(r) = sp.completed() {
-                f(decoded.route(r.tag, ports.sp + i), &r.values, mask(r))?;
+                sink.take(decoded.route(r.tag, ports.sp + i), &r.values, mask(r))?;
             }
         }
         for (i, cu) in self.comms.iter().enumerate() {
             if let Some(r) = cu.completed() {
-                f(decoded.route(r.tag, ports.comm + i), &r.values, None)?;
+                sink.take(decoded.route(r.tag, ports.comm + i), &r.values, None)?;
             }
         }
         for (i, line) in self.stream_reads.iter().enumerate() {
             if let Some(r) = line.current() {
-                f(decoded.route(r.tag, ports.sin + i), &r.values, mask(r))?;
+                sink.take(decoded.route(r.tag, ports.sin + i), &r.values, mask(r))?;
             }
         }
         if let Some(r) = self.immediates.current() {
-            f(decoded.route(r.tag, ports.imm), &r.values, None)?;
+            sink.take(decoded.route(r.tag, ports.imm), &r.values, None)?;
         }
         Ok(())
     }
@@ -327,6 +387,14 @@ pub struct Machine {
     comm_inputs: Vec<[usize; 2]>,
     sout_input: usize,
     stalled: bool,
+    /// The clusters are asleep: no kernel runs and nothing is in flight or pending in
+    /// them, so a cycle only turns their pipelines' rings. They are brought over the
+    /// `idle_cycles` they slept in one step (`wake_clusters`) before anything can change
+    /// them (a kernel starts, a tracer is attached) instead of committing each cycle.
+    asleep: bool,
+    idle_cycles: u64,
+    /// A tracer is attached: the clusters commit every cycle, as their probes are read.
+    tracing: bool,
     all_lanes: Vec<bool>,
     buf: [Vec<u32>; 3],
     mask: Vec<bool>,
@@ -406,6 +474,10 @@ impl Machine {
             comm_inputs,
             sout_input: index("sout.data".into()),
             stalled: false,
+            asleep: false,
+            idle_cycles: 0,
+            // As every block: a machine outside a simulator is traced until told otherwise.
+            tracing: true,
             all_lanes: vec![true; lanes],
             buf: [vec![0; lanes], vec![0; lanes], vec![0; lanes]],
             mask: vec![true; lanes],
@@ -417,6 +489,13 @@ impl Machine {
 
     pub fn desc(&self) -> &MachineDesc {
         &self.desc
+    }
+
+    /// What computes the fp32 ops of the adders, multipliers and divide/sqrt units while no
+    /// tracer is attached: the host fast path unless told otherwise (the same words and
+    /// flags; with a tracer the bit-level datapath, the model of record, always does).
+    pub fn set_datapath(&mut self, datapath: Datapath) {
+        self.fus.set_datapath(datapath);
     }
 
     pub fn lanes(&self) -> usize {
@@ -488,6 +567,7 @@ impl Machine {
                 bindings.len()
             )));
         }
+        self.wake_clusters();
         if self.kernel.take().is_some() {
             self.release_streams()
                 .map_err(|e| StartError(e.to_string()))?;
@@ -601,6 +681,15 @@ impl Machine {
     pub fn skip_idle(&mut self, n: u64) {
         debug_assert!(self.idle_skippable() && n > 0);
         self.srf.skip_idle(n);
+        if self.asleep {
+            self.idle_cycles += n;
+            return;
+        }
+        self.skip_clusters(n);
+    }
+
+    /// Brings the quiet clusters over `n ≥ 1` idle cycles, as `n` commits would.
+    fn skip_clusters(&mut self, n: u64) {
         self.fus.skip_idle(n);
         // Between idle cycles nothing is pending in an LRF or the condition codes: an
         // LRF's commit only clears its probe latches, the condition codes' does nothing.
@@ -609,6 +698,16 @@ impl Machine {
         self.comms.iter_mut().for_each(|u| u.skip_idle(n));
         self.stream_reads.iter_mut().for_each(|u| u.skip_idle(n));
         self.immediates.skip_idle(n);
+    }
+
+    /// Brings sleeping clusters over the cycles they slept (see the `asleep` field).
+    pub(crate) fn wake_clusters(&mut self) {
+        if std::mem::take(&mut self.asleep) {
+            let n = std::mem::take(&mut self.idle_cycles);
+            if n > 0 {
+                self.skip_clusters(n);
+            }
+        }
     }
 
     /// Everything that evolves (tests compare a run that skipped idle cycles with one that
@@ -702,15 +801,18 @@ impl Machine {
         }
         // Results due this cycle that go to output streams.
         if decoded.switch_writes_streams {
-            self.sources().for_each_due(decoded, |dests, _, mask| {
-                for d in dests.iter().flatten() {
-                    if let Dest::Stream { stream } = d {
-                        need_out[*stream as usize] +=
-                            mask.map_or(lanes, |m| m.iter().filter(|&&b| b).count() as u32);
+            self.sources().for_each_due(
+                decoded,
+                &mut |dests: &Dests, _, mask: Option<&[bool]>| {
+                    for d in dests.iter().flatten() {
+                        if let Dest::Stream { stream } = d {
+                            need_out[*stream as usize] +=
+                                mask.map_or(lanes, |m| m.iter().filter(|&&b| b).count() as u32);
+                        }
                     }
-                }
-                Ok(())
-            })?;
+                    Ok(())
+                },
+            )?;
         }
         for (stream, &need) in need_in
             .iter()
@@ -757,14 +859,16 @@ impl Machine {
             stream_reads: &self.stream_reads,
             immediates: &self.immediates,
         };
-        let mut streams = Streams {
-            srf: &mut self.srf,
-            lanes: self.lanes,
+        let mut switch = Switch::<L> {
+            lrfs: &mut self.lrfs,
+            cc: &mut self.cc,
+            all_lanes: &self.all_lanes,
+            streams: Streams {
+                srf: &mut self.srf,
+                lanes: self.lanes,
+            },
         };
-        let (lrfs, cc, all_lanes) = (&mut self.lrfs, &mut self.cc, &self.all_lanes);
-        sources.for_each_due(decoded, |dests, values, mask| {
-            route::<L>(dests, values, mask, all_lanes, lrfs, cc, &mut streams)
-        })
+        sources.for_each_due(decoded, &mut switch)
     }
 
     fn sources(&self) -> Sources<'_> {
@@ -964,6 +1068,10 @@ impl Machine {
         if self.stalled {
             return;
         }
+        if self.asleep {
+            self.idle_cycles += 1;
+            return;
+        }
         self.fus.commit();
         self.lrfs.iter_mut().for_each(|u| u.commit_for::<L>());
         self.cc.commit();
@@ -971,6 +1079,11 @@ impl Machine {
         self.comms.iter_mut().for_each(|u| u.commit());
         self.stream_reads.iter_mut().for_each(|u| u.commit());
         self.immediates.commit();
+        // With no kernel, what this edge landed was the last: the clusters can sleep.
+        self.asleep = !self.tracing
+            && self.uc.phase() == Phase::Idle
+            && self.fus.is_quiet()
+            && self.in_flight() == 0;
     }
 
     fn kernel_cycle<const L: usize>(&mut self, kernel: &mut Kernel) -> Result<(), ContractError> {
@@ -1049,6 +1162,8 @@ impl Module for Machine {
     }
 
     fn set_tracing(&mut self, on: bool) {
+        self.wake_clusters();
+        self.tracing = on;
         self.fus.set_tracing(on);
         self.lrfs.iter_mut().for_each(|u| u.set_tracing(on));
         self.scratchpads.iter_mut().for_each(|u| u.set_tracing(on));

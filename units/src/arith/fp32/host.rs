@@ -1,4 +1,5 @@
-//! Host floating-point fast path for the fp32 adders and multipliers over lanes.
+//! Host floating-point fast path for the fp32 adders, multipliers and divide/sqrt unit over
+//! lanes.
 //!
 //! [`add_lanes`], [`sub_lanes`] and [`mul_lanes`] deliver exactly what the bit-level lane
 //! datapaths of the same names ([`super::add::add_lanes`], [`super::add::sub_lanes`],
@@ -48,15 +49,28 @@
 //! back, among them those that round up to the smallest normal, whose underflow flag depends
 //! on tininess after rounding.
 //!
+//! **Divide and square root.** The host's `f32` `/` and `sqrt` are IEEE's correctly rounded
+//! operations, as the bit-level digit recurrence is. A lane takes the quotient `q = RN(x/y)`
+//! when both operands are normal and `q` is finite with `|q| > 2^−126` (a quotient at the
+//! smallest normal may have been tiny before rounding, whose underflow flag depends on
+//! tininess after rounding: it falls back), and the root `r = RN(√x)` when `x` is normal and
+//! positive (its root is normal). Neither can then be invalid, divide by zero, overflow or
+//! underflow. Inexact is decided exactly in `f64`: `q·y` and `r·r` have at most 48
+//! significant bits, so `f64(q)·f64(y)` and `f64(r)²` are exact, and the result is exact
+//! precisely when they equal `x`.
+//!
 //! **Flush-to-zero.** The input half (`flush_input`) is applied before the host operation,
 //! as the bit-level datapaths do; the output half only changes results that are subnormal or
 //! rounded to zero from a non-zero value, which never take the host's answer.
 //!
 //! # Where it falls back
 //!
-//! To the bit-level op ([`super::add()`], [`super::sub()`], [`super::mul()`]) lane by lane:
-//! NaN or infinite operands, overflow, a subnormal sum (exact, but flushed in flush-to-zero
-//! mode), a non-zero product below 2^−126 (subnormal, zero or the smallest normal).
+//! To the bit-level op ([`super::add()`], [`super::sub()`], [`super::mul()`],
+//! [`super::div()`], [`super::sqrt()`]) lane by lane: NaN or infinite operands, overflow, a
+//! subnormal sum (exact, but flushed in flush-to-zero mode), a non-zero product below 2^−126
+//! (subnormal, zero or the smallest normal); a division or root with a zero, subnormal,
+//! infinite or NaN operand (or a negative radicand), or a quotient out of the normal range
+//! or at its smallest value.
 //!
 //! # Lanes
 //!
@@ -134,6 +148,48 @@ pub fn mul_lanes(a: &[u32], b: &[u32], mode: FpMode, out: &mut [u32], flags: &mu
     }
 }
 
+/// `out[i], flags[i] = div(a[i], b[i])` for every lane `i < out.len()`, bit-identical to the
+/// divide/sqrt unit's division ([`super::div()`]); see the module doc.
+///
+/// # Panics
+/// If `a` or `b` is shorter than `out`, or `flags` is not as long as `out`.
+#[inline(never)]
+pub fn div_lanes(a: &[u32], b: &[u32], mode: FpMode, out: &mut [u32], flags: &mut [Flags]) {
+    let bit_level = |a, b| super::div(a, b, mode);
+    if !HOST_IS_IEEE {
+        return bit_by_bit(a, b, out, flags, bit_level);
+    }
+    // Subnormal operands fall back whatever the mode, so the input flush changes nothing here.
+    host_lanes(a, b, out, flags, div_lane, bit_level);
+}
+
+/// `out[i], flags[i] = sqrt(a[i])` for every lane `i < out.len()`, bit-identical to the
+/// divide/sqrt unit's square root ([`super::sqrt()`]); see the module doc.
+///
+/// # Panics
+/// If `a` is shorter than `out`, or `flags` is not as long as `out`.
+#[inline(never)]
+pub fn sqrt_lanes(a: &[u32], mode: FpMode, out: &mut [u32], flags: &mut [Flags]) {
+    let bit_level = |a, _| super::sqrt(a, mode);
+    if !HOST_IS_IEEE {
+        return bit_by_bit(a, a, out, flags, bit_level);
+    }
+    host_lanes(a, a, out, flags, |a, _| sqrt_lane(a), bit_level);
+}
+
+/// `bit_level` on every lane.
+fn bit_by_bit(
+    a: &[u32],
+    b: &[u32],
+    out: &mut [u32],
+    flags: &mut [Flags],
+    bit_level: impl Fn(u32, u32) -> (u32, Flags),
+) {
+    for (((o, f), &a), &b) in out.iter_mut().zip(flags.iter_mut()).zip(a).zip(b) {
+        (*o, *f) = bit_level(a, b);
+    }
+}
+
 /// The lane loop of this module: `host` on every lane, and `bit_level` wherever `host` clears
 /// its `ok` bit; the whole groups of lanes in vectors, the lanes after them one by one.
 ///
@@ -200,6 +256,29 @@ fn mul_lane(a: u32, b: u32) -> (u32, Flags, bool) {
     let ok = (exact.abs() >= f64::from(f32::MIN_POSITIVE)) & (rounded.abs() < f32::INFINITY)
         | (exact == 0.0);
     (rounded.to_bits(), Flags::when(inexact, Flags::INEXACT), ok)
+}
+
+/// `a / b` by the host (see the module doc): the quotient, its flags, and `ok`, set where
+/// they are the bit-level divider's. Branch-free.
+#[inline(always)]
+fn div_lane(a: u32, b: u32) -> (u32, Flags, bool) {
+    let (x, y) = (f32::from_bits(a), f32::from_bits(b));
+    let q = x / y;
+    let inexact = f64::from(q) * f64::from(y) != f64::from(x);
+    let ok =
+        is_normal(a) & is_normal(b) & (q.abs() > f32::MIN_POSITIVE) & (q.abs() < f32::INFINITY);
+    (q.to_bits(), Flags::when(inexact, Flags::INEXACT), ok)
+}
+
+/// `√a` by the host (see the module doc): the root, its flags, and `ok`, set where they are
+/// the bit-level unit's. Branch-free.
+#[inline(always)]
+fn sqrt_lane(a: u32) -> (u32, Flags, bool) {
+    let x = f32::from_bits(a);
+    let r = x.sqrt();
+    let inexact = f64::from(r) * f64::from(r) != f64::from(x);
+    let ok = is_normal(a) & (a & SIGN == 0);
+    (r.to_bits(), Flags::when(inexact, Flags::INEXACT), ok)
 }
 
 #[cfg(test)]
@@ -421,6 +500,123 @@ mod tests {
                 agree_everywhere(a, b);
             }
         }
+    }
+
+    /// The host and bit-level divider and square root agree on `(a, b)`, in every lane
+    /// position and mode, and the host answers exactly when `host_answers`.
+    fn div_sqrt_case(a: u32, b: u32, host_answers: (bool, bool)) {
+        assert_eq!(
+            div_lane(a, b).2,
+            host_answers.0,
+            "host takes {a:08X} / {b:08X}"
+        );
+        assert_eq!(sqrt_lane(a).2, host_answers.1, "host takes sqrt {a:08X}");
+        for mode in [FpMode::IEEE, FpMode::FTZ] {
+            for (len, at) in [(1, 0), (8, 0), (8, 5), (16, 11), (11, 10)] {
+                let mut xs = vec![0x4049_0FDB; len];
+                let mut ys = vec![0x3FC0_0000; len];
+                (xs[at], ys[at]) = (a, b);
+                let lanes = |f: &dyn Fn(&[u32], &[u32], &mut [u32], &mut [Flags])| {
+                    let (mut out, mut flags) = (vec![0; len], vec![Flags::NONE; len]);
+                    f(&xs, &ys, &mut out, &mut flags);
+                    (out, flags)
+                };
+                let each = |f: fn(u32, u32, FpMode) -> (u32, Flags)| {
+                    lanes(&|a, b, out, flags| {
+                        for i in 0..a.len() {
+                            (out[i], flags[i]) = f(a[i], b[i], mode);
+                        }
+                    })
+                };
+                assert_eq!(
+                    lanes(&|a, b, out, flags| div_lanes(a, b, mode, out, flags)),
+                    each(super::super::div),
+                    "{a:08X} / {b:08X} {mode:?} in lane {at} of {len}"
+                );
+                assert_eq!(
+                    lanes(&|a, _, out, flags| sqrt_lanes(a, mode, out, flags)),
+                    each(|a, _, mode| super::super::sqrt(a, mode)),
+                    "sqrt {a:08X} {mode:?} in lane {at} of {len}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn div_sqrt_edges() {
+        // Exact and inexact quotients and roots.
+        div_sqrt_case(0x40C0_0000, 0x4040_0000, (true, true));
+        div_sqrt_case(0x3F80_0000, 0x4040_0000, (true, true));
+        div_sqrt_case(0x4080_0000, 0x3F80_0000, (true, true));
+        // A quotient at the smallest normal, which may have been tiny before rounding,
+        // falls back; one just above it does not.
+        div_sqrt_case(0x0080_0000, 0x3F80_0000, (false, true));
+        div_sqrt_case(0x0080_0001, 0x3F80_0000, (true, true));
+        div_sqrt_case(0x0080_0000, 0x3F7F_FFFF, (true, true));
+        div_sqrt_case(0x0080_0000, 0x3F80_0001, (false, true));
+        // Overflow and underflow of the quotient.
+        div_sqrt_case(0x7F7F_FFFF, 0x3F00_0000, (false, true));
+        div_sqrt_case(0x0100_0000, 0x7F00_0000, (false, true));
+        // Zeros, subnormals, negative radicands, infinities and NaNs fall back.
+        div_sqrt_case(0, 0x3F80_0000, (false, false));
+        div_sqrt_case(SIGN, 0x3F80_0000, (false, false));
+        div_sqrt_case(0x3F80_0000, 0, (false, true));
+        div_sqrt_case(1, 0x3F80_0000, (false, false));
+        div_sqrt_case(0x3F80_0000, 1, (false, true));
+        div_sqrt_case(0xBF80_0000, 0x3F80_0000, (true, false));
+        div_sqrt_case(0x7F80_0000, 0x3F80_0000, (false, false));
+        div_sqrt_case(0x3F80_0000, 0x7F80_0000, (false, true));
+        div_sqrt_case(0x7FC0_0000, 0x3F80_0000, (false, false));
+        div_sqrt_case(0x3F80_0000, 0xFF80_0001, (false, true));
+        // The smallest and largest normal radicands (the first quotient is subnormal).
+        div_sqrt_case(0x0080_0000, 0x4000_0000, (false, true));
+        div_sqrt_case(0x7F7F_FFFF, 0x4000_0000, (true, true));
+        for &a in SPECIALS {
+            for &b in SPECIALS {
+                div_sqrt_case(a, b, (div_lane(a, b).2, sqrt_lane(a).2));
+            }
+        }
+    }
+
+    /// Random operands, biased and normal: host and bit-level division and root agree, and
+    /// the host answers most lanes whose result is normal.
+    #[test]
+    fn random_divisions_and_roots_agree() {
+        let mut rng = SplitMix64::new(0xD1F5);
+        let (mut taken, mut normal_results) = (0, 0);
+        for round in 0..4000 {
+            let mode = [FpMode::IEEE, FpMode::FTZ][round % 2];
+            let (a, b) = match round / 2 % 2 {
+                0 => biased_pair(&mut rng),
+                _ => (normal(&mut rng), normal(&mut rng)),
+            };
+            let mut got = ([0; 1], [NONE; 1]);
+            div_lanes(&[a], &[b], mode, &mut got.0, &mut got.1);
+            assert_eq!(
+                (got.0[0], got.1[0]),
+                super::super::div(a, b, mode),
+                "{a:08X} / {b:08X}"
+            );
+            sqrt_lanes(&[a], mode, &mut got.0, &mut got.1);
+            assert_eq!(
+                (got.0[0], got.1[0]),
+                super::super::sqrt(a, mode),
+                "sqrt {a:08X}"
+            );
+            let (q, _) = super::super::div(a, b, mode);
+            if super::super::is_normal(q)
+                && q & !SIGN != 0x0080_0000
+                && is_normal(a)
+                && is_normal(b)
+            {
+                normal_results += 1;
+                taken += div_lane(a, b).2 as u32;
+            }
+        }
+        assert!(
+            taken == normal_results && taken > 1000,
+            "{taken} of {normal_results}"
+        );
     }
 
     /// A normal operand with a random sign and an exponent in `[2^-27, 2^28)`.
