@@ -52,6 +52,7 @@ pub struct ActivityLog {
 impl ActivityLog {
     /// Records the counters `now` (cycles before `cycle` counted) if `cycle` is a sample
     /// point and they changed since the last sample.
+    #[inline]
     pub fn sample(&mut self, cycle: u64, now: Activity) {
         if cycle.is_multiple_of(SAMPLE_CYCLES) && self.last() != now {
             self.samples.push((cycle, now));

@@ -12,6 +12,12 @@
 //!    queue and the reads in flight leave room for its data);
 //! 4. one request enters from the input FIFO if the pending-reference buffer has room.
 //!
+//! A channel with nothing pending, in flight, on its buses or waiting to be returned is
+//! *quiet*: until a request arrives or its next refresh comes due, a cycle changes nothing
+//! but the cycle count (and the activity samples), so `eval` sees that from the registers
+//! and `commit` only counts it. (Quiet cycles are most of a frame's: the memory system
+//! waits on the clusters.)
+//!
 //! Probes under the channel's scope: `cmd` (3 bits, see [`Command::code`]), `cmd_bank`,
 //! `cmd_row`, `cmd_column`; the scheduler's `queue_depth`, `decision`, `decision_entry`,
 //! `refresh_pending`; `bankN.state`, `bankN.row`; `dq_valid`, `dq`; `return_depth`.
@@ -27,7 +33,7 @@ use super::activity::{Activity, ActivityLog};
 use super::scheduler::{Entry, Scheduler};
 use super::sdram::Sdram;
 use super::timing_check::{TimingChecker, TimingViolation};
-use super::{Command, DramParams, Policy, Reply, Request, TraceKind, TraceRequest};
+use super::{Command, DramParams, Policy, Reply, Request, Tag, TraceKind, TraceRequest};
 
 /// Where a channel's requests come from.
 pub enum ChannelInput {
@@ -67,15 +73,17 @@ pub struct ChannelStats {
     pub accepted: u64,
 }
 
-/// A read burst coming out of the SDRAM.
+/// A read burst coming out of the SDRAM: whom it answers, and the words so far.
 #[derive(Clone, Debug)]
 struct Pending {
-    entry: Entry,
+    tag: Tag,
+    arrival: u64,
     words: usize,
     data: [u32; 8],
 }
 
-/// The command-bus register's contents.
+/// The command-bus register's contents: the command and, for a column command, the
+/// reference it serves.
 #[derive(Clone, Copy, Debug)]
 struct Bus {
     cmd: Command,
@@ -99,6 +107,13 @@ pub struct DramChannel {
     return_capacity: usize,
     /// Replies leaving this cycle and requests entering (applied at commit).
     popped_return: bool,
+    /// Whether the channel is quiet (see the module doc), and the first cycle at which a
+    /// quiet channel acts of its own accord: the scheduler's next refresh, or the timing
+    /// checker's next refresh deadline.
+    quiet: bool,
+    quiet_until: u64,
+    /// This cycle is a quiet one in which no request arrives (from `eval` to `commit`).
+    idle_cycle: bool,
     cycle: u64,
     stats: ChannelStats,
     record: Option<Vec<TraceRequest>>,
@@ -166,7 +181,7 @@ impl DramChannel {
                 SignalKind::Reg,
             ),
         };
-        DramChannel {
+        let mut channel = DramChannel {
             domain,
             path: scope.path().to_string(),
             index: cfg.index,
@@ -181,6 +196,9 @@ impl DramChannel {
             returns: VecDeque::new(),
             return_capacity: cfg.pending_references,
             popped_return: false,
+            quiet: false,
+            quiet_until: 0,
+            idle_cycle: false,
             cycle: 0,
             stats: ChannelStats::default(),
             record: cfg.record.then(Vec::new),
@@ -192,7 +210,9 @@ impl DramChannel {
             write_data_until: 0,
             ids,
             p,
-        }
+        };
+        channel.note_quiet();
+        channel
     }
 
     pub fn index(&self) -> usize {
@@ -307,6 +327,37 @@ impl DramChannel {
         self.popped_return = false;
         self.cycle += n;
         self.stats.cycles = self.cycle;
+        self.note_quiet();
+    }
+
+    /// Notes, between cycles, whether the channel is quiet (see the module doc) and until
+    /// when. Every reply, read burst, bus command and column write's data is over; a
+    /// scheduler with nothing pending decides nothing before its next refresh, and the
+    /// checker flags nothing before its next refresh deadline.
+    fn note_quiet(&mut self) {
+        self.quiet = self.bus_q.is_none()
+            && self.bus_d.is_none()
+            && self.reads.is_empty()
+            && self.returns.is_empty()
+            && self.arriving.is_none()
+            && self.sdram.dq_now().is_none()
+            && self.sdram.reads_in_flight() == 0
+            && self.cycle >= self.write_data_until
+            && self.scheduler.is_quiet();
+        if self.quiet {
+            self.quiet_until = self
+                .scheduler
+                .next_refresh_cycle()
+                .min(self.checker.next_refresh_deadline());
+        }
+    }
+
+    /// Whether a request waits in the input FIFO.
+    fn request_waiting(&self) -> bool {
+        match &self.input {
+            ChannelInput::Local(rx) => rx.available() > 0,
+            ChannelInput::Crossing(rx) => rx.can_pop(),
+        }
     }
 
     /// Everything that evolves (tests compare a run that skipped idle cycles with one
@@ -375,14 +426,6 @@ impl DramChannel {
         Some(())
     }
 
-    fn reply_of(e: &Entry, data: [u32; 8]) -> Reply {
-        Reply {
-            write: e.write,
-            data,
-            tag: e.tag,
-        }
-    }
-
     fn error(&self, what: &str, msg: String) -> ContractError {
         ContractError::at(&format!("{}.{what}", self.path), Violation::Other(msg))
     }
@@ -395,30 +438,31 @@ impl Module for DramChannel {
 
     fn eval(&mut self) -> Result<(), ContractError> {
         let cycle = self.cycle;
+        self.idle_cycle = self.quiet && cycle < self.quiet_until && !self.request_waiting();
+        if self.idle_cycle {
+            return Ok(());
+        }
         // 1. The SDRAM and the checker act on the command on the bus.
-        let bus = self.bus_q;
-        let (cmd, data) = match &bus {
-            Some(b) => (Some(b.cmd), b.entry.map(|e| e.data).unwrap_or([0; 8])),
-            None => (None, [0; 8]),
-        };
-        let dq = self.sdram.eval(cmd, &data, cycle);
+        let cmd = self.bus_q.as_ref().map(|b| b.cmd);
+        let served = self.bus_q.as_ref().and_then(|b| b.entry.as_ref());
+        let dq = self.sdram.eval(cmd, served.map_or(&[], |e| &e.data), cycle);
         self.checker.observe(cycle, cmd);
-        if let Some(b) = bus {
-            match b.cmd {
-                Command::Read { .. } => {
-                    let entry = b.entry.expect("a column command carries its reference");
-                    self.reads.push_back(Pending {
-                        entry,
-                        words: 0,
-                        data: [0; 8],
-                    });
-                }
-                Command::Write { .. } => {
-                    let entry = b.entry.expect("a column command carries its reference");
-                    self.returns.push_back(Self::reply_of(&entry, [0; 8]));
-                }
-                _ => {}
+        match (cmd, served) {
+            (Some(Command::Read { .. }), Some(e)) => self.reads.push_back(Pending {
+                tag: e.tag,
+                arrival: e.arrival,
+                words: 0,
+                data: [0; 8],
+            }),
+            (Some(Command::Write { .. }), Some(e)) => self.returns.push_back(Reply {
+                write: true,
+                data: [0; 8],
+                tag: e.tag,
+            }),
+            (Some(Command::Read { .. } | Command::Write { .. }), None) => {
+                unreachable!("a column command carries its reference")
             }
+            _ => {}
         }
         // 2. Read data into bursts, bursts into replies.
         if let Some(w) = dq {
@@ -429,12 +473,14 @@ impl Module for DramChannel {
             head.words += 1;
             if head.words == self.p.burst {
                 let done = self.reads.pop_front().expect("head exists");
-                self.stats.read_latency_sum += cycle - done.entry.arrival;
-                self.returns
-                    .push_back(Self::reply_of(&done.entry, done.data));
+                self.stats.read_latency_sum += cycle - done.arrival;
+                self.returns.push_back(Reply {
+                    write: false,
+                    data: done.data,
+                    tag: done.tag,
+                });
             }
         }
-        self.popped_return = false;
         if let Some(r) = self.returns.front() {
             let r = *r;
             match &mut self.output {
@@ -487,7 +533,7 @@ impl Module for DramChannel {
                         ),
                     ));
                 }
-                self.scheduler.accept(r, loc, cycle);
+                self.scheduler.accept(&r, loc, cycle);
                 self.arriving = Some(TraceRequest {
                     byte_addr: r.byte_addr,
                     kind: if r.write {
@@ -504,8 +550,15 @@ impl Module for DramChannel {
 
     fn commit(&mut self) {
         let cycle = self.cycle;
-        if let Some(b) = self.bus_q {
-            match b.cmd {
+        if self.idle_cycle {
+            self.cycle += 1;
+            self.stats.cycles = self.cycle;
+            self.activity_log.sample(self.cycle, self.activity());
+            return;
+        }
+        let cmd = self.bus_q.as_ref().map(|b| b.cmd);
+        if let Some(cmd) = cmd {
+            match cmd {
                 Command::Activate { .. } => {
                     self.stats.activates += 1;
                     self.row_switch_until = self.row_switch_until.max(cycle + self.p.t_rcd);
@@ -541,12 +594,10 @@ impl Module for DramChannel {
         if self.sdram.dq_now().is_some() {
             self.stats.data_bus_cycles += 1;
         }
-        if let Some(b) = self.bus_q
-            && matches!(b.cmd, Command::Write { .. })
-        {
+        if let Some(Command::Write { .. }) = cmd {
             self.stats.data_bus_cycles += self.p.burst as u64;
         }
-        if self.popped_return {
+        if std::mem::take(&mut self.popped_return) {
             self.returns.pop_front();
         }
         if let Some(a) = self.arriving.take() {
@@ -561,6 +612,7 @@ impl Module for DramChannel {
         self.cycle += 1;
         self.stats.cycles = self.cycle;
         self.activity_log.sample(self.cycle, self.activity());
+        self.note_quiet();
     }
 
     fn trace(&self, t: &mut Trace) {

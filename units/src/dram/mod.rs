@@ -4,9 +4,10 @@
 //! Each channel (see [`channel`]) is one hdl module made of four blocks, one file each:
 //!
 //! * [`scheduler`] — the memory access scheduler of Rixner, Dally, Kapasi, Mattson and
-//!   Owens, "Memory Access Scheduling", ISCA 2000: a pending-reference buffer, per-bank
-//!   precharge managers and row arbiters, a column arbiter, and the address arbiter that
-//!   drives one command per cycle onto the channel's command bus under a [`Policy`];
+//!   Owens, "Memory Access Scheduling", ISCA 2000: a pending-reference buffer
+//!   ([`pending`]), per-bank precharge managers and row arbiters, a column arbiter, and the
+//!   address arbiter that drives one command per cycle onto the channel's command bus
+//!   under a [`Policy`];
 //! * [`sdram`] — the SDRAM part: its banks ([`bank`]), the data it stores, and the data
 //!   bus (read data CL cycles after READ, write data with WRITE);
 //! * [`timing_check`] — an independent monitor of the command bus that knows only the
@@ -39,6 +40,7 @@
 pub mod activity;
 pub mod bank;
 pub mod channel;
+pub mod pending;
 pub mod replay;
 pub mod scheduler;
 pub mod sdram;

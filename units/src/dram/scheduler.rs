@@ -1,9 +1,9 @@
 //! The memory access scheduler of one channel (Rixner, Dally, Kapasi, Mattson and Owens,
 //! "Memory Access Scheduling", ISCA 2000, §3–4).
 //!
-//! * **Pending-reference buffer** (`memory.pending_references` entries, 32 on gold8): each
-//!   entry holds a reference's load/store bit, bank, row, column, write data and tag, kept
-//!   in arrival order (the entry's age).
+//! * **Pending-reference buffer** (`memory.pending_references` entries, 32 on gold8; see
+//!   [`pending`](super::pending)): each entry holds a reference's load/store bit, bank,
+//!   row, column, write data and tag, kept in arrival order (the entry's age).
 //! * **Precharge manager** (one per bank): decides when the bank's open row is closed.
 //!   Open-row policies close it only when no pending reference hits it and some pending
 //!   reference needs another row of the bank; closed-row policies close it as soon as no
@@ -39,29 +39,15 @@
 use imagine_hdl::bits::{u4, u12};
 use imagine_hdl::{Display, Scope, SignalId, SignalKind, Trace, bits_for};
 
-use super::{Command, DramParams, Location, Policy, Request, Tag};
-
-/// A reference waiting in the pending-reference buffer.
-#[derive(Clone, Copy, Debug)]
-pub struct Entry {
-    pub seq: u64,
-    pub write: bool,
-    pub bank: usize,
-    pub row: u16,
-    pub column: u16,
-    /// Burst-aligned byte address (for same-location ordering).
-    pub burst_addr: u64,
-    pub data: [u32; 8],
-    pub tag: Tag,
-    /// DRAM cycle it entered the buffer.
-    pub arrival: u64,
-}
+pub use super::pending::Entry;
+use super::pending::{AgeMask, PendingBuffer};
+use super::{Command, DramParams, Location, Policy, Request, div_rem};
 
 /// What the address arbiter chose this cycle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Decision {
     None,
-    /// A column access for the entry at this index of the buffer (in age order).
+    /// A column access for the entry at this position of the buffer.
     Column(usize),
     Precharge(usize),
     Activate(usize, u16),
@@ -97,31 +83,23 @@ enum Op {
     Activate,
 }
 
-/// Per-bank facts gathered once per cycle by the by-class policies (first-ready asks
-/// for a bank's row hit only when it considers a precharge, `row_hit`).
+/// The scheduler's view of one bank, in command-bus cycles.
 #[derive(Clone, Copy, Debug, Default)]
 struct BankView {
-    /// Some pending reference hits the open row.
-    hit: bool,
-    /// Age index of the oldest pending reference needing another row than the open one
-    /// (for an idle bank: any row), and that row; under load-over-store, the oldest load
-    /// if there is one.
-    oldest_miss: Option<(usize, u16)>,
+    open: Option<u16>,
+    /// The earliest cycles an ACTIVATE, a READ or WRITE, and a PRECHARGE may issue.
+    ready_act: u64,
+    ready_col: u64,
+    ready_pre: u64,
 }
 
 #[derive(Clone, Debug)]
 pub struct Scheduler {
     policy: Policy,
     p: DramParams,
-    capacity: usize,
-    /// Pending references in arrival order.
-    entries: Vec<Entry>,
-    next_seq: u64,
+    buffer: PendingBuffer,
     // The scheduler's view of the banks and the bus, in command-bus cycles.
-    open: Vec<Option<u16>>,
-    ready_act: Vec<u64>,
-    ready_col: Vec<u64>,
-    ready_pre: Vec<u64>,
+    banks: Vec<BankView>,
     next_act_any: u64,
     next_read: u64,
     next_write: u64,
@@ -131,8 +109,7 @@ pub struct Scheduler {
     decision: Decision,
     last: Decision,
     last_rank: usize,
-    incoming: Option<(Request, Location, u64)>,
-    views: Vec<BankView>,
+    incoming: Option<Entry>,
     ids: Probes,
 }
 
@@ -148,7 +125,6 @@ impl Scheduler {
     /// `p` is the timing the scheduler believes in (normally the machine's; tests may give
     /// it a wrong one to see the checker catch it).
     pub fn new(scope: &mut Scope<'_>, policy: Policy, p: DramParams, capacity: usize) -> Self {
-        let banks = p.banks;
         let ids = Probes {
             depth: scope.signal("queue_depth", bits_for(capacity as u64), SignalKind::Reg),
             decision: scope.signal_shown(
@@ -173,13 +149,8 @@ impl Scheduler {
         };
         Scheduler {
             policy,
-            capacity,
-            entries: Vec::with_capacity(capacity),
-            next_seq: 0,
-            open: vec![None; banks],
-            ready_act: vec![0; banks],
-            ready_col: vec![0; banks],
-            ready_pre: vec![0; banks],
+            buffer: PendingBuffer::new(capacity, p.banks),
+            banks: vec![BankView::default(); p.banks],
             next_act_any: 0,
             next_read: 0,
             next_write: 0,
@@ -189,7 +160,6 @@ impl Scheduler {
             last: Decision::None,
             last_rank: 0,
             incoming: None,
-            views: vec![BankView::default(); banks],
             ids,
             p,
         }
@@ -201,18 +171,27 @@ impl Scheduler {
 
     /// Pending references.
     pub fn depth(&self) -> usize {
-        self.entries.len()
+        self.buffer.len()
     }
 
     /// Whether a reference can enter this cycle (committed occupancy).
     pub fn has_room(&self) -> bool {
-        self.entries.len() < self.capacity
+        !self.buffer.is_full()
     }
 
     /// A reference arriving this cycle (call only when [`has_room`](Self::has_room)).
-    pub fn accept(&mut self, r: Request, loc: Location, cycle: u64) {
+    pub fn accept(&mut self, r: &Request, loc: Location, cycle: u64) {
         debug_assert!(self.has_room() && self.incoming.is_none());
-        self.incoming = Some((r, loc, cycle));
+        self.incoming = Some(Entry {
+            write: r.write,
+            bank: loc.bank.value(),
+            row: loc.row,
+            column: loc.column.value(),
+            burst_addr: div_rem(r.byte_addr, self.p.burst_bytes()).0,
+            data: r.data,
+            tag: r.tag,
+            arrival: cycle,
+        });
     }
 
     /// The timing this scheduler believes in.
@@ -231,12 +210,12 @@ impl Scheduler {
     /// overdue and no timing constraint still running.
     pub fn idle_skippable(&self, cycle: u64) -> bool {
         let bus = cycle + 1;
-        self.entries.is_empty()
-            && self.incoming.is_none()
-            && matches!(self.decision, Decision::None)
-            && self.open.iter().all(Option::is_none)
+        self.is_quiet()
+            && self
+                .banks
+                .iter()
+                .all(|b| b.open.is_none() && b.ready_act <= bus)
             && self.busy_until <= bus
-            && self.ready_act.iter().all(|&r| r <= bus)
             && !self.refresh_due(bus)
             // One refresh's tRFC ends before the next is due (the machine description
             // guarantees it; a hand-made DramParams might not).
@@ -261,13 +240,25 @@ impl Scheduler {
         self.refreshes += issued;
         let last_bus = self.refreshes * self.p.t_refi;
         self.busy_until = last_bus + self.p.t_rfc;
-        for r in self.ready_act.iter_mut() {
-            *r = (*r).max(last_bus + self.p.t_rfc);
+        for b in self.banks.iter_mut() {
+            b.ready_act = b.ready_act.max(last_bus + self.p.t_rfc);
         }
         if last_bus == end_bus {
             self.last = Decision::Refresh;
         }
         (issued, Some(last_bus))
+    }
+
+    /// Whether nothing is pending or arriving and nothing decided: until its next refresh
+    /// the scheduler decides nothing.
+    pub fn is_quiet(&self) -> bool {
+        self.buffer.is_empty() && self.incoming.is_none() && self.decision == Decision::None
+    }
+
+    /// The cycle in which the scheduler decides for the bus cycle its next refresh is due
+    /// in (the refresh, or a precharge before it).
+    pub fn next_refresh_cycle(&self) -> u64 {
+        ((self.refreshes + 1) * self.p.t_refi).saturating_sub(1)
     }
 
     fn refresh_due(&self, bus: u64) -> bool {
@@ -276,191 +267,221 @@ impl Scheduler {
 
     /// Decides the command for bus cycle `cycle + 1`. `read_room`: whether the channel can
     /// take one more read burst's data.
+    #[inline]
     pub fn eval(&mut self, cycle: u64, read_room: bool) -> Option<Issued> {
         let bus = cycle + 1;
         self.decision = if bus < self.busy_until {
             Decision::None
         } else if self.refresh_due(bus) {
             self.refresh_decision(bus)
-        } else if self.entries.is_empty() {
+        } else if self.buffer.is_empty() {
             Decision::None
         } else {
             match self.policy {
                 Policy::InOrder => self.in_order(bus, read_room),
                 Policy::FirstReady => self.first_ready(bus, read_room),
-                _ => {
-                    self.gather();
-                    self.by_class(bus, read_room)
-                }
+                _ => self.by_class(bus, read_room),
             }
         };
         self.issued()
     }
 
     fn issued(&self) -> Option<Issued> {
-        let e = |i: usize| self.entries[i];
         let bank = |b: usize| u4::new(b as u8);
-        match self.decision {
-            Decision::None => None,
-            Decision::Column(i) => {
-                let en = e(i);
-                let column = u12::new(en.column);
-                let cmd = if en.write {
-                    Command::Write {
-                        bank: bank(en.bank),
-                        column,
-                    }
+        let (cmd, entry) = match self.decision {
+            Decision::None => return None,
+            Decision::Column(p) => {
+                let e = self.buffer.entry(p);
+                let (bank, column) = (u4::new(e.bank), u12::new(e.column));
+                let cmd = if e.write {
+                    Command::Write { bank, column }
                 } else {
-                    Command::Read {
-                        bank: bank(en.bank),
-                        column,
-                    }
+                    Command::Read { bank, column }
                 };
-                Some(Issued {
-                    cmd,
-                    entry: Some(en),
-                })
+                (cmd, Some(*e))
             }
-            Decision::Precharge(b) | Decision::RefreshPrecharge(b) => Some(Issued {
-                cmd: Command::Precharge { bank: bank(b) },
-                entry: None,
-            }),
-            Decision::Activate(b, row) => Some(Issued {
-                cmd: Command::Activate { bank: bank(b), row },
-                entry: None,
-            }),
-            Decision::Refresh => Some(Issued {
-                cmd: Command::Refresh,
-                entry: None,
-            }),
-        }
+            Decision::Precharge(b) | Decision::RefreshPrecharge(b) => {
+                (Command::Precharge { bank: bank(b) }, None)
+            }
+            Decision::Activate(b, row) => (Command::Activate { bank: bank(b), row }, None),
+            Decision::Refresh => (Command::Refresh, None),
+        };
+        Some(Issued { cmd, entry })
     }
 
     fn refresh_decision(&self, bus: u64) -> Decision {
         let mut all_idle = true;
-        for b in 0..self.p.banks {
-            if self.open[b].is_some() {
+        for (b, bank) in self.banks.iter().enumerate() {
+            if bank.open.is_some() {
                 all_idle = false;
-                if bus >= self.ready_pre[b] {
+                if bus >= bank.ready_pre {
                     return Decision::RefreshPrecharge(b);
                 }
             }
         }
-        if all_idle && (0..self.p.banks).all(|b| bus >= self.ready_act[b]) {
+        if all_idle && self.banks.iter().all(|b| bus >= b.ready_act) {
             Decision::Refresh
         } else {
             Decision::None
         }
     }
 
-    /// Fills the per-bank views from the pending references.
-    fn gather(&mut self) {
-        let los = self.policy == Policy::LoadOverStore;
-        for v in self.views.iter_mut() {
-            *v = BankView::default();
-        }
-        for (i, e) in self.entries.iter().enumerate() {
-            let v = &mut self.views[e.bank];
-            if self.open[e.bank] == Some(e.row) {
-                v.hit = true;
-            } else {
-                let better = match v.oldest_miss {
-                    None => true,
-                    Some((j, _)) => los && self.entries[j].write && !e.write,
-                };
-                if better {
-                    v.oldest_miss = Some((i, e.row));
-                }
-            }
-        }
-    }
-
-    /// The next operation entry `i` needs.
-    fn next_op(&self, i: usize) -> Op {
-        let e = &self.entries[i];
-        match self.open[e.bank] {
-            Some(r) if r == e.row => Op::Column,
-            Some(_) => Op::Precharge,
-            None => Op::Activate,
-        }
-    }
-
-    /// An older pending reference addresses the same burst.
-    fn hazard(&self, i: usize) -> bool {
+    /// The entries an older pending reference to the same burst holds back.
+    fn held(&self) -> AgeMask {
         #[cfg(feature = "inject-bugs")]
         if imagine_hdl::inject::active(imagine_hdl::inject::Bug::SchedulerIgnoresSameBurstHazard) {
-            return false;
+            return AgeMask::EMPTY;
         }
-        let a = self.entries[i].burst_addr;
-        self.entries[..i].iter().any(|e| e.burst_addr == a)
+        self.buffer.held()
     }
 
-    fn ready(&self, op: Op, i: usize, bus: u64, read_room: bool) -> bool {
-        let e = &self.entries[i];
-        let b = e.bank;
-        match op {
-            Op::Column => {
-                bus >= self.ready_col[b]
-                    && if e.write {
-                        bus >= self.next_write
-                    } else {
-                        read_room && bus >= self.next_read
-                    }
-            }
-            Op::Precharge => bus >= self.ready_pre[b],
-            Op::Activate => bus >= self.ready_act[b] && bus >= self.next_act_any,
+    /// Of the entries of the banks in `banks` (those whose tRCD is met), the ones whose
+    /// column access may issue: their row open, the data bus's spacing met, room for a
+    /// read's data, no older entry to their burst.
+    fn ready_columns(&self, banks: AgeMask, bus: u64, read_room: bool) -> AgeMask {
+        let writes = self.buffer.writes();
+        let kinds = match (bus >= self.next_write, read_room && bus >= self.next_read) {
+            (true, true) => AgeMask::ALL,
+            (true, false) => writes,
+            (false, true) => !writes,
+            (false, false) => return AgeMask::EMPTY,
+        };
+        self.buffer.hits() & !self.held() & banks & kinds
+    }
+
+    /// The oldest entry's next operation and the decision performing it, if its timing is
+    /// met (and, for a read, there is room for its data).
+    fn oldest_ready(&self, bus: u64, read_room: bool) -> Option<(Op, Decision)> {
+        let p = self.buffer.oldest()?;
+        let e = self.buffer.entry(p);
+        let b = e.bank as usize;
+        let bank = &self.banks[b];
+        match bank.open {
+            Some(r) if r == e.row => (bus >= bank.ready_col
+                && if e.write {
+                    bus >= self.next_write
+                } else {
+                    read_room && bus >= self.next_read
+                })
+            .then_some((Op::Column, Decision::Column(p))),
+            Some(_) => (bus >= bank.ready_pre).then_some((Op::Precharge, Decision::Precharge(b))),
+            None => (bus >= bank.ready_act && bus >= self.next_act_any)
+                .then_some((Op::Activate, Decision::Activate(b, e.row))),
         }
     }
 
-    fn decision_for(&self, op: Op, i: usize) -> Decision {
-        let e = &self.entries[i];
-        match op {
-            Op::Column => Decision::Column(i),
-            Op::Precharge => Decision::Precharge(e.bank),
-            Op::Activate => Decision::Activate(e.bank, e.row),
-        }
-    }
-
+    /// Only the oldest pending reference may have operations performed for it.
     fn in_order(&self, bus: u64, read_room: bool) -> Decision {
-        let op = self.next_op(0);
-        if self.ready(op, 0, bus, read_room) {
-            self.decision_for(op, 0)
-        } else {
-            Decision::None
-        }
+        self.oldest_ready(bus, read_room)
+            .map_or(Decision::None, |(_, d)| d)
     }
 
+    /// The oldest entry whose next operation is ready: a column access (see
+    /// [`ready_columns`](Self::ready_columns)), a precharge of a row nobody hits
+    /// (open-row precharging), an activate.
     fn first_ready(&self, bus: u64, read_room: bool) -> Decision {
-        for i in 0..self.entries.len() {
-            let op = self.next_op(i);
-            // Timing first: it is one comparison, the rules below search the buffer.
-            if !self.ready(op, i, bus, read_room) {
+        // Nothing older holds the oldest entry back: when its operation is ready (a
+        // precharge, of a row nobody hits) it is the one. Most cycles end here.
+        match self.oldest_ready(bus, read_room) {
+            Some((Op::Precharge, Decision::Precharge(b))) if self.buffer.banks()[b].hit() => {}
+            Some((_, d)) => return d,
+            None => {}
+        }
+        let activate_any = bus >= self.next_act_any;
+        let (mut column_banks, mut row_ready) = (AgeMask::EMPTY, AgeMask::EMPTY);
+        for (bank, refs) in self.banks.iter().zip(self.buffer.banks()) {
+            if !refs.wanted() {
                 continue;
             }
-            let allowed = match op {
-                Op::Column => !self.hazard(i),
-                // Open-row precharging: never close a row someone still hits.
-                Op::Precharge => !self.row_hit(self.entries[i].bank),
-                Op::Activate => true,
+            if bus >= bank.ready_col {
+                column_banks |= refs.refs;
+            }
+            // An open bank's misses need a precharge, a closed bank's entries an activate.
+            let ready = match bank.open {
+                Some(_) => bus >= bank.ready_pre && !refs.hit(),
+                None => activate_any && bus >= bank.ready_act,
             };
-            if allowed {
-                return self.decision_for(op, i);
+            if ready {
+                row_ready |= refs.refs;
             }
         }
-        Decision::None
+        let ready = self.ready_columns(column_banks, bus, read_room) | row_ready;
+        let Some(p) = ready.first() else {
+            return Decision::None;
+        };
+        let e = self.buffer.entry(p);
+        let b = e.bank as usize;
+        match self.banks[b].open {
+            Some(r) if r == e.row => Decision::Column(p),
+            Some(_) => Decision::Precharge(b),
+            None => Decision::Activate(b, e.row),
+        }
     }
 
-    /// Some pending reference hits bank `b`'s open row.
-    fn row_hit(&self, b: usize) -> bool {
-        self.open[b].is_some_and(|row| self.entries.iter().any(|e| e.bank == b && e.row == row))
+    /// The oldest of `among`; under load-over-store, the oldest load if there is one.
+    fn oldest(&self, among: AgeMask) -> Option<usize> {
+        if self.policy == Policy::LoadOverStore {
+            let loads = among & !self.buffer.writes();
+            loads.first().or_else(|| among.first())
+        } else {
+            among.first()
+        }
     }
 
     /// Column-first or row-first over the column arbiter, the precharge managers and the
     /// row arbiters.
     fn by_class(&self, bus: u64, read_room: bool) -> Decision {
-        let column = self.column_arbiter(bus, read_room);
-        let row = self.row_candidate(bus);
         let row_first = matches!(self.policy, Policy::RowOpen | Policy::RowClosed);
+        // Column-first: a ready column access for the oldest entry is the column arbiter's
+        // choice (under load-over-store, if it is a load).
+        if !row_first
+            && let Some((Op::Column, d @ Decision::Column(p))) = self.oldest_ready(bus, read_room)
+            && !(self.policy == Policy::LoadOverStore && self.buffer.entry(p).write)
+        {
+            return d;
+        }
+        let hits = self.buffer.hits();
+        let closed = self.policy.closed_row();
+        let activate_any = bus >= self.next_act_any;
+        let mut column_banks = AgeMask::EMPTY;
+        // The ready precharge or activate serving the oldest reference: (its position,
+        // none after every position; the decision).
+        let mut row: Option<(usize, Decision)> = None;
+        for (b, (bank, refs)) in self.banks.iter().zip(self.buffer.banks()).enumerate() {
+            // A bank nobody wants matters only to a closed-row policy, if it is open.
+            if !(refs.wanted() || (closed && bank.open.is_some())) {
+                continue;
+            }
+            if bus >= bank.ready_col {
+                column_banks |= refs.refs;
+            }
+            // The row arbiter's choice: the oldest reference needing another row than the
+            // open one (for an idle bank: any row).
+            let oldest_miss = self.oldest(refs.refs & !hits);
+            let candidate = match bank.open {
+                Some(_) => {
+                    let hit = refs.hit();
+                    let wanted = !hit && (closed || oldest_miss.is_some());
+                    (wanted && bus >= bank.ready_pre)
+                        .then(|| (oldest_miss.unwrap_or(usize::MAX), Decision::Precharge(b)))
+                }
+                None => match oldest_miss {
+                    Some(p) if activate_any && bus >= bank.ready_act => {
+                        Some((p, Decision::Activate(b, self.buffer.entry(p).row)))
+                    }
+                    _ => None,
+                },
+            };
+            if let Some((age, d)) = candidate
+                && row.is_none_or(|(a, _)| age < a)
+            {
+                row = Some((age, d));
+            }
+        }
+        let column = self
+            .oldest(self.ready_columns(column_banks, bus, read_room))
+            .map(Decision::Column);
+        let row = row.map(|(_, d)| d);
         let (first, second) = if row_first {
             (row, column)
         } else {
@@ -469,62 +490,9 @@ impl Scheduler {
         first.or(second).unwrap_or(Decision::None)
     }
 
-    fn column_arbiter(&self, bus: u64, read_room: bool) -> Option<Decision> {
-        let los = self.policy == Policy::LoadOverStore;
-        let mut best: Option<usize> = None;
-        for i in 0..self.entries.len() {
-            if !matches!(self.next_op(i), Op::Column)
-                || !self.ready(Op::Column, i, bus, read_room)
-                || self.hazard(i)
-            {
-                continue;
-            }
-            match best {
-                None => best = Some(i),
-                Some(j) if los && self.entries[j].write && !self.entries[i].write => best = Some(i),
-                _ => {}
-            }
-            if !los {
-                break;
-            }
-        }
-        best.map(Decision::Column)
-    }
-
-    /// The ready precharge or activate serving the oldest reference.
-    fn row_candidate(&self, bus: u64) -> Option<Decision> {
-        let closed = self.policy.closed_row();
-        let mut best: Option<(u64, Decision)> = None;
-        for b in 0..self.p.banks {
-            let v = self.views[b];
-            let cand = match self.open[b] {
-                Some(_) => {
-                    let wanted = !v.hit && (closed || v.oldest_miss.is_some());
-                    if wanted && bus >= self.ready_pre[b] {
-                        let age = v.oldest_miss.map_or(u64::MAX, |(i, _)| self.entries[i].seq);
-                        Some((age, Decision::Precharge(b)))
-                    } else {
-                        None
-                    }
-                }
-                None => match v.oldest_miss {
-                    Some((i, row)) if bus >= self.ready_act[b] && bus >= self.next_act_any => {
-                        Some((self.entries[i].seq, Decision::Activate(b, row)))
-                    }
-                    _ => None,
-                },
-            };
-            if let Some((age, d)) = cand
-                && best.is_none_or(|(a, _)| age < a)
-            {
-                best = Some((age, d));
-            }
-        }
-        best.map(|(_, d)| d)
-    }
-
     /// The clock edge: applies this cycle's decision to the scheduler's view and takes in
     /// the arriving reference.
+    #[inline]
     pub fn commit(&mut self, cycle: u64) {
         let bus = cycle + 1;
         let p = &self.p;
@@ -532,62 +500,58 @@ impl Scheduler {
         self.last_rank = 0;
         match self.decision {
             Decision::None => {}
-            Decision::Column(i) => {
-                self.last_rank = i;
-                let e = self.entries.remove(i);
-                let b = e.bank;
-                if e.write {
+            Decision::Column(position) => {
+                self.last_rank = self.buffer.rank(position);
+                let e = self.buffer.entry(position);
+                let (write, bank) = (e.write, &mut self.banks[e.bank as usize]);
+                self.buffer.remove(position);
+                if write {
                     self.next_write = bus + burst;
                     self.next_read = self.next_read.max(bus + burst);
                     // Write recovery: tWR after the last data word.
-                    self.ready_pre[b] = self.ready_pre[b].max(bus + burst - 1 + p.t_wr);
+                    bank.ready_pre = bank.ready_pre.max(bus + burst - 1 + p.t_wr);
                 } else {
                     self.next_read = bus + burst;
                     // The next write's data must follow this read's data and a turnaround.
                     self.next_write = self.next_write.max(bus + p.cl + burst + p.turnaround);
                     // Precharge only after the whole burst has been read out.
-                    self.ready_pre[b] = self.ready_pre[b].max(bus + burst);
+                    bank.ready_pre = bank.ready_pre.max(bus + burst);
                 }
             }
             Decision::Precharge(b) | Decision::RefreshPrecharge(b) => {
-                self.open[b] = None;
-                self.ready_act[b] = self.ready_act[b].max(bus + p.t_rp);
+                let bank = &mut self.banks[b];
+                bank.open = None;
+                bank.ready_act = bank.ready_act.max(bus + p.t_rp);
+                self.buffer.closed(b);
             }
             Decision::Activate(b, row) => {
-                self.open[b] = Some(row);
-                self.ready_col[b] = bus + p.t_rcd;
-                self.ready_pre[b] = bus + p.t_ras;
-                self.ready_act[b] = bus + p.t_rc;
+                self.banks[b] = BankView {
+                    open: Some(row),
+                    ready_col: bus + p.t_rcd,
+                    ready_pre: bus + p.t_ras,
+                    ready_act: bus + p.t_rc,
+                };
                 self.next_act_any = bus + p.t_rrd;
+                self.buffer.opened(b, row);
             }
             Decision::Refresh => {
                 self.refreshes += 1;
                 self.busy_until = bus + p.t_rfc;
-                for b in 0..p.banks {
-                    self.ready_act[b] = self.ready_act[b].max(bus + p.t_rfc);
+                for b in self.banks.iter_mut() {
+                    b.ready_act = b.ready_act.max(bus + p.t_rfc);
                 }
             }
         }
         self.last = self.decision;
         self.decision = Decision::None;
-        if let Some((r, loc, cycle)) = self.incoming.take() {
-            self.entries.push(Entry {
-                seq: self.next_seq,
-                write: r.write,
-                bank: loc.bank.value() as usize,
-                row: loc.row,
-                column: loc.column.value(),
-                burst_addr: r.byte_addr / self.p.burst_bytes(),
-                data: r.data,
-                tag: r.tag,
-                arrival: cycle,
-            });
-            self.next_seq += 1;
+        if let Some(e) = self.incoming.take() {
+            let open = self.banks[e.bank as usize].open;
+            self.buffer.push(e, open);
         }
     }
 
     pub fn trace(&self, t: &mut Trace, cycle: u64) {
-        t.value(self.ids.depth, self.entries.len() as u64);
+        t.value(self.ids.depth, self.buffer.len() as u64);
         t.value(self.ids.decision, self.last.code());
         t.value(self.ids.entry, self.last_rank as u64);
         t.value(self.ids.refresh, self.refresh_due(cycle + 1) as u64);

@@ -31,6 +31,9 @@ pub struct Sdram {
     store: Vec<Option<Box<[u32]>>>,
     /// Read words due on the data bus: (cycle, word), in cycle order.
     due: VecDeque<(u64, u32)>,
+    /// The bank given a command this cycle: the only one whose state can change at the
+    /// edge.
+    commanded: Option<usize>,
     /// The data bus this cycle and at the last edge (for probes).
     dq: Option<u32>,
     dq_q: Option<u32>,
@@ -49,6 +52,7 @@ impl Sdram {
             cl: p.cl,
             store: vec![None; p.banks * p.rows],
             due: VecDeque::new(),
+            commanded: None,
             dq: None,
             dq_q: None,
             ids: (
@@ -82,12 +86,19 @@ impl Sdram {
 
     /// Executes the command on the bus in `cycle` (write data in `data`); returns the word on
     /// the data bus this cycle for a read burst, if any.
+    #[inline]
     pub fn eval(&mut self, cmd: Option<Command>, data: &[u32], cycle: u64) -> Option<u32> {
         match cmd {
             Some(Command::Activate { bank, row }) => {
-                self.banks[bank.value() as usize].activate(row)
+                let b = bank.value() as usize;
+                self.banks[b].activate(row);
+                self.commanded = Some(b);
             }
-            Some(Command::Precharge { bank }) => self.banks[bank.value() as usize].precharge(),
+            Some(Command::Precharge { bank }) => {
+                let b = bank.value() as usize;
+                self.banks[b].precharge();
+                self.commanded = Some(b);
+            }
             Some(Command::Read { bank, column }) => {
                 let b = bank.value() as usize;
                 let row = self.row_for(b);
@@ -164,8 +175,11 @@ impl Sdram {
         )
     }
 
+    #[inline]
     pub fn commit(&mut self) {
-        self.banks.iter_mut().for_each(Bank::commit);
+        if let Some(b) = self.commanded.take() {
+            self.banks[b].commit();
+        }
         self.dq_q = self.dq;
     }
 

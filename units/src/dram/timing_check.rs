@@ -65,7 +65,6 @@ struct BankHistory {
 /// The checker of one channel.
 #[derive(Clone, Debug)]
 pub struct TimingChecker {
-    channel: usize,
     p: DramParams,
     banks: Vec<BankHistory>,
     last_act: Option<u64>,
@@ -75,14 +74,80 @@ pub struct TimingChecker {
     refreshes: u64,
     /// Refresh intervals already reported as missed.
     missed: u64,
-    violations: Vec<TimingViolation>,
     commands: u64,
+    log: ViolationLog,
+}
+
+/// The violations found so far.
+#[derive(Clone, Debug)]
+struct ViolationLog {
+    channel: usize,
+    violations: Vec<TimingViolation>,
+}
+
+impl ViolationLog {
+    /// Records a violation; out of line (with the formatting of its detail), so that the
+    /// checks stay small.
+    #[cold]
+    #[inline(never)]
+    fn flag(
+        &mut self,
+        cycle: u64,
+        bank: Option<usize>,
+        rule: &'static str,
+        detail: impl FnOnce() -> String,
+    ) {
+        self.violations.push(TimingViolation {
+            cycle,
+            channel: self.channel,
+            bank,
+            rule,
+            detail: detail(),
+        });
+    }
+
+    /// Requires `now - since >= min` when `since` happened.
+    #[inline]
+    fn gap(
+        &mut self,
+        now: u64,
+        since: Option<u64>,
+        min: u64,
+        bank: Option<usize>,
+        rule: &'static str,
+        what: &str,
+    ) {
+        if let Some(s) = since
+            && now < s + min
+        {
+            self.too_soon(now, s, min, bank, rule, what);
+        }
+    }
+
+    /// Flags a [`gap`](Self::gap) too short; out of line, so the check stays small.
+    #[cold]
+    #[inline(never)]
+    fn too_soon(
+        &mut self,
+        now: u64,
+        since: u64,
+        min: u64,
+        bank: Option<usize>,
+        rule: &'static str,
+        what: &str,
+    ) {
+        self.flag(now, bank, rule, || {
+            format!(
+                "{what}: {} cycles after cycle {since}, need {min}",
+                now - since
+            )
+        });
+    }
 }
 
 impl TimingChecker {
     pub fn new(channel: usize, p: &DramParams) -> Self {
         TimingChecker {
-            channel,
             banks: vec![BankHistory::default(); p.banks],
             p: p.clone(),
             last_act: None,
@@ -91,13 +156,16 @@ impl TimingChecker {
             last_ref: None,
             refreshes: 0,
             missed: 0,
-            violations: Vec::new(),
             commands: 0,
+            log: ViolationLog {
+                channel,
+                violations: Vec::new(),
+            },
         }
     }
 
     pub fn violations(&self) -> &[TimingViolation] {
-        &self.violations
+        &self.log.violations
     }
 
     /// Commands checked so far.
@@ -132,80 +200,28 @@ impl TimingChecker {
         }
     }
 
-    fn flag(&mut self, cycle: u64, bank: Option<usize>, rule: &'static str, detail: String) {
-        self.violations.push(TimingViolation {
-            cycle,
-            channel: self.channel,
-            bank,
-            rule,
-            detail,
-        });
-    }
-
-    /// Requires `now - since >= min` when `since` happened.
-    #[inline]
-    fn gap(
-        &mut self,
-        now: u64,
-        since: Option<u64>,
-        min: u64,
-        bank: Option<usize>,
-        rule: &'static str,
-        what: &str,
-    ) {
-        if let Some(s) = since
-            && now < s + min
-        {
-            self.too_soon(now, s, min, bank, rule, what);
-        }
-    }
-
-    /// Flags a [`gap`](Self::gap) too short; out of line, so the check stays small.
-    #[cold]
-    #[inline(never)]
-    fn too_soon(
-        &mut self,
-        now: u64,
-        since: u64,
-        min: u64,
-        bank: Option<usize>,
-        rule: &'static str,
-        what: &str,
-    ) {
-        let detail = format!(
-            "{what}: {} cycles after cycle {since}, need {min}",
-            now - since
-        );
-        self.flag(now, bank, rule, detail);
-    }
-
     /// The first cycle in which a refresh is overdue: by the end of interval k+1 the k-th
-    /// refresh must be done.
-    fn refresh_deadline(&self) -> u64 {
+    /// refresh must be done. (Before it, a cycle without a command breaks no rule.)
+    pub fn next_refresh_deadline(&self) -> u64 {
         (self.refreshes + self.missed + 2) * self.p.t_refi
     }
 
     /// Checks the bus in `cycle`: `cmd` is the command it carries, if any.
+    #[inline]
     pub fn observe(&mut self, cycle: u64, cmd: Option<Command>) {
-        if cycle >= self.refresh_deadline() {
+        if cycle >= self.next_refresh_deadline() {
             self.missed += 1;
-            self.flag(
-                cycle,
-                None,
-                "refresh interval",
-                format!(
-                    "{} refreshes by cycle {cycle}, {} were due",
-                    self.refreshes,
-                    cycle / self.p.t_refi
-                ),
-            );
+            let (refreshes, due) = (self.refreshes, cycle / self.p.t_refi);
+            self.log.flag(cycle, None, "refresh interval", || {
+                format!("{refreshes} refreshes by cycle {cycle}, {due} were due")
+            });
         }
         let Some(cmd) = cmd else { return };
-        let p = self.p.clone();
+        let (p, log) = (&self.p, &mut self.log);
         self.commands += 1;
         let t = cycle;
         let bl = p.burst as u64;
-        self.gap(
+        log.gap(
             t,
             self.last_ref,
             p.t_rfc,
@@ -217,20 +233,18 @@ impl TimingChecker {
             Command::Activate { bank, row } => {
                 let b = bank.value() as usize;
                 if (row as usize) >= p.rows {
-                    self.flag(t, Some(b), "address", format!("row {row} of {}", p.rows));
+                    let rows = p.rows;
+                    log.flag(t, Some(b), "address", || format!("row {row} of {rows}"));
                 }
-                if let Some(r) = self.banks[b].open {
-                    self.flag(
-                        t,
-                        Some(b),
-                        "bank state",
-                        format!("ACTIVATE row {row} while row {r} is open"),
-                    );
+                let h = &mut self.banks[b];
+                if let Some(r) = h.open {
+                    log.flag(t, Some(b), "bank state", || {
+                        format!("ACTIVATE row {row} while row {r} is open")
+                    });
                 }
-                let h = self.banks[b].clone();
-                self.gap(t, h.pre, p.t_rp, Some(b), "tRP", "PRECHARGE to ACTIVATE");
-                self.gap(t, h.act, p.t_rc, Some(b), "tRC", "ACTIVATE to ACTIVATE");
-                self.gap(
+                log.gap(t, h.pre, p.t_rp, Some(b), "tRP", "PRECHARGE to ACTIVATE");
+                log.gap(t, h.act, p.t_rc, Some(b), "tRC", "ACTIVATE to ACTIVATE");
+                log.gap(
                     t,
                     self.last_act,
                     p.t_rrd,
@@ -238,8 +252,8 @@ impl TimingChecker {
                     "tRRD",
                     "ACTIVATE to ACTIVATE",
                 );
-                self.banks[b].open = Some(row);
-                self.banks[b].act = Some(t);
+                h.open = Some(row);
+                h.act = Some(t);
                 self.last_act = Some(t);
             }
             Command::Read { bank, column } | Command::Write { bank, column } => {
@@ -251,20 +265,20 @@ impl TimingChecker {
                     ("READ", "ACTIVATE to READ")
                 };
                 if column.value() as usize + p.burst > p.columns {
-                    self.flag(
-                        t,
-                        Some(b),
-                        "address",
-                        format!("column {column} of {}", p.columns),
-                    );
+                    let columns = p.columns;
+                    log.flag(t, Some(b), "address", || {
+                        format!("column {column} of {columns}")
+                    });
                 }
-                if self.banks[b].open.is_none() {
-                    self.flag(t, Some(b), "bank state", format!("{name} of an idle bank"));
+                let h = &mut self.banks[b];
+                if h.open.is_none() {
+                    log.flag(t, Some(b), "bank state", || {
+                        format!("{name} of an idle bank")
+                    });
                 }
-                let act = self.banks[b].act;
-                self.gap(t, act, p.t_rcd, Some(b), "tRCD", after_activate);
+                log.gap(t, h.act, p.t_rcd, Some(b), "tRCD", after_activate);
                 if write {
-                    self.gap(
+                    log.gap(
                         t,
                         self.last_write,
                         bl,
@@ -274,7 +288,7 @@ impl TimingChecker {
                     );
                     // Write data at t must follow the last read data (r + CL .. r + CL + BL)
                     // and the turnaround.
-                    self.gap(
+                    log.gap(
                         t,
                         self.last_read,
                         p.cl + bl + p.turnaround,
@@ -282,10 +296,10 @@ impl TimingChecker {
                         "turnaround",
                         "READ to WRITE",
                     );
-                    self.banks[b].write = Some(t);
+                    h.write = Some(t);
                     self.last_write = Some(t);
                 } else {
-                    self.gap(
+                    log.gap(
                         t,
                         self.last_read,
                         bl,
@@ -296,23 +310,21 @@ impl TimingChecker {
                     if let Some(w) = self.last_write
                         && t + p.cl < w + bl
                     {
-                        self.flag(
-                            t,
-                            Some(b),
-                            "data bus",
-                            format!("read data at {} meets write data of cycle {w}", t + p.cl),
-                        );
+                        let data_at = t + p.cl;
+                        log.flag(t, Some(b), "data bus", || {
+                            format!("read data at {data_at} meets write data of cycle {w}")
+                        });
                     }
-                    self.banks[b].read = Some(t);
+                    h.read = Some(t);
                     self.last_read = Some(t);
                 }
             }
             Command::Precharge { bank } => {
                 let b = bank.value() as usize;
-                let h = self.banks[b].clone();
+                let h = &mut self.banks[b];
                 if h.open.is_some() {
-                    self.gap(t, h.act, p.t_ras, Some(b), "tRAS", "ACTIVATE to PRECHARGE");
-                    self.gap(
+                    log.gap(t, h.act, p.t_ras, Some(b), "tRAS", "ACTIVATE to PRECHARGE");
+                    log.gap(
                         t,
                         h.write,
                         bl - 1 + p.t_wr,
@@ -320,23 +332,19 @@ impl TimingChecker {
                         "tWR",
                         "WRITE to PRECHARGE",
                     );
-                    self.gap(t, h.read, bl, Some(b), "read burst", "READ to PRECHARGE");
+                    log.gap(t, h.read, bl, Some(b), "read burst", "READ to PRECHARGE");
                 }
-                self.banks[b].open = None;
-                self.banks[b].pre = Some(t);
+                h.open = None;
+                h.pre = Some(t);
             }
             Command::Refresh => {
-                for b in 0..p.banks {
-                    let h = self.banks[b].clone();
+                for (b, h) in self.banks.iter().enumerate() {
                     if h.open.is_some() {
-                        self.flag(
-                            t,
-                            Some(b),
-                            "bank state",
-                            "REFRESH with the bank open".into(),
-                        );
+                        log.flag(t, Some(b), "bank state", || {
+                            "REFRESH with the bank open".into()
+                        });
                     }
-                    self.gap(t, h.pre, p.t_rp, Some(b), "tRP", "PRECHARGE to REFRESH");
+                    log.gap(t, h.pre, p.t_rp, Some(b), "tRP", "PRECHARGE to REFRESH");
                 }
                 self.last_ref = Some(t);
                 self.refreshes += 1;

@@ -202,7 +202,7 @@ impl Run<'_> {
             if (self.refs.len() as u64) < count && self.rng.chance(rate) {
                 if scheduler.has_room() {
                     let (r, loc) = self.stimulus();
-                    scheduler.accept(r, loc, cycle);
+                    scheduler.accept(&r, loc, cycle);
                     self.sb.transaction();
                 } else {
                     self.cov.hit("pending-reference buffer full");
