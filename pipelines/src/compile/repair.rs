@@ -38,6 +38,8 @@ use super::circle;
 use super::graph::{Edge, Graph, Input, Kind, Loc, Source};
 use super::schedule::Slots;
 
+mod probe;
+
 /// Where a loop op reads an operand from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Src {
@@ -236,6 +238,8 @@ struct Problem {
     /// Per op: each argument read from a loop value, the value, and the read's index
     /// among the value's `readers`.
     read_index: Vec<Vec<(usize, usize, usize)>>,
+    /// Per op: it reads its own value (of the iteration before).
+    reads_itself: Vec<bool>,
     res: Resources,
     /// Locations: the LRFs, then the condition codes.
     nloc: usize,
@@ -350,6 +354,9 @@ impl Problem {
                 }
             }
         }
+        let reads_itself = (0..n)
+            .map(|u| read_index[u].iter().any(|&(_, x, _)| x == u))
+            .collect();
         let mut cap: Vec<i32> = slots
             .shape
             .lrf_sizes
@@ -388,6 +395,7 @@ impl Problem {
             incident,
             readers,
             read_index,
+            reads_itself,
             res: Resources::new(slots),
             nloc: slots.lrfs() + 1,
             earlier: earlier.len(),
@@ -474,6 +482,8 @@ struct State<'p> {
     /// (kept between moves so that a move allocates nothing).
     lifetimes_before: Vec<Lifetime>,
     lifetime_matched: Vec<bool>,
+    /// Scratch of [`Self::attach_cost`].
+    probe: probe::Probe,
     /// Weight of the waits against [`SCALE`].
     wait_weight: i64,
     over: i64,
@@ -542,6 +552,7 @@ impl<'p> State<'p> {
             chain_parent: vec![(0, 0, 0, false); n],
             lifetimes_before: Vec::new(),
             lifetime_matched: Vec::new(),
+            probe: probe::Probe::default(),
             wait_weight: SCALE,
             over: 0,
             dest_over: 0,
@@ -1149,9 +1160,13 @@ impl<'p> State<'p> {
     /// at `(t, slot, swap)`, `at` being [`Self::quick_at`] `t`: its own resources and
     /// dependences, new destinations for its operands, and the waits it makes.
     fn quick(&self, u: usize, around: &Around, at: Quick, t: i64, slot: usize, swap: bool) -> i64 {
-        let hard = at.hard
-            + self.issue_taken(u, t, slot)
-            + around.operand_ports[slot * 2 + usize::from(swap)];
+        self.quick_taken(around, at, self.issue_taken(u, t, slot), slot, swap)
+    }
+
+    /// [`Self::quick`] with the issue slots and result ports taken on `slot` counted already
+    /// ([`Self::issue_taken`]).
+    fn quick_taken(&self, around: &Around, at: Quick, taken: i64, slot: usize, swap: bool) -> i64 {
+        let hard = at.hard + taken + around.operand_ports[slot * 2 + usize::from(swap)];
         SCALE * (HARD * hard + at.broken) + self.wait_weight * at.wait
     }
 
@@ -1666,29 +1681,31 @@ pub fn schedule(
         let (t0, k0, s0) = (st.t[u], st.slot[u], st.swap[u]);
         let aff = st.affected(u);
         st.detach(u, &aff);
-        let mut cands: Vec<(i64, u64, i64, usize, bool)> = Vec::new();
+        let mut cands = Shortlist::default();
         let around = st.around(u);
         for t in st.window(u, WINDOW) {
             let at = st.quick_at(u, &around, t);
+            // (The options of a slot come together, its swaps side by side.)
+            let mut taken: Option<(usize, i64)> = None;
             for &(k, s) in &p.ops[u].options {
                 if p.allowed(u, t, k) && (t, k, s) != (t0, k0, s0) {
-                    cands.push((st.quick(u, &around, at, t, k, s), rng.next(), t, k, s));
+                    let slot_taken = match taken {
+                        Some((slot, n)) if slot == k => n,
+                        _ => st.issue_taken(u, t, k),
+                    };
+                    taken = Some((k, slot_taken));
+                    let c = st.quick_taken(&around, at, slot_taken, k, s);
+                    cands.offer((c, rng.next(), t, k, s));
                 }
             }
         }
-        // (Only the shortlist needs sorting; the keys are distinct, so it comes out the same.)
-        if cands.len() > SHORTLIST {
-            cands.select_nth_unstable(SHORTLIST);
-            cands.truncate(SHORTLIST);
-        }
-        cands.sort_unstable();
+        // (The first place of least cost, weighed without making the move: see `probe`.)
+        let detached = st.cost();
         let mut best: Option<(i64, i64, usize, bool)> = None;
-        for &(_, _, t, k, s) in &cands {
-            st.attach(u, t, k, s, &aff);
-            let c = st.cost();
-            st.detach(u, &aff);
-            if best.is_none_or(|b| c < b.0) {
-                best = Some((c, t, k, s));
+        for &(_, _, t, k, s) in cands.best() {
+            let bound = best.map_or(i64::MAX, |b| b.0 - detached);
+            if let Some(added) = st.attach_cost(u, t, k, s, bound) {
+                best = Some((detached + added, t, k, s));
             }
         }
         match best.filter(|&(c, ..)| accept(before, c, &mut rng)) {
@@ -1726,6 +1743,34 @@ const CONSTANT_LEAD: i64 = 32;
 /// of its own round the unrolled body (see [`super::alloc`]), which needs a little more
 /// than the values live at once.
 const LRF_MARGIN: i32 = 2;
+
+/// A move's candidate place: its quick estimate, a random tie-break, and (cycle, slot, swap).
+type Candidate = (i64, u64, i64, usize, bool);
+
+/// The [`SHORTLIST`] least candidates offered, in order: what sorting them all and taking
+/// the first would give (the keys are distinct), without keeping the rest.
+#[derive(Default)]
+struct Shortlist {
+    best: [Candidate; SHORTLIST],
+    len: usize,
+}
+
+impl Shortlist {
+    fn offer(&mut self, c: Candidate) {
+        if self.len == SHORTLIST && c >= self.best[SHORTLIST - 1] {
+            return;
+        }
+        let at = self.best[..self.len].partition_point(|&b| b < c);
+        let end = self.len.min(SHORTLIST - 1);
+        self.best.copy_within(at..end, at + 1);
+        self.best[at] = c;
+        self.len = (self.len + 1).min(SHORTLIST);
+    }
+
+    fn best(&self) -> &[Candidate] {
+        &self.best[..self.len]
+    }
+}
 
 /// The cycles of `[lo, hi]` nearest `t` first, the earlier of two as near.
 fn nearest_first(t: i64, lo: i64, hi: i64) -> impl Iterator<Item = i64> {
@@ -1804,7 +1849,8 @@ fn troubled(st: &State) -> Vec<usize> {
                 let k = p.loc_index(l);
                 let cap = p.cap[k] - st.kept[k];
                 let r = st.live_end(u, l, w);
-                if (w..r).any(|c| st.live[k][p.row(c)] > cap) {
+                let live = &st.live[k];
+                if circle::cycles(w, r, p.ii).any(|run| live[run].iter().any(|&x| x > cap)) {
                     bad[u] = true;
                     for &(x, i) in &p.readers[u] {
                         if p.arg_loc(x, i, st.slot[x], st.swap[x]) == l {
@@ -1852,6 +1898,33 @@ mod tests {
                 counts.0 >= short.1 && counts.1 >= long.1,
                 "{counts:?} at II {ii}"
             );
+        }
+    }
+
+    /// A shortlist keeps what sorting every candidate and taking the first few keeps.
+    #[test]
+    fn shortlists_keep_the_least_candidates_in_order() {
+        let mut rng = Rng(3);
+        for count in 0..40 {
+            let all: Vec<Candidate> = (0..count)
+                .map(|i| {
+                    (
+                        rng.below(5) as i64,
+                        rng.next(),
+                        i as i64,
+                        rng.below(3),
+                        false,
+                    )
+                })
+                .collect();
+            let mut list = Shortlist::default();
+            for &c in &all {
+                list.offer(c);
+            }
+            let mut sorted = all.clone();
+            sorted.sort_unstable();
+            sorted.truncate(SHORTLIST);
+            assert_eq!(list.best(), &sorted[..], "{count} candidates");
         }
     }
 
