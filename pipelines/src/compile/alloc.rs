@@ -13,7 +13,8 @@ use std::ops::Range;
 use rustc_hash::FxHashMap as HashMap;
 
 use super::circle;
-use super::graph::{Graph, Loc, Source};
+use super::graph::{Graph, Loc};
+use super::last_reads::LastReads;
 use super::schedule::{Schedule, Slots};
 use crate::kernel::Region;
 
@@ -86,7 +87,8 @@ pub fn allocate(
                 g,
                 s,
                 &permanent(g),
-                &last_reads(g, s, slots, None),
+                &LastReads::new(g, s, slots, None),
+                slots,
                 ii,
                 desc,
             );
@@ -115,7 +117,7 @@ fn pack(
 ) -> Result<Entries, Overflow> {
     let n = g.ops.len();
     let perm = permanent(g);
-    let last_read = last_reads(g, s, slots, None);
+    let last_read = LastReads::new(g, s, slots, None);
     let nlrf = slots.lrfs();
     let capacity = |loc: Loc| match loc {
         Loc::Lrf(l) => slots.shape.lrf_sizes[l as usize],
@@ -126,7 +128,7 @@ fn pack(
         peak: vec![0; nlrf],
         unroll: match (ii, renamed) {
             (Some(_), Some(passes)) => passes,
-            (Some(ii), None) => unroll(g, s, &perm, &last_read, ii, desc),
+            (Some(ii), None) => unroll(g, s, &perm, &last_read, slots, ii, desc),
             (None, _) => 1,
         },
         ..Entries::default()
@@ -209,7 +211,7 @@ fn pack(
                 continue;
             }
             let w = s.place[u].expect("placed").time + g.latency(u, desc);
-            let r = live_end(&last_read, u, loc, w);
+            let r = last_read.live_end(slots, u, loc, w);
             let held: Vec<Arc> = (0..out.unroll as i64)
                 .map(|j| ((w + j * ii).rem_euclid(m) as usize, (r - w) as usize))
                 .collect();
@@ -245,7 +247,7 @@ fn pack(
             None => {
                 let region = g.ops[u].region;
                 let w = s.place[u].expect("placed").time + g.latency(u, desc);
-                let r = live_end(&last_read, u, loc, w);
+                let r = last_read.live_end(slots, u, loc, w);
                 let k = index(loc);
                 let first = next_perm[k];
                 let cap = capacity(loc);
@@ -564,7 +566,8 @@ fn unroll(
     g: &Graph,
     s: &Schedule,
     perm: &[bool],
-    last_read: &HashMap<(usize, Loc), i64>,
+    last_read: &LastReads,
+    slots: &Slots,
     ii: i64,
     desc: &imagine_units::desc::MachineDesc,
 ) -> usize {
@@ -575,7 +578,7 @@ fn unroll(
         };
         let w = pl.time + g.latency(u, desc);
         for &loc in &s.dests[u] {
-            let r = live_end(last_read, u, loc, w);
+            let r = last_read.live_end(slots, u, loc, w);
             passes = passes.max((r - w + ii - 1) / ii);
         }
     }
@@ -598,11 +601,23 @@ impl Liveness {
         ii: i64,
         desc: &imagine_units::desc::MachineDesc,
     ) -> Liveness {
+        let last_read = LastReads::new(g, s, slots, Some(Region::Loop));
+        Liveness::with_last_reads(g, s, slots, ii, desc, &last_read)
+    }
+
+    /// [`Liveness::new`] with the loop's readers' last reads found already.
+    pub fn with_last_reads(
+        g: &Graph,
+        s: &Schedule,
+        slots: &Slots,
+        ii: i64,
+        desc: &imagine_units::desc::MachineDesc,
+        last_read: &LastReads,
+    ) -> Liveness {
         let nlrf = slots.lrfs();
         let perm = permanent(g);
         let mut kept = vec![0usize; nlrf + 1];
         let mut rows = vec![vec![0usize; ii as usize]; nlrf + 1];
-        let last_read = last_reads(g, s, slots, Some(Region::Loop));
         for (u, op) in g.ops.iter().enumerate() {
             if perm[u] && op.tie.is_none() {
                 for &loc in &s.dests[u] {
@@ -616,7 +631,7 @@ impl Liveness {
             let Some(pl) = s.place[u] else { continue };
             let w = pl.time + g.latency(u, desc);
             for &loc in &s.dests[u] {
-                let r = live_end(&last_read, u, loc, w);
+                let r = last_read.live_end(slots, u, loc, w);
                 let rows = &mut rows[index(slots, loc)];
                 for run in circle::cycles(w, r, ii) {
                     rows[run].iter_mut().for_each(|x| *x += 1);
@@ -638,37 +653,6 @@ pub fn index(slots: &Slots, loc: Loc) -> usize {
         Loc::Lrf(l) => l as usize,
         Loc::Cc => slots.lrfs(),
     }
-}
-
-/// The last cycle each value is read from each location, in the reader's region time;
-/// with `region`, only the readers in that region count.
-pub fn last_reads(
-    g: &Graph,
-    s: &Schedule,
-    slots: &Slots,
-    region: Option<Region>,
-) -> HashMap<(usize, Loc), i64> {
-    let mut last_read: HashMap<(usize, Loc), i64> = HashMap::default();
-    for (u, op) in g.ops.iter().enumerate() {
-        let Some(pl) = s.place[u] else { continue };
-        if region.is_some_and(|r| r != op.region) {
-            continue;
-        }
-        for a in &op.args {
-            if let Source::Local(p) = a.src {
-                let loc = slots.operand_loc(op.kind, pl.slot, pl.swap, a);
-                let e = last_read.entry((p, loc)).or_insert(pl.time);
-                *e = (*e).max(pl.time);
-            }
-        }
-    }
-    last_read
-}
-
-/// Until when value `u`, landing in `loc` at cycle `w`, holds its entry: its last read
-/// there, and at least the cycle after it lands.
-fn live_end(last_read: &HashMap<(usize, Loc), i64>, u: usize, loc: Loc, w: i64) -> i64 {
-    last_read.get(&(u, loc)).map_or(w + 1, |&r| r.max(w + 1))
 }
 
 #[cfg(test)]

@@ -51,6 +51,7 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
     let one = (ii.is_some() && slots.shape.multipliers > 0).then(|| g.copy_multiplicand());
     let mut one_used = false;
     let mul_extra = slots.mul_copy_extra;
+    let mut options: Vec<(usize, bool)> = Vec::new();
     for &u in &ops {
         let through_mul = one.filter(|_| g.ops[u].copy_kind == Some(CopyKind::Lifetime));
         if let Some(one) = through_mul {
@@ -63,18 +64,28 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
             }
         }
         let op = &g.ops[u];
-        let options: Vec<(usize, bool)> = match op.kind {
-            Kind::Fu(_) if through_mul.is_some() => slots
-                .fu_slots(UnitClass::Adder)
-                .chain(slots.fu_slots(UnitClass::Multiplier))
-                .map(|k| (k, false))
-                .collect(),
-            Kind::Fu(o) => fu_options(op, o, slots),
-            Kind::Comm(_) => (0..slots.shape.comm_units).map(|k| (k, false)).collect(),
+        match op.kind {
+            Kind::Fu(_) if through_mul.is_some() => {
+                options.clear();
+                options.extend(
+                    slots
+                        .fu_slots(UnitClass::Adder)
+                        .chain(slots.fu_slots(UnitClass::Multiplier))
+                        .map(|k| (k, false)),
+                );
+            }
+            Kind::Fu(o) => fu_options_into(op, o, slots, &mut options),
+            Kind::Comm(_) => {
+                options.clear();
+                options.extend((0..slots.shape.comm_units).map(|k| (k, false)));
+            }
             // One scratchpad holds the kernel's data; stream and immediate slots are
             // assigned when the instruction is written.
-            _ => vec![(0, false)],
-        };
+            _ => {
+                options.clear();
+                options.push((0, false));
+            }
+        }
         let weight = match op.kind {
             Kind::Fu(o) if o.unit() == UnitClass::DivSqrt => slots.dsq_interval,
             _ => 1,
@@ -160,7 +171,16 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
             }
         }
     }
-    // Values read from more than two places get copies.
+    // Values read from more than two places get copies. (Each value's readers, found once
+    // and kept as the copies take them over, in the order a scan of the ops finds them.)
+    let mut readers: Vec<Vec<(usize, usize)>> = vec![Vec::new(); g.ops.len()];
+    for o in g.in_region(region) {
+        for (i, a) in g.ops[o].args.iter().enumerate() {
+            if let Some(q) = local_source(a) {
+                readers[q].push((o, i));
+            }
+        }
+    }
     loop {
         let mut over: Vec<usize> = groups
             .iter()
@@ -169,7 +189,17 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
             .collect();
         over.sort_unstable();
         let Some(&q) = over.first() else { break };
-        let through_mul = split(g, &mut groups, &mut load, q, region, ii, one, slots);
+        let through_mul = split(
+            g,
+            &mut groups,
+            &mut readers,
+            &mut load,
+            q,
+            region,
+            ii,
+            one,
+            slots,
+        );
         one_used |= through_mul;
     }
     if let (Some(one), false) = (one, one_used) {
@@ -207,19 +237,25 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
 /// The (slot, operands swapped) places FU op `op` (doing `o`) may be bound to: its fixed
 /// slot or any unit of its class, a commutative op's operands either way round.
 pub fn fu_options(op: &MOp, o: Op, slots: &Slots) -> Vec<(usize, bool)> {
-    let units: Vec<usize> = match op.fixed_slot {
-        Some(s) => vec![s],
-        None => slots.fu_slots(o.unit()).collect(),
+    let mut options = Vec::new();
+    fu_options_into(op, o, slots, &mut options);
+    options
+}
+
+/// [`fu_options`] into `options` (cleared first), so that binding every op of a region
+/// allocates them once.
+fn fu_options_into(op: &MOp, o: Op, slots: &Slots, options: &mut Vec<(usize, bool)>) {
+    let units = match op.fixed_slot {
+        Some(s) => s..s + 1,
+        None => slots.fu_slots(o.unit()),
     };
     let swaps: &[bool] = if commutative(o) && op.args.len() == 2 {
         &[false, true]
     } else {
         &[false]
     };
-    units
-        .iter()
-        .flat_map(|&k| swaps.iter().map(move |&s| (k, s)))
-        .collect()
+    options.clear();
+    options.extend(units.flat_map(|k| swaps.iter().map(move |&s| (k, s))));
 }
 
 /// Sets the destinations of the values of `region` from where their readers, already
@@ -263,11 +299,14 @@ fn local_source(a: &Arg) -> Option<usize> {
 /// Gives value `q` a copy: `q` keeps its seeded and most-read location, the copy (reading
 /// `q` from its unit's `a` LRF) serves the other readers. In a loop the copy may go on a
 /// multiplier, as `imul_lo(q, 1)` (`one` holds the 1), so that a loop whose adders are full
-/// still runs at its bound. Returns whether it went on a multiplier.
+/// still runs at its bound. `value_readers` holds each value's (reader, argument) pairs in
+/// the region, in op order; the copy's are added and `q`'s brought up to date. Returns
+/// whether it went on a multiplier.
 #[allow(clippy::too_many_arguments)]
 fn split(
     g: &mut Graph,
     groups: &mut HashMap<usize, Vec<Loc>>,
+    value_readers: &mut Vec<Vec<(usize, usize)>>,
     load: &mut [usize],
     q: usize,
     region: Region,
@@ -275,17 +314,15 @@ fn split(
     one: Option<usize>,
     slots: &Slots,
 ) -> bool {
-    let readers: Vec<(usize, usize, Loc)> = g
-        .in_region(region)
-        .into_iter()
-        .flat_map(|o| {
+    let readers: Vec<(usize, usize, Loc)> = value_readers[q]
+        .iter()
+        .map(|&(o, i)| {
             let op = &g.ops[o];
-            op.args
-                .iter()
-                .enumerate()
-                .filter(|(_, a)| local_source(a) == Some(q))
-                .map(|(i, a)| (o, i, slots.operand_loc(op.kind, op.slot, op.swap, a)))
-                .collect::<Vec<_>>()
+            (
+                o,
+                i,
+                slots.operand_loc(op.kind, op.slot, op.swap, &op.args[i]),
+            )
         })
         .collect();
     let have = &groups[&q];
@@ -343,15 +380,23 @@ fn split(
     }
     g.ops.push(mov);
     let mut moved: Vec<Loc> = Vec::new();
+    let (mut stay, mut go) = (Vec::new(), Vec::new());
     for (o, i, loc) in readers {
         if keep.contains(&loc) {
+            stay.push((o, i));
             continue;
         }
         g.ops[o].args[i].src = Source::Local(c);
+        go.push((o, i));
         if !moved.contains(&loc) {
             moved.push(loc);
         }
     }
+    // (The copy, the last op, reads `q` through its first argument.)
+    stay.push((c, 0));
+    value_readers[q] = stay;
+    debug_assert_eq!(value_readers.len(), c, "an entry per op");
+    value_readers.push(go);
     groups.insert(q, keep);
     groups.insert(c, moved);
     through_mul

@@ -35,6 +35,7 @@ pub mod cache;
 pub mod circle;
 pub mod emit;
 pub mod graph;
+pub mod last_reads;
 pub mod repair;
 pub mod report;
 pub mod schedule;

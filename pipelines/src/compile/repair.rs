@@ -1160,7 +1160,14 @@ impl<'p> State<'p> {
     /// at `(t, slot, swap)`, `at` being [`Self::quick_at`] `t`: its own resources and
     /// dependences, new destinations for its operands, and the waits it makes.
     fn quick(&self, u: usize, around: &Around, at: Quick, t: i64, slot: usize, swap: bool) -> i64 {
-        self.quick_taken(around, at, self.issue_taken(u, t, slot), slot, swap)
+        let taken = self.issue_taken(u, self.p.row(t), slot);
+        self.quick_taken(around, at, taken, slot, swap)
+    }
+
+    /// The least [`Self::quick_taken`] can be with `at`: no issue slot, result port or
+    /// operand's write port taken.
+    fn quick_least(&self, at: Quick) -> i64 {
+        SCALE * (HARD * at.hard + at.broken) + self.wait_weight * at.wait
     }
 
     /// [`Self::quick`] with the issue slots and result ports taken on `slot` counted already
@@ -1170,30 +1177,33 @@ impl<'p> State<'p> {
         SCALE * (HARD * hard + at.broken) + self.wait_weight * at.wait
     }
 
-    /// The issue slots and result ports op `u` would find taken at cycle `t` on `slot`.
-    fn issue_taken(&self, u: usize, t: i64, slot: usize) -> i64 {
+    /// The issue slots and result ports op `u` would find taken issuing at `row` (the row
+    /// of its cycle, which the caller finds once for every slot) on `slot`.
+    fn issue_taken(&self, u: usize, row: usize, slot: usize) -> i64 {
         let p = self.p;
         let op = &p.ops[u];
         let res = &p.res;
         let taken = |row: usize, r: usize| self.usage[row * res.per_row + r] >= res.cap[r];
+        // (Rows after `row` are found from it: a compare, not a division, within the table.)
+        let after = |d: i64| p.row(row as i64 + d);
         let mut hard = 0;
         match op.kind {
             Kind::Fu(_) => {
                 for c in 0..op.issue.min(p.ii) {
-                    hard += i64::from(taken(p.row(t + c), res.issue(slot)));
+                    hard += i64::from(taken(after(c), res.issue(slot)));
                 }
-                hard += i64::from(taken(p.row(t + op.lat), res.result(slot)));
+                hard += i64::from(taken(after(op.lat), res.result(slot)));
             }
             Kind::SpRead { .. } | Kind::SpWrite { .. } => {
-                hard += i64::from(taken(p.row(t), res.sp(slot)))
+                hard += i64::from(taken(row, res.sp(slot)))
             }
-            Kind::Comm(_) => hard += i64::from(taken(p.row(t), res.comm(slot))),
-            Kind::StreamIn { .. } => hard += i64::from(taken(p.row(t), res.words())),
+            Kind::Comm(_) => hard += i64::from(taken(row, res.comm(slot))),
+            Kind::StreamIn { .. } => hard += i64::from(taken(row, res.words())),
             Kind::StreamOut { .. } => {
-                hard += i64::from(taken(p.row(t), res.words()));
-                hard += i64::from(taken(p.row(t), res.sout()));
+                hard += i64::from(taken(row, res.words()));
+                hard += i64::from(taken(row, res.sout()));
             }
-            Kind::Imm(_) => hard += i64::from(taken(p.row(t), res.imm())),
+            Kind::Imm(_) => hard += i64::from(taken(row, res.imm())),
         }
         hard
     }
@@ -1685,13 +1695,21 @@ pub fn schedule(
         let around = st.around(u);
         for t in st.window(u, WINDOW) {
             let at = st.quick_at(u, &around, t);
+            // (A full shortlist whose last place costs less than any place at `t` may cost
+            // takes none of them: their tie-breaks are still drawn, their slots not counted.)
+            let beaten = cands.worst().is_some_and(|w| st.quick_least(at) > w);
+            let row = p.row(t);
             // (The options of a slot come together, its swaps side by side.)
             let mut taken: Option<(usize, i64)> = None;
             for &(k, s) in &p.ops[u].options {
                 if p.allowed(u, t, k) && (t, k, s) != (t0, k0, s0) {
+                    if beaten {
+                        rng.next();
+                        continue;
+                    }
                     let slot_taken = match taken {
                         Some((slot, n)) if slot == k => n,
-                        _ => st.issue_taken(u, t, k),
+                        _ => st.issue_taken(u, row, k),
                     };
                     taken = Some((k, slot_taken));
                     let c = st.quick_taken(&around, at, slot_taken, k, s);
@@ -1769,6 +1787,12 @@ impl Shortlist {
 
     fn best(&self) -> &[Candidate] {
         &self.best[..self.len]
+    }
+
+    /// The estimate of the last candidate kept, once the list is full: a candidate of a
+    /// greater one is never kept.
+    fn worst(&self) -> Option<i64> {
+        (self.len == SHORTLIST).then(|| self.best[SHORTLIST - 1].0)
     }
 }
 

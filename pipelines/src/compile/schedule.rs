@@ -614,10 +614,10 @@ fn attempt_list_modulo(
             last = limit;
         }
         let late = g.ops[u].copy_kind == Some(CopyKind::Lifetime);
-        let times: Vec<i64> = if late {
-            late_first(g, u, estart, last)
+        let times: &mut dyn Iterator<Item = i64> = if late {
+            &mut late_first(g, u, estart, last)
         } else {
-            (estart..=last).collect()
+            &mut (estart..=last)
         };
         let dsq_align = divider_alignment(g, u, ii, slots);
         let mut busy = None;
@@ -833,12 +833,12 @@ fn divider_alignment(g: &Graph, u: usize, ii: i64, slots: &Slots) -> Option<i64>
 
 /// The cycles of `[estart, last]` a lifetime copy tries: as late as it may, to carry its
 /// value furthest — back from its deadline, then after it.
-fn late_first(g: &Graph, u: usize, estart: i64, last: i64) -> Vec<i64> {
+fn late_first(g: &Graph, u: usize, estart: i64, last: i64) -> impl Iterator<Item = i64> {
     let d = g.ops[u]
         .deadline
         .unwrap_or(last)
         .clamp(estart, last.max(estart));
-    (estart..=d).rev().chain(d + 1..=last).collect()
+    (estart..=d).rev().chain(d + 1..=last)
 }
 
 /// The ops among `ops` that read each op's value.
@@ -1076,7 +1076,10 @@ fn attempt_modulo(
             last = estart + ii - 1;
             lifetime = None;
         }
-        let times: Vec<i64> = if jit(u) {
+        let dsq_align = divider_alignment(g, u, ii, slots);
+        let aligned = |t: i64| dsq_align.is_none_or(|k| t.rem_euclid(ii) % k == 0);
+        // (Tried in turn, without collecting them: most ops fit one of the first few.)
+        let times: &mut dyn Iterator<Item = i64> = if jit(u) {
             // Backwards from just before its reader, no further than its value may live.
             let reader = succs[u]
                 .iter()
@@ -1085,25 +1088,21 @@ fn attempt_modulo(
                 .unwrap_or(0);
             let lowest = reader - ii - latency[u];
             if has_placed_pred {
-                (lowest.max(estart)..=lstart.min(last)).rev().collect()
+                &mut (lowest.max(estart)..=lstart.min(last)).rev()
             } else {
-                (lowest..=lstart).rev().collect()
+                &mut (lowest..=lstart).rev()
             }
         } else if late {
-            late_first(g, u, estart, last)
+            &mut late_first(g, u, estart, last)
         } else {
             // (Where the last attempt placed it first, if that is still in the window.)
             let warm = g.warm.get(u).copied().flatten();
-            warm.filter(|&t| t > estart && t <= last)
+            &mut warm
+                .filter(|&t| t > estart && t <= last)
                 .into_iter()
                 .chain(estart..=last)
-                .collect()
         };
-        let dsq_align = divider_alignment(g, u, ii, slots);
-        let aligned = |t: i64| dsq_align.is_none_or(|k| t.rem_euclid(ii) % k == 0);
         let free = times
-            .iter()
-            .copied()
             .filter(|&t| aligned(t))
             .find(|&t| try_place(g, sched, &mut table, u, t, slots, desc).is_ok());
         let t = match free {
@@ -1611,7 +1610,8 @@ pub fn relieve(
     slots: &Slots,
     desc: &MachineDesc,
 ) -> bool {
-    use super::alloc::{Liveness, index, last_reads};
+    use super::alloc::{Liveness, index};
+    use super::last_reads::LastReads;
     let Loc::Lrf(lrf) = loc else { return false };
     let mut table = Table::new(Some(ii), slots);
     for u in g.in_region(Region::Loop) {
@@ -1630,13 +1630,13 @@ pub fn relieve(
     for _ in 0..ii.max(64) {
         let ops = g.in_region(Region::Loop);
         let perm = super::alloc::permanent(g);
-        let live = Liveness::new(g, sched, slots, ii, desc);
+        let last_read = LastReads::new(g, sched, slots, Some(Region::Loop));
+        let live = Liveness::with_last_reads(g, sched, slots, ii, desc, &last_read);
         if live.peak(k) <= target {
             return true;
         }
         let peak = live.rows[k].iter().copied().max().unwrap_or(0);
         let row = live.rows[k].iter().position(|&x| x == peak).unwrap_or(0) as i64;
-        let last_read = last_reads(g, sched, slots, Some(Region::Loop));
         let covers =
             |from: i64, to: i64| (from..to.min(from + ii)).any(|c| c.rem_euclid(ii) == row);
         // Readers of each value through `loc`, and when.
@@ -1683,7 +1683,7 @@ pub fn relieve(
                 // The value in the adder's LRF until `t`: room for it there (one entry
                 // spare for the packing).
                 let held_from = if already {
-                    last_read.get(&(p, dst)).copied().unwrap_or(w)
+                    last_read.get(slots, p, dst).unwrap_or(w)
                 } else {
                     w
                 };
