@@ -33,8 +33,8 @@ pub enum VerifyCommand {
         ftz: bool,
         /// What evaluates the vectors: `bit-level`, the fp32 datapath one case at a time (the
         /// model of record), or `host`, the machine op over lanes with the host floating-point
-        /// fast path of fadd, fsub and fmul (`Op::eval_lanes_host`), in vectors of 1, 3, 8,
-        /// 16, 32 and 37 lanes in turn
+        /// fast path of fadd, fsub, fmul, fdiv and fsqrt (`Op::eval_lanes_host`), in vectors
+        /// of 1, 3, 8, 16, 32 and 37 lanes in turn
         #[arg(long, default_value = "bit-level", value_parser = |d: &str| d.parse::<Datapath>())]
         datapath: Datapath,
         /// How many mismatches to print

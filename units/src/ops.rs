@@ -465,10 +465,10 @@ impl Op {
 
     /// [`Op::eval_lanes`] with the host floating-point fast path ([`fp32::host`]) for
     /// [`Op::FAdd`], [`Op::FSub`], [`Op::FMul`], [`Op::FDiv`] and [`Op::FSqrt`]: the same
-    /// result words and flags on every
-    /// lane (proven, and cross-checked against SoftFloat), computed with the host's IEEE
-    /// arithmetic where that is exact and by the bit-level datapath elsewhere. Every other op
-    /// is [`Op::eval_lanes`]. The bit-level [`Op::eval_lanes`] stays the model of record.
+    /// result words and flags on every lane (proven, and cross-checked against SoftFloat),
+    /// computed with the host's IEEE arithmetic where that is exact and by the bit-level
+    /// datapath elsewhere. Every other op is [`Op::eval_lanes`]. The bit-level
+    /// [`Op::eval_lanes`] stays the model of record.
     ///
     /// # Panics
     /// As [`Op::eval_lanes`]: if a slice is shorter than `out` or `flags` is not as long as

@@ -502,6 +502,9 @@ mod tests {
         }
     }
 
+    /// An op over lanes: operands, results, flags.
+    type LaneOp<'a> = dyn Fn(&[u32], &[u32], &mut [u32], &mut [Flags]) + 'a;
+
     /// The host and bit-level divider and square root agree on `(a, b)`, in every lane
     /// position and mode, and the host answers exactly when `host_answers`.
     fn div_sqrt_case(a: u32, b: u32, host_answers: (bool, bool)) {
@@ -516,7 +519,7 @@ mod tests {
                 let mut xs = vec![0x4049_0FDB; len];
                 let mut ys = vec![0x3FC0_0000; len];
                 (xs[at], ys[at]) = (a, b);
-                let lanes = |f: &dyn Fn(&[u32], &[u32], &mut [u32], &mut [Flags])| {
+                let lanes = |f: &LaneOp| {
                     let (mut out, mut flags) = (vec![0; len], vec![Flags::NONE; len]);
                     f(&xs, &ys, &mut out, &mut flags);
                     (out, flags)
