@@ -641,6 +641,31 @@ impl<'p> State<'p> {
         if excess > 0 { BROKEN + excess } else { 0 }
     }
 
+    /// What op `u` at cycle `t` would add for the dependences with placed ops it breaks.
+    fn dependences_broken(&self, u: usize, t: i64) -> i64 {
+        let p = self.p;
+        let mut broken = 0;
+        for &e in &p.incident[u] {
+            let (a, b, lat, dist) = p.edges[e];
+            if a == b {
+                continue;
+            }
+            let (ta, tb) = if a == u {
+                if !self.placed[b] {
+                    continue;
+                }
+                (t, self.t[b])
+            } else {
+                if !self.placed[a] {
+                    continue;
+                }
+                (self.t[a], t)
+            };
+            broken += Self::pen(ta + lat - p.ii * i64::from(dist) - tb);
+        }
+        broken
+    }
+
     /// The last cycle value `x` is read from `l` by a placed reader (at least the cycle
     /// after it lands).
     fn live_end(&self, x: usize, l: Loc, w: i64) -> i64 {
@@ -1281,24 +1306,7 @@ impl<'p> State<'p> {
         }
         // (Within its dependence window no dependence is broken.)
         if !(around.window.0..=around.window.1).contains(&t) {
-            for &e in &p.incident[u] {
-                let (a, b, lat, dist) = p.edges[e];
-                if a == b {
-                    continue;
-                }
-                let (ta, tb) = if a == u {
-                    if !self.placed[b] {
-                        continue;
-                    }
-                    (t, self.t[b])
-                } else {
-                    if !self.placed[a] {
-                        continue;
-                    }
-                    (self.t[a], t)
-                };
-                broken += Self::pen(ta + lat - p.ii * i64::from(dist) - tb);
-            }
+            broken += self.dependences_broken(u, t);
         }
         Quick { hard, broken, wait }
     }

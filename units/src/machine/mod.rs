@@ -668,11 +668,12 @@ impl Machine {
     /// [`Srf::idle_skippable`]). The stream controller may still hold a finished kernel
     /// for its minimum time; the memory system's own stream buffers must be idle too.
     pub fn idle_skippable(&self) -> bool {
-        self.uc.phase() == Phase::Idle
-            && !self.stalled
-            && self.fus.is_quiet()
-            && self.in_flight() == 0
-            && self.srf.idle_skippable()
+        !self.stalled && self.clusters_quiet() && self.srf.idle_skippable()
+    }
+
+    /// No kernel runs and nothing is issued or in flight in the clusters.
+    fn clusters_quiet(&self) -> bool {
+        self.uc.phase() == Phase::Idle && self.fus.is_quiet() && self.in_flight() == 0
     }
 
     /// Brings an [`idle_skippable`](Self::idle_skippable) machine over `n ≥ 1` cycles,
@@ -1080,10 +1081,7 @@ impl Machine {
         self.stream_reads.iter_mut().for_each(|u| u.commit());
         self.immediates.commit();
         // With no kernel, what this edge landed was the last: the clusters can sleep.
-        self.asleep = !self.tracing
-            && self.uc.phase() == Phase::Idle
-            && self.fus.is_quiet()
-            && self.in_flight() == 0;
+        self.asleep = !self.tracing && self.clusters_quiet();
     }
 
     fn kernel_cycle<const L: usize>(&mut self, kernel: &mut Kernel) -> Result<(), ContractError> {

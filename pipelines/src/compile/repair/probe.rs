@@ -123,25 +123,7 @@ impl State<'_> {
             over += i64::from(self.usage[c] + earlier >= res.cap[r]);
         }
         // Dependences and lifetimes it would break.
-        let mut broken = 0;
-        for &e in &p.incident[u] {
-            let (a, b, lat, dist) = p.edges[e];
-            if a == b {
-                continue;
-            }
-            let (ta, tb) = if a == u {
-                if !self.placed[b] {
-                    continue;
-                }
-                (t, self.t[b])
-            } else {
-                if !self.placed[a] {
-                    continue;
-                }
-                (self.t[a], t)
-            };
-            broken += Self::pen(ta + lat - p.ii * i64::from(dist) - tb);
-        }
+        let mut broken = self.dependences_broken(u, t);
         for &(r, i) in &p.readers[u] {
             if self.placed[r] && matches!(p.ops[r].args[i].0, Src::Loop { carried: false, .. }) {
                 broken += Self::pen(self.t[r] - (w + p.reach));
