@@ -156,6 +156,11 @@ impl DomainTime {
     /// `b / 2fb` as `a·fb` against `b·fa`, exactly.
     #[inline]
     fn compare(&self, other: &DomainTime) -> Ordering {
+        // (Edges a picosecond or more apart are ordered by their times rounded down: the
+        // earlier rounds down lower. Only within the same picosecond are they multiplied.)
+        if self.next_ps != other.next_ps {
+            return self.next_ps.cmp(&other.next_ps);
+        }
         let a = self.next_half as u128 * other.freq_hz as u128;
         let b = other.next_half as u128 * self.freq_hz as u128;
         a.cmp(&b)
@@ -361,6 +366,32 @@ mod tests {
         let halves = c.times.iter().map(|t| t.next_half).collect();
         let cycles = c.times.iter().map(|t| t.cycles).collect();
         (halves, cycles, c.time_ps)
+    }
+
+    #[test]
+    fn edges_are_ordered_as_the_exact_ratio_orders_them() {
+        // Pairs whose edges coincide, fall within a picosecond of each other, or neither.
+        let pairs = [
+            (500_000_000, 167_000_000),
+            (500_000_000, 250_000_000),
+            (333_333_333, 999_999_999),
+            (1_000_000_000_000, 999_999_999_999),
+            (3, 7),
+        ];
+        for (fa, fb) in pairs {
+            let (mut a, mut b) = (DomainTime::new(fa), DomainTime::new(fb));
+            for step in 0..200_000u64 {
+                let exact = (u128::from(a.next_half) * u128::from(fb))
+                    .cmp(&(u128::from(b.next_half) * u128::from(fa)));
+                assert_eq!(a.compare(&b), exact, "{fa} Hz against {fb} Hz, step {step}");
+                assert_eq!(b.compare(&a), exact.reverse());
+                if step % 3 == 0 {
+                    a.step_half();
+                } else {
+                    b.step_half();
+                }
+            }
+        }
     }
 
     #[test]

@@ -33,6 +33,49 @@ pub fn row(t: i64, ii: i64) -> usize {
     }
 }
 
+/// A table of `ii` rows whose row of a cycle is found without a division: by a multiply
+/// with the interval's reciprocal (Lemire, Kaser and Kurz, "Faster remainder by direct
+/// computation", 2019), for the cycles within a billion of 0.
+#[derive(Clone, Copy, Debug)]
+pub struct Circle {
+    ii: i64,
+    /// `⌈2⁶⁴ / ii⌉`.
+    reciprocal: u64,
+    /// A multiple of `ii` that takes every cycle of `(-NEAR, NEAR)` to `[0, 2³²)`.
+    offset: i64,
+}
+
+/// The cycles, either side of 0, that [`Circle::row`] finds without a division.
+const NEAR: i64 = 1 << 30;
+
+impl Circle {
+    pub fn new(ii: i64) -> Circle {
+        assert!(ii > 0, "a table of {ii} rows");
+        // (One row needs no reciprocal, whose ⌈2⁶⁴ / 1⌉ would not fit.)
+        let fast = (2..NEAR).contains(&ii);
+        Circle {
+            ii,
+            reciprocal: if fast { u64::MAX / ii as u64 + 1 } else { 0 },
+            offset: if fast { (NEAR / ii + 1) * ii } else { 0 },
+        }
+    }
+
+    /// The row of cycle `t`: [`row`]`(t, ii)`.
+    #[inline]
+    pub fn row(&self, t: i64) -> usize {
+        if (0..self.ii).contains(&t) {
+            return t as usize;
+        }
+        if self.reciprocal == 0 || !(-NEAR..NEAR).contains(&t) {
+            return t.rem_euclid(self.ii) as usize;
+        }
+        // (`t + offset` is below 2³² and `ii` below 2³⁰: the fraction of the product is
+        // exact enough that its top bits times `ii` are the remainder.)
+        let fraction = self.reciprocal.wrapping_mul((t + self.offset) as u64);
+        ((u128::from(fraction) * self.ii as u128) >> 64) as usize
+    }
+}
+
 /// The runs of cycles `[w, r)` round a table of `ii` rows (none if `r <= w`).
 pub fn cycles(w: i64, r: i64, ii: i64) -> impl Iterator<Item = Range<usize>> {
     let len = usize::try_from(r - w).unwrap_or(0);
@@ -41,7 +84,43 @@ pub fn cycles(w: i64, r: i64, ii: i64) -> impl Iterator<Item = Range<usize>> {
 
 #[cfg(test)]
 mod tests {
-    use super::{cycles, row, runs};
+    use super::{Circle, NEAR, cycles, row, runs};
+
+    #[test]
+    fn a_circle_finds_the_rows_the_remainder_gives() {
+        let mut rng = 0x1234_5678_9abc_def0u64;
+        let mut next = || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            rng
+        };
+        let iis = (1..300).chain([1021, 4096, 65_535, NEAR - 1, NEAR, NEAR + 7, i64::MAX / 3]);
+        for ii in iis {
+            let circle = Circle::new(ii);
+            let edges = [
+                0,
+                1,
+                ii - 1,
+                ii,
+                ii + 1,
+                -1,
+                -ii,
+                -ii - 1,
+                NEAR - 1,
+                -NEAR,
+                NEAR,
+            ];
+            let random = (0..2000).map(|_| (next() as i64) >> (next() % 64));
+            for t in edges.into_iter().chain(random) {
+                assert_eq!(
+                    circle.row(t),
+                    t.rem_euclid(ii) as usize,
+                    "cycle {t}, {ii} rows"
+                );
+            }
+        }
+    }
 
     /// The rows of `runs`, one by one.
     fn rows(start: usize, len: usize, m: usize) -> Vec<usize> {

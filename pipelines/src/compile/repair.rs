@@ -228,6 +228,7 @@ impl Rng {
 /// The problem: the loop's ops, dependences and readers.
 struct Problem {
     ii: i64,
+    circle: circle::Circle,
     reach: i64,
     ops: Vec<LOp>,
     /// Dependences (local indices) and, per op, the edges it is in.
@@ -288,6 +289,10 @@ impl Problem {
                 _ => vec![(0, false)],
             };
             if options.is_empty() || op.kind.is_conditional_stream() {
+                return None;
+            }
+            // (No unit has more inputs: an op that read more would have none to go to.)
+            if op.args.len() > MAX_OPERANDS {
                 return None;
             }
             let mut args = Vec::with_capacity(op.args.len());
@@ -389,6 +394,7 @@ impl Problem {
         }
         Some(Problem {
             ii,
+            circle: circle::Circle::new(ii),
             reach,
             ops: lops,
             edges: ledges,
@@ -445,7 +451,7 @@ impl Problem {
         op.arg_locs[(slot * 2 + usize::from(swap)) * op.args.len() + i]
     }
     fn row(&self, t: i64) -> usize {
-        circle::row(t, self.ii)
+        self.circle.row(t)
     }
 }
 
@@ -484,6 +490,10 @@ struct State<'p> {
     lifetime_matched: Vec<bool>,
     /// Scratch of [`Self::attach_cost`].
     probe: probe::Probe,
+    /// Scratch of [`Self::around`], [`Self::search_chain`] and [`Self::window`].
+    around: Around,
+    chain_scratch: ChainScratch,
+    times: Vec<i64>,
     /// Weight of the waits against [`SCALE`].
     wait_weight: i64,
     over: i64,
@@ -495,7 +505,9 @@ struct State<'p> {
 
 const SEEDED: u32 = 1 << 20;
 
-/// The placed ops around an op being placed, as [`State::quick`] weighs them.
+/// The placed ops around an op being placed, as [`State::quick`] weighs them (kept in
+/// [`State`] between moves, so that finding it allocates nothing).
+#[derive(Default)]
 struct Around {
     /// Per destination of the op: the last cycle a placed reader reads it there.
     last_reads: Vec<i64>,
@@ -518,6 +530,46 @@ struct Quick {
 
 /// An op's place: (op, cycle, slot, swap).
 type Move = (usize, i64, usize, bool);
+
+/// The most operands an op reads: one per input of its unit (see [`Input`]).
+const MAX_OPERANDS: usize = 8;
+
+/// An op and the placed ops whose values it reads (see [`State::affected`]; the search
+/// asks for them at every move, so they are kept off the heap).
+type Affected = arrayvec::ArrayVec<usize, { 1 + MAX_OPERANDS }>;
+
+/// The ops in the way of a move (see [`State::blockers_at`] and [`State::operand_blockers`]):
+/// an ejection chain goes on only through a move that displaces at most one.
+#[derive(Clone, Copy)]
+enum Blockers {
+    None,
+    One(usize),
+    Many,
+}
+
+impl Blockers {
+    fn add(&mut self, op: usize) {
+        *self = match *self {
+            Blockers::None => Blockers::One(op),
+            Blockers::One(x) if x == op => Blockers::One(x),
+            _ => Blockers::Many,
+        };
+    }
+
+    /// Those of both.
+    fn and(mut self, other: Blockers) -> Blockers {
+        match other {
+            Blockers::None => {}
+            Blockers::One(y) => self.add(y),
+            Blockers::Many => self = Blockers::Many,
+        }
+        self
+    }
+}
+
+/// Scratch of [`State::search_chain`]: its queue and each option's
+/// [`State::operand_blockers`].
+type ChainScratch = (std::collections::VecDeque<usize>, Vec<Option<Blockers>>);
 
 /// A value's entry in a location and when its lifetime there ends (`None` for a value held
 /// for the whole loop): (value, location, end).
@@ -553,6 +605,9 @@ impl<'p> State<'p> {
             lifetimes_before: Vec::new(),
             lifetime_matched: Vec::new(),
             probe: probe::Probe::default(),
+            around: Around::default(),
+            chain_scratch: ChainScratch::default(),
+            times: Vec::new(),
             wait_weight: SCALE,
             over: 0,
             dest_over: 0,
@@ -989,6 +1044,7 @@ impl<'p> State<'p> {
                 }
             }
         }
+        self.around = around;
         let Some((_, t, k, s)) = best else {
             return false;
         };
@@ -1019,16 +1075,17 @@ impl<'p> State<'p> {
     }
 
     /// The placed values whose costs depend on op `u`'s place: its own and its operands'.
-    fn affected(&self, u: usize) -> Vec<usize> {
-        let mut v = vec![u];
+    fn affected(&self, u: usize) -> Affected {
+        let mut v = Affected::new();
+        v.push(u);
         for &(src, _) in &self.p.ops[u].args {
             if let Src::Loop { op: x, .. } = src
                 && !v.contains(&x)
+                && self.placed[x]
             {
                 v.push(x);
             }
         }
-        v.retain(|&x| self.placed[x] || x == u);
         v
     }
 
@@ -1069,6 +1126,7 @@ impl<'p> State<'p> {
                 }
             }
         }
+        self.around = around;
         let (t, k, s) = match best {
             Some((_, t, k, s)) => (t, k, s),
             None => (at, self.slot[u], self.swap[u]),
@@ -1162,23 +1220,26 @@ impl<'p> State<'p> {
 
     /// What [`Self::quick`] needs to know of the placed ops around op `u` (out of the
     /// schedule), which stay put while `u` is tried at many places.
-    fn around(&self, u: usize) -> Around {
+    /// Taken out of the state's scratch: put it back when done.
+    fn around(&mut self, u: usize) -> Around {
         let p = self.p;
-        Around {
-            // (`live_end` for a landing before every read: the last read.)
-            last_reads: self.dests[u]
+        let mut around = std::mem::take(&mut self.around);
+        // (`live_end` for a landing before every read: the last read.)
+        around.last_reads.clear();
+        around.last_reads.extend(
+            self.dests[u]
                 .iter()
-                .map(|&(l, _)| self.live_end(u, l, i64::MIN + 1))
-                .collect(),
-            last_reader: p.readers[u]
-                .iter()
-                .filter(|&&(r, _)| self.placed[r])
-                .map(|&(r, _)| self.t[r])
-                .max()
-                .unwrap_or(i64::MIN),
-            window: self.dependence_window(u),
-            operand_ports: self.operand_ports(u),
-        }
+                .map(|&(l, _)| self.live_end(u, l, i64::MIN + 1)),
+        );
+        around.last_reader = p.readers[u]
+            .iter()
+            .filter(|&&(r, _)| self.placed[r])
+            .map(|&(r, _)| self.t[r])
+            .max()
+            .unwrap_or(i64::MIN);
+        around.window = self.dependence_window(u);
+        self.operand_ports(u, &mut around.operand_ports);
+        around
     }
 
     /// A quick estimate of what op `u` (out of the schedule, with `around` it) would cost
@@ -1235,13 +1296,14 @@ impl<'p> State<'p> {
 
     /// What op `u`'s operands would cost on each (slot, swap) choice, wherever it goes:
     /// new destinations, whose write ports may be taken, beyond two.
-    fn operand_ports(&self, u: usize) -> Vec<i64> {
+    fn operand_ports(&self, u: usize, costs: &mut Vec<i64>) {
         let p = self.p;
         let op = &p.ops[u];
         let res = &p.res;
         let taken = |row: usize, r: usize| self.usage[row * res.per_row + r] >= res.cap[r];
         let choices = op.options.iter().map(|&(k, _)| k + 1).max().unwrap_or(1) * 2;
-        let mut costs = vec![0; choices];
+        costs.clear();
+        costs.resize(choices, 0);
         for &(slot, swap) in &op.options {
             let mut hard = 0;
             for (i, &(src, _)) in op.args.iter().enumerate() {
@@ -1262,7 +1324,6 @@ impl<'p> State<'p> {
             }
             costs[slot * 2 + usize::from(swap)] = hard;
         }
-        costs
     }
 
     /// What op `u` (with `around` it) would cost at cycle `t` on any slot: its result's
@@ -1340,17 +1401,17 @@ impl<'p> State<'p> {
         (lo, hi)
     }
 
-    /// The ops in the way of op `u` at `(t, slot, swap)`: the holders of the issue slot,
+    /// The ops in the way of op `u` at cycle `t` on `slot`: the holders of the issue slot,
     /// result port and write ports it would need (its own where it already holds them
     /// excepted). `None` if something in the way cannot be cleared by moving one op (a
-    /// resource over-full already, a result with no destination to spare).
-    fn blockers(&self, u: usize, t: i64, slot: usize, swap: bool) -> Option<Vec<usize>> {
+    /// resource over-full already). With [`Self::operand_blockers`] of the same slot and a
+    /// swap ([`Blockers::and`]), what is in the way of the move.
+    fn blockers_at(&self, u: usize, t: i64, slot: usize) -> Option<Blockers> {
         let p = self.p;
         let op = &p.ops[u];
         let res = &p.res;
-        let mut found: Vec<usize> = Vec::new();
-        let placed = self.placed[u];
-        let need = |row: usize, r: usize, found: &mut Vec<usize>| -> bool {
+        let mut found = Blockers::None;
+        let need = |row: usize, r: usize, found: &mut Blockers| -> bool {
             let i = row * res.per_row + r;
             let mut others = self.users[i].iter().copied().filter(|&x| x != u);
             let count = others.clone().count() as i32;
@@ -1360,10 +1421,7 @@ impl<'p> State<'p> {
             if count > res.cap[r] || res.cap[r] != 1 {
                 return false;
             }
-            let other = others.next().expect("one other user");
-            if !found.contains(&other) {
-                found.push(other);
-            }
+            found.add(others.next().expect("one other user"));
             true
         };
         let ok = match op.kind {
@@ -1391,6 +1449,17 @@ impl<'p> State<'p> {
                 return None;
             }
         }
+        Some(found)
+    }
+
+    /// The ops in the way of op `u` reading its operands on `(slot, swap)`, wherever it
+    /// issues: the holders of the write ports of the new destinations its operands would
+    /// need. `None` if a value would need a third destination, or a port is over-full.
+    fn operand_blockers(&self, u: usize, slot: usize, swap: bool) -> Option<Blockers> {
+        let p = self.p;
+        let op = &p.ops[u];
+        let res = &p.res;
+        let mut found = Blockers::None;
         for (i, &(src, _)) in op.args.iter().enumerate() {
             let Src::Loop { op: x, .. } = src else {
                 continue;
@@ -1404,7 +1473,7 @@ impl<'p> State<'p> {
                 continue;
             }
             // (A destination only `u` reads from goes when it moves.)
-            let mine = if placed {
+            let mine = if self.placed[u] {
                 let cur = p.arg_loc(u, i, self.slot[u], self.swap[u]);
                 ds.iter().filter(|e| e.0 == cur && e.1 == 1).count()
             } else {
@@ -1419,11 +1488,7 @@ impl<'p> State<'p> {
                 let mut others = self.users[i].iter().copied().filter(|&y| y != x);
                 match (others.next(), others.next()) {
                     (None, _) => {}
-                    (Some(y), None) if y != u => {
-                        if !found.contains(&y) {
-                            found.push(y);
-                        }
-                    }
+                    (Some(y), None) if y != u => found.add(y),
                     _ => return None,
                 }
             }
@@ -1445,32 +1510,59 @@ impl<'p> State<'p> {
         u: usize,
         first: &dyn Fn(i64, usize, bool) -> bool,
     ) -> Option<Vec<Move>> {
-        let p = self.p;
         // (Ops this search has seen carry its number, so the marks need no clearing.)
         self.chain_search += 1;
+        self.chain_seen[u] = self.chain_search;
+        let mut scratch = std::mem::take(&mut self.chain_scratch);
+        scratch.0.clear();
+        scratch.0.push_back(u);
+        let found = self.chain_from(u, first, &mut scratch);
+        self.chain_scratch = scratch;
+        found
+    }
+
+    /// [`Self::search_chain`] with its queue and a place for each op's
+    /// [`Self::operand_blockers`] per option.
+    fn chain_from(
+        &mut self,
+        u: usize,
+        first: &dyn Fn(i64, usize, bool) -> bool,
+        (queue, operands): &mut ChainScratch,
+    ) -> Option<Vec<Move>> {
+        let p = self.p;
         let search = self.chain_search;
-        self.chain_seen[u] = search;
-        let mut queue = std::collections::VecDeque::from([u]);
         let mut visited = 0;
         while let Some(x) = queue.pop_front() {
             visited += 1;
             if visited > CHAIN_LIMIT {
                 return None;
             }
+            // (What is in the way of a move is what is in the way of its place and of its
+            // operands' destinations, which do not depend on its cycle: found once.)
+            let options = &p.ops[x].options;
+            operands.clear();
+            operands.extend(options.iter().map(|&(k, s)| self.operand_blockers(x, k, s)));
             let (lo, hi) = self.free_window(x, CHAIN_SPAN);
             for t in nearest_first(self.t[x], lo, hi) {
-                for &(k, s) in &p.ops[x].options {
+                // (The options of a slot come together.)
+                let mut at: Option<(usize, Option<Blockers>)> = None;
+                for (&(k, s), &of_operands) in options.iter().zip(operands.iter()) {
                     if !p.allowed(x, t, k) || (t, k, s) == (self.t[x], self.slot[x], self.swap[x]) {
                         continue;
                     }
                     if x == u && !first(t, k, s) {
                         continue;
                     }
-                    let Some(blocking) = self.blockers(x, t, k, s) else {
+                    let of_place = match at {
+                        Some((slot, b)) if slot == k => b,
+                        _ => self.blockers_at(x, t, k),
+                    };
+                    at = Some((k, of_place));
+                    let Some(blocking) = of_place.zip(of_operands).map(|(a, b)| a.and(b)) else {
                         continue;
                     };
-                    match blocking[..] {
-                        [] => {
+                    match blocking {
+                        Blockers::None => {
                             let mut moves = vec![(x, t, k, s)];
                             let mut y = x;
                             while y != u {
@@ -1480,7 +1572,7 @@ impl<'p> State<'p> {
                             }
                             return Some(moves);
                         }
-                        [y] if self.chain_seen[y] != search => {
+                        Blockers::One(y) if self.chain_seen[y] != search => {
                             self.chain_seen[y] = search;
                             self.chain_parent[y] = (x, t, k, s);
                             queue.push_back(y);
@@ -1561,7 +1653,7 @@ impl<'p> State<'p> {
 
     /// The cycles op `u` may go to: its dependence window, at most `span` cycles from
     /// each end.
-    fn window(&self, u: usize, span: i64) -> Vec<i64> {
+    fn window(&self, u: usize, span: i64, times: &mut Vec<i64>) {
         let p = self.p;
         let (mut lo, hi) = self.dependence_window(u);
         if p.ops[u].jit && hi != i64::MAX {
@@ -1573,7 +1665,7 @@ impl<'p> State<'p> {
             (false, true) => (lo, lo + span),
             (false, false) => (lo, hi),
         };
-        let mut times: Vec<i64> = Vec::new();
+        times.clear();
         let (a, b) = (lo.min(hi), lo.max(hi));
         if b - a <= 2 * span {
             times.extend(a..=b);
@@ -1587,7 +1679,6 @@ impl<'p> State<'p> {
         if let Some(k) = p.ops[u].align {
             times.retain(|&t| t.rem_euclid(p.ii) % k == 0);
         }
-        times
     }
 }
 
@@ -1672,17 +1763,23 @@ pub fn schedule(
             a != b && st.t[a] + lat - ii * i64::from(dist) > st.t[b]
         });
         if let Some(e) = stretched {
-            let mut tried = Vec::new();
-            for forward in [true, false] {
-                let log = st.push_apart(e, forward);
-                tried.push((st.cost(), forward));
-                st.restore(&log);
-            }
-            let (after, forward) = *tried.iter().min().expect("two tries");
-            if accept(before, after, &mut rng) {
-                st.push_apart(e, forward);
+            // (Pulling is tried last and, when it wins, kept as it is rather than undone
+            // and made again: the state is the same either way.)
+            let log = st.push_apart(e, true);
+            let pushed = st.cost();
+            st.restore(&log);
+            let log = st.push_apart(e, false);
+            let pulled = st.cost();
+            // (On a tie the pull, as the least of (cost, forward).)
+            let forward = pushed < pulled;
+            if accept(before, pushed.min(pulled), &mut rng) {
+                if forward {
+                    st.restore(&log);
+                    st.push_apart(e, true);
+                }
                 continue;
             }
+            st.restore(&log);
         }
         // An op in a taken place: an ejection chain to a free one.
         if st.troubled_op(u)
@@ -1701,7 +1798,9 @@ pub fn schedule(
         st.detach(u, &aff);
         let mut cands = Shortlist::default();
         let around = st.around(u);
-        for t in st.window(u, WINDOW) {
+        let mut times = std::mem::take(&mut st.times);
+        st.window(u, WINDOW, &mut times);
+        for &t in &times {
             let at = st.quick_at(u, &around, t);
             // (A full shortlist whose last place costs less than any place at `t` may cost
             // takes none of them: their tie-breaks are still drawn, their slots not counted.)
@@ -1725,6 +1824,8 @@ pub fn schedule(
                 }
             }
         }
+        st.times = times;
+        st.around = around;
         // (The first place of least cost, weighed without making the move: see `probe`.)
         let detached = st.cost();
         let mut best: Option<(i64, i64, usize, bool)> = None;

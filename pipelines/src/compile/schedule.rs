@@ -190,6 +190,7 @@ const FREE: u32 = u32::MAX;
 struct Table {
     /// The interval of a modulo table; `None` for straight-line code.
     modulus: Option<i64>,
+    circle: Option<circle::Circle>,
     fu: Vec<u32>,
     /// Each FU has one result port: ops of different latencies must not land together.
     fu_result: Vec<u32>,
@@ -218,6 +219,7 @@ impl Table {
         );
         let mut table = Table {
             modulus: ii,
+            circle: ii.map(circle::Circle::new),
             fu: Vec::new(),
             fu_result: Vec::new(),
             sp: Vec::new(),
@@ -257,8 +259,8 @@ impl Table {
     /// 0 up and those before 0 (a constant placed just in time may go there) interleaved,
     /// so that a straight-line table never wraps and holds only the rows its ops reach.
     fn row(&self, t: i64) -> usize {
-        match self.modulus {
-            Some(ii) => circle::row(t, ii),
+        match &self.circle {
+            Some(c) => c.row(t),
             None if t >= 0 => 2 * t as usize,
             None => (-2 * t - 1) as usize,
         }
