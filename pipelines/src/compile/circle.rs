@@ -60,6 +60,11 @@ impl Circle {
         }
     }
 
+    /// The rows round the circle.
+    pub fn ii(&self) -> i64 {
+        self.ii
+    }
+
     /// The row of cycle `t`: [`row`]`(t, ii)`.
     #[inline]
     pub fn row(&self, t: i64) -> usize {

@@ -1219,8 +1219,8 @@ impl<'p> State<'p> {
     }
 
     /// What [`Self::quick`] needs to know of the placed ops around op `u` (out of the
-    /// schedule), which stay put while `u` is tried at many places.
-    /// Taken out of the state's scratch: put it back when done.
+    /// schedule), which stay put while `u` is tried at many places. It is taken out of the
+    /// state's scratch: put it back when done.
     fn around(&mut self, u: usize) -> Around {
         let p = self.p;
         let mut around = std::mem::take(&mut self.around);

@@ -188,8 +188,7 @@ const FREE: u32 = u32::MAX;
 /// The reservation table: a modulo table of `ii` rows for a loop, or for straight-line code
 /// a row per cycle, grown as ops are placed (see [`Table::row`]).
 struct Table {
-    /// The interval of a modulo table; `None` for straight-line code.
-    modulus: Option<i64>,
+    /// The rows of a modulo table, round its interval; `None` for straight-line code.
     circle: Option<circle::Circle>,
     fu: Vec<u32>,
     /// Each FU has one result port: ops of different latencies must not land together.
@@ -218,7 +217,6 @@ impl Table {
             s.lrfs(),
         );
         let mut table = Table {
-            modulus: ii,
             circle: ii.map(circle::Circle::new),
             fu: Vec::new(),
             fu_result: Vec::new(),
@@ -268,7 +266,7 @@ impl Table {
 
     /// Makes sure a straight-line table has the rows of cycles `from..=to`.
     fn cover(&mut self, from: i64, to: i64) {
-        if self.modulus.is_some() {
+        if self.circle.is_some() {
             return;
         }
         let needed = self.row(from).max(self.row(to)) + 1;
@@ -279,7 +277,7 @@ impl Table {
 
     /// The rows an op that holds its unit for `cycles` issue cycles holds.
     fn issue_rows(&self, cycles: i64) -> i64 {
-        self.modulus.map_or(cycles, |ii| cycles.min(ii))
+        self.circle.map_or(cycles, |c| cycles.min(c.ii()))
     }
 
     fn port(&self, lrf: u16, t: i64) -> u32 {
