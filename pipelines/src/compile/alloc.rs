@@ -528,11 +528,13 @@ fn tabu_colour(bits: &[Vec<u64>], colours: usize) -> Option<Vec<usize>> {
             troubled += 1;
             for c in (0..k).filter(|&c| c != colour[i]) {
                 let delta = sharing[i * k + c] - own;
-                if tabu_until[i * k + c] > step && conflicts + delta >= best {
+                // (Worse than the pick so far: skipped before its tabu entry is read.)
+                if pick.is_some_and(|(d, ..)| delta > d)
+                    || tabu_until[i * k + c] > step && conflicts + delta >= best
+                {
                     continue;
                 }
                 match pick {
-                    Some((d, ..)) if delta > d => continue,
                     Some((d, ..)) if delta == d => {
                         ties += 1;
                         if rng.below(ties) != 0 {

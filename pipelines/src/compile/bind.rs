@@ -52,6 +52,8 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
     let mut one_used = false;
     let mul_extra = slots.mul_copy_extra;
     let mut options: Vec<(usize, bool)> = Vec::new();
+    // Each op's local operands and where it reads them (one buffer for every op).
+    let mut reads: Vec<(usize, Loc)> = Vec::new();
     for &u in &ops {
         let through_mul = one.filter(|_| g.ops[u].copy_kind == Some(CopyKind::Lifetime));
         if let Some(one) = through_mul {
@@ -146,11 +148,10 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
             one_used = true;
         }
         let op = &g.ops[u];
-        let reads: Vec<(usize, Loc)> = op
-            .args
-            .iter()
-            .filter_map(|a| local_source(a).map(|q| (q, slots.operand_loc(op.kind, slot, swap, a))))
-            .collect();
+        reads.clear();
+        reads.extend(op.args.iter().filter_map(|a| {
+            local_source(a).map(|q| (q, slots.operand_loc(op.kind, slot, swap, a)))
+        }));
         for a in &op.args {
             if let Source::Earlier(p) = a.src {
                 let loc = slots.operand_loc(op.kind, slot, swap, a);
@@ -164,7 +165,7 @@ pub fn bind(g: &mut Graph, sched: &mut Schedule, region: Region, ii: Option<i64>
         let op = &mut g.ops[u];
         op.slot = slot;
         op.swap = swap;
-        for (q, loc) in reads {
+        for &(q, loc) in &reads {
             let v = groups.entry(q).or_default();
             if !v.contains(&loc) {
                 v.push(loc);

@@ -101,10 +101,22 @@ pub enum CopyKind {
     Lifetime,
 }
 
+/// The most operands an op reads: a `select`'s condition and two values.
+pub const MAX_ARGS: usize = 3;
+
+/// An op's operands, kept inside the op: the schedulers copy the graph for every
+/// schedule they try, and a list of its own per op made each copy allocate for every op.
+pub type Args = arrayvec::ArrayVec<Arg, MAX_ARGS>;
+
+/// The operands `args` as an op keeps them.
+pub fn operands(args: &[Arg]) -> Args {
+    Args::try_from(args).expect("an op reads at most MAX_ARGS operands")
+}
+
 #[derive(Clone, Debug)]
 pub struct MOp {
     pub kind: Kind,
-    pub args: Vec<Arg>,
+    pub args: Args,
     pub region: Region,
     /// The IR value it computes (for listings).
     pub ir: Option<Value>,
@@ -134,7 +146,7 @@ pub struct MOp {
 
 impl MOp {
     /// An op of `region` computing (or, for a copy, carrying) IR value `ir`.
-    pub fn new(kind: Kind, args: Vec<Arg>, region: Region, ir: Option<Value>) -> MOp {
+    pub fn new(kind: Kind, args: Args, region: Region, ir: Option<Value>) -> MOp {
         MOp {
             kind,
             args,
@@ -168,7 +180,7 @@ impl MOp {
         MOp {
             copy: true,
             copy_kind: Some(kind),
-            ..MOp::new(Kind::Fu(Op::Mov), vec![arg], region, ir)
+            ..MOp::new(Kind::Fu(Op::Mov), operands(&[arg]), region, ir)
         }
     }
 
@@ -222,6 +234,8 @@ pub struct Graph {
 }
 
 impl Graph {
+    // (Inlined: the schedulers ask it for every op at every cycle they try.)
+    #[inline]
     pub fn latency(&self, op: usize, desc: &MachineDesc) -> i64 {
         let l = &desc.latency;
         i64::from(match self.ops[op].kind {
@@ -269,7 +283,7 @@ impl Graph {
             self.ops[o].dead = false;
             return o;
         }
-        self.ops.push(MOp::new(one, vec![], Region::Pre, None));
+        self.ops.push(MOp::new(one, Args::new(), Region::Pre, None));
         self.ops.len() - 1
     }
 
@@ -545,8 +559,8 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
         let v = Value(i as u32);
         let op = match &d.node {
             Node::Cast { .. } => continue,
-            Node::Const(x) => l.push(Kind::Imm(ImmValue::Const(*x)), vec![], region, v),
-            Node::ClusterId => l.push(Kind::Imm(ImmValue::ClusterId), vec![], region, v),
+            Node::Const(x) => l.push(Kind::Imm(ImmValue::Const(*x)), Args::new(), region, v),
+            Node::ClusterId => l.push(Kind::Imm(ImmValue::ClusterId), Args::new(), region, v),
             Node::Param(_) => {
                 let stream = params_stream.expect("has params");
                 l.push(
@@ -554,7 +568,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
                         stream,
                         cond: false,
                     },
-                    vec![],
+                    Args::new(),
                     region,
                     v,
                 )
@@ -577,7 +591,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
                     stream: stream.0,
                     cond: false,
                 };
-                l.push(kind, vec![], region, v)
+                l.push(kind, Args::new(), region, v)
             }
             Node::Read {
                 stream,
@@ -588,20 +602,20 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
                     stream: stream.0,
                     cond: true,
                 };
-                let read = l.push(kind, vec![ca], region, v);
+                let read = l.push(kind, operands(&[ca]), region, v);
                 let oa = l.arg(*otherwise, Input::B, region);
                 let got = Arg {
                     src: Source::Local(read),
                     input: Input::A,
                 };
-                l.push(Kind::Fu(Op::Select), vec![ca, got, oa], region, v)
+                l.push(Kind::Fu(Op::Select), operands(&[ca, got, oa]), region, v)
             }
             Node::Write {
                 stream,
                 value,
                 cond,
             } => {
-                let mut a = vec![l.arg(*value, Input::SoutData, region)];
+                let mut a = operands(&[l.arg(*value, Input::SoutData, region)]);
                 if let Some(c) = cond {
                     a.push(l.arg(*c, Input::Cc, region));
                 }
@@ -619,7 +633,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
                 l.push(Kind::SpRead { base: *base }, a, region, v)
             }
             Node::SpWrite { base, offset, data } => {
-                let mut a: Vec<Arg> = offset
+                let mut a: Args = offset
                     .iter()
                     .map(|&o| l.arg(o, Input::SpAddr, region))
                     .collect();
@@ -627,7 +641,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
                 l.push(Kind::SpWrite { base: *base }, a, region, v)
             }
             Node::Comm { value, perm } => {
-                let mut a = vec![l.arg(*value, Input::CommData, region)];
+                let mut a = operands(&[l.arg(*value, Input::CommData, region)]);
                 let p = match *perm {
                     Perm::Rotate(k) => Permutation::Rotate(k),
                     Perm::Xor(k) => Permutation::Xor(k),
@@ -643,12 +657,12 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
                 // The loop mov (its operand, the next value, is set once the body is
                 // lowered) and the mov before the loop that writes the initial value into
                 // the same entries.
-                let m = l.push(Kind::Fu(Op::Mov), vec![], Region::Loop, v);
+                let m = l.push(Kind::Fu(Op::Mov), Args::new(), Region::Loop, v);
                 l.g.ops[m].copy = true;
                 l.carried_mov[i] = Some(m);
                 pending_next.push((m, next.expect("verified")));
                 let init_arg = l.arg(*init, Input::A, Region::Pre);
-                let init_mov = l.push(Kind::Fu(Op::Mov), vec![init_arg], Region::Pre, v);
+                let init_mov = l.push(Kind::Fu(Op::Mov), operands(&[init_arg]), Region::Pre, v);
                 l.g.ops[init_mov].copy = true;
                 l.g.ops[init_mov].tie = Some(m);
                 m
@@ -658,7 +672,7 @@ pub fn lower(kernel: &Kernel, add0_a: u16) -> Graph {
     }
     for (m, next) in pending_next {
         let a = l.arg(next, Input::A, Region::Loop);
-        l.g.ops[m].args = vec![a];
+        l.g.ops[m].args = operands(&[a]);
     }
     l.g
 }
@@ -676,7 +690,7 @@ struct Lowerer<'k> {
 }
 
 impl Lowerer<'_> {
-    fn push(&mut self, kind: Kind, args: Vec<Arg>, region: Region, ir: Value) -> usize {
+    fn push(&mut self, kind: Kind, args: Args, region: Region, ir: Value) -> usize {
         self.g.ops.push(MOp::new(kind, args, region, Some(ir)));
         self.g.ops.len() - 1
     }
@@ -714,7 +728,12 @@ impl Lowerer<'_> {
             src: Source::Earlier(m),
             input: Input::A,
         };
-        let f = self.push(Kind::Fu(Op::Mov), vec![arg], Region::Post, Value(s as u32));
+        let f = self.push(
+            Kind::Fu(Op::Mov),
+            operands(&[arg]),
+            Region::Post,
+            Value(s as u32),
+        );
         self.g.ops[f].copy = true;
         self.g.ops[f].fixed_slot = Some(0);
         self.final_mov[s] = Some(f);

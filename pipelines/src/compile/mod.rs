@@ -165,7 +165,7 @@ fn search(
         }
     };
     if !has_loop {
-        return try_ii(kernel, base, desc, slots, LoopMode::None)
+        return try_ii(kernel, base.clone(), desc, slots, LoopMode::None)
             .map(compiled)
             .map_err(|e| match e {
                 Retry::Fatal(e) | Retry::Larger(e) | Retry::Repair(_, e) => e,
@@ -427,7 +427,7 @@ impl Try<'_> {
             if !spend() {
                 break;
             }
-            match try_ii(kernel, &work, desc, slots, self.mode) {
+            match try_ii(kernel, work, desc, slots, self.mode) {
                 Err(Retry::Repair(g, e)) => {
                     work = *g;
                     last = Some(e);
@@ -492,12 +492,11 @@ fn first_in_order<J: Sync, R: Send>(
 
 fn try_ii(
     kernel: &Kernel,
-    base: &Graph,
+    mut g: Graph,
     desc: &MachineDesc,
     slots: &Slots,
     mode: LoopMode,
 ) -> Result<Attempted, Retry> {
-    let mut g = base.clone();
     let mut s = Schedule::new(g.ops.len());
     let describe = |g: &Graph, f: &Failure| -> String {
         let (op, why) = match f {
@@ -697,14 +696,14 @@ fn fan_out(g: &mut Graph, s: &mut Schedule) -> HashMap<(usize, Loc), usize> {
         for chunk in need.chunks(2) {
             let q = g.ops.len();
             let (kind, args) = if is_imm {
-                (g.ops[p].kind, vec![])
+                (g.ops[p].kind, graph::Args::new())
             } else {
                 (
                     Kind::Fu(imagine_units::ops::Op::Mov),
-                    vec![graph::Arg {
+                    graph::operands(&[graph::Arg {
                         src: graph::Source::Local(p),
                         input: graph::Input::A,
-                    }],
+                    }]),
                 )
             };
             g.ops.push(MOp {

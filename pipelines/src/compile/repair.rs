@@ -1411,19 +1411,7 @@ impl<'p> State<'p> {
         let op = &p.ops[u];
         let res = &p.res;
         let mut found = Blockers::None;
-        let need = |row: usize, r: usize, found: &mut Blockers| -> bool {
-            let i = row * res.per_row + r;
-            let mut others = self.users[i].iter().copied().filter(|&x| x != u);
-            let count = others.clone().count() as i32;
-            if count < res.cap[r] {
-                return true;
-            }
-            if count > res.cap[r] || res.cap[r] != 1 {
-                return false;
-            }
-            found.add(others.next().expect("one other user"));
-            true
-        };
+        let need = |row: usize, r: usize, found: &mut Blockers| self.room(u, row, r, found);
         let ok = match op.kind {
             Kind::Fu(_) if op.issue != 1 => return None,
             Kind::Fu(_) => {
@@ -1450,6 +1438,25 @@ impl<'p> State<'p> {
             }
         }
         Some(found)
+    }
+
+    /// Whether op `u` fits resource `r` in `row`: there is room, or the one other op holding
+    /// a single-unit resource (added to `found`) could move away.
+    // (Inlined: the local search asks it for every resource of every cycle it tries.)
+    #[inline(always)]
+    fn room(&self, u: usize, row: usize, r: usize, found: &mut Blockers) -> bool {
+        let res = &self.p.res;
+        let i = row * res.per_row + r;
+        let mut others = self.users[i].iter().copied().filter(|&x| x != u);
+        let count = others.clone().count() as i32;
+        if count < res.cap[r] {
+            return true;
+        }
+        if count > res.cap[r] || res.cap[r] != 1 {
+            return false;
+        }
+        found.add(others.next().expect("one other user"));
+        true
     }
 
     /// The ops in the way of op `u` reading its operands on `(slot, swap)`, wherever it

@@ -842,16 +842,14 @@ fn late_first(g: &Graph, u: usize, estart: i64, last: i64) -> impl Iterator<Item
 }
 
 /// The ops among `ops` that read each op's value.
-fn readers_of(g: &Graph, ops: &[usize]) -> Vec<Vec<usize>> {
-    let mut readers: Vec<Vec<usize>> = vec![Vec::new(); g.ops.len()];
-    for &u in ops {
-        for a in &g.ops[u].args {
-            if let Source::Local(p) = a.src {
-                readers[p].push(u);
-            }
-        }
-    }
-    readers
+fn readers_of(g: &Graph, ops: &[usize]) -> Adjacency<usize> {
+    let reads = ops.iter().flat_map(|&u| {
+        g.ops[u].args.iter().filter_map(move |a| match a.src {
+            Source::Local(p) => Some((p, u)),
+            _ => None,
+        })
+    });
+    Adjacency::new(g.ops.len(), reads)
 }
 
 /// List scheduling priority: mostly program order (it keeps values short-lived, which the
@@ -1809,7 +1807,7 @@ fn finish_loop(
     sched: &mut Schedule,
     mut table: Table,
     dag: &Dag,
-    readers: &[Vec<usize>],
+    readers: &Adjacency<usize>,
     ii: i64,
     reach: i64,
     slots: &Slots,
@@ -1846,7 +1844,7 @@ fn relax(
     sched: &mut Schedule,
     mut table: Table,
     dag: &Dag,
-    readers: &[Vec<usize>],
+    readers: &Adjacency<usize>,
     ii: i64,
     reach: i64,
     slots: &Slots,
