@@ -71,7 +71,12 @@ pub fn allocate(
     ii: Option<i64>,
     desc: &imagine_units::desc::MachineDesc,
 ) -> Result<Entries, Overflow> {
-    match pack(g, s, slots, ii, desc, None) {
+    // (What every packing below reads of the schedule, found once.)
+    let lives = Lives {
+        perm: permanent(g),
+        last_read: LastReads::new(g, s, slots, None),
+    };
+    match pack(g, s, slots, ii, desc, &lives, None) {
         // Packing the loop's values round the interval in order of issue can leave gaps
         // that a later value does not fit. Then every pass's copy of every loop value
         // gets an entry of its own (full renaming under modulo variable expansion, Rau et
@@ -83,22 +88,21 @@ pub fn allocate(
         // al., "The meeting graph", 1995).
         Err(o) if o.region == Some(Region::Loop) => {
             let Some(ii) = ii else { return Err(o) };
-            let least = unroll(
-                g,
-                s,
-                &permanent(g),
-                &LastReads::new(g, s, slots, None),
-                slots,
-                ii,
-                desc,
-            );
+            let least = unroll(g, s, &lives.perm, &lives.last_read, slots, ii, desc);
             let most = (desc.microcontroller.store_words / 2 / ii as usize).max(least);
             (least..=most.min(least + EXTRA_PASSES))
-                .find_map(|passes| pack(g, s, slots, Some(ii), desc, Some(passes)).ok())
+                .find_map(|passes| pack(g, s, slots, Some(ii), desc, &lives, Some(passes)).ok())
                 .ok_or(o)
         }
         other => other,
     }
+}
+
+/// Which values are kept for the whole loop ([`permanent`]) and where each value is last
+/// read: what packing reads of a schedule besides its places.
+struct Lives {
+    perm: Vec<bool>,
+    last_read: LastReads,
 }
 
 /// Passes beyond the longest lifetime that the renamed allocation may unroll the loop body
@@ -113,11 +117,11 @@ fn pack(
     slots: &Slots,
     ii: Option<i64>,
     desc: &imagine_units::desc::MachineDesc,
+    lives: &Lives,
     renamed: Option<usize>,
 ) -> Result<Entries, Overflow> {
     let n = g.ops.len();
-    let perm = permanent(g);
-    let last_read = LastReads::new(g, s, slots, None);
+    let Lives { perm, last_read } = lives;
     let nlrf = slots.lrfs();
     let capacity = |loc: Loc| match loc {
         Loc::Lrf(l) => slots.shape.lrf_sizes[l as usize],
@@ -128,7 +132,7 @@ fn pack(
         peak: vec![0; nlrf],
         unroll: match (ii, renamed) {
             (Some(_), Some(passes)) => passes,
-            (Some(ii), None) => unroll(g, s, &perm, &last_read, slots, ii, desc),
+            (Some(ii), None) => unroll(g, s, perm, last_read, slots, ii, desc),
             (None, _) => 1,
         },
         ..Entries::default()
