@@ -72,9 +72,13 @@ pub fn allocate(
     desc: &imagine_units::desc::MachineDesc,
 ) -> Result<Entries, Overflow> {
     // (What every packing below reads of the schedule, found once.)
+    let perm = permanent(g);
+    let last_read = LastReads::new(g, s, slots, None);
+    let passes = ii.map_or(1, |ii| unroll(g, s, &perm, &last_read, slots, ii, desc));
     let lives = Lives {
-        perm: permanent(g),
-        last_read: LastReads::new(g, s, slots, None),
+        perm,
+        last_read,
+        passes,
     };
     match pack(g, s, slots, ii, desc, &lives, None) {
         // Packing the loop's values round the interval in order of issue can leave gaps
@@ -88,7 +92,7 @@ pub fn allocate(
         // al., "The meeting graph", 1995).
         Err(o) if o.region == Some(Region::Loop) => {
             let Some(ii) = ii else { return Err(o) };
-            let least = unroll(g, s, &lives.perm, &lives.last_read, slots, ii, desc);
+            let least = lives.passes;
             let most = (desc.microcontroller.store_words / 2 / ii as usize).max(least);
             (least..=most.min(least + EXTRA_PASSES))
                 .find_map(|passes| pack(g, s, slots, Some(ii), desc, &lives, Some(passes)).ok())
@@ -98,11 +102,13 @@ pub fn allocate(
     }
 }
 
-/// Which values are kept for the whole loop ([`permanent`]) and where each value is last
-/// read: what packing reads of a schedule besides its places.
+/// Which values are kept for the whole loop ([`permanent`]), where each value is last
+/// read, and the passes of the loop body its longest lifetime needs ([`unroll`]; 1 without
+/// a loop): what packing reads of a schedule besides its places.
 struct Lives {
     perm: Vec<bool>,
     last_read: LastReads,
+    passes: usize,
 }
 
 /// Passes beyond the longest lifetime that the renamed allocation may unroll the loop body
@@ -121,7 +127,9 @@ fn pack(
     renamed: Option<usize>,
 ) -> Result<Entries, Overflow> {
     let n = g.ops.len();
-    let Lives { perm, last_read } = lives;
+    let Lives {
+        perm, last_read, ..
+    } = lives;
     let nlrf = slots.lrfs();
     let capacity = |loc: Loc| match loc {
         Loc::Lrf(l) => slots.shape.lrf_sizes[l as usize],
@@ -130,11 +138,7 @@ fn pack(
     let index = |loc: Loc| index(slots, loc);
     let mut out = Entries {
         peak: vec![0; nlrf],
-        unroll: match (ii, renamed) {
-            (Some(_), Some(passes)) => passes,
-            (Some(ii), None) => unroll(g, s, perm, last_read, slots, ii, desc),
-            (None, _) => 1,
-        },
+        unroll: renamed.unwrap_or(lives.passes),
         ..Entries::default()
     };
     let modulus = ii.map(|ii| ii * out.unroll as i64);

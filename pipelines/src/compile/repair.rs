@@ -35,7 +35,7 @@ use imagine_units::desc::MachineDesc;
 use imagine_units::ops::UnitClass;
 
 use super::circle;
-use super::graph::{Edge, Graph, Input, Kind, Loc, Source};
+use super::graph::{Edge, Graph, Input, Kind, Loc, MAX_ARGS, Source};
 use super::schedule::Slots;
 
 mod probe;
@@ -291,10 +291,6 @@ impl Problem {
             if options.is_empty() || op.kind.is_conditional_stream() {
                 return None;
             }
-            // (No unit has more inputs: an op that read more would have none to go to.)
-            if op.args.len() > MAX_OPERANDS {
-                return None;
-            }
             let mut args = Vec::with_capacity(op.args.len());
             for a in &op.args {
                 let src = match a.src {
@@ -453,6 +449,12 @@ impl Problem {
     fn row(&self, t: i64) -> usize {
         self.circle.row(t)
     }
+    /// Whether op `u` may issue at cycle `t`: its row is a multiple of its alignment.
+    fn aligned(&self, u: usize, t: i64) -> bool {
+        self.ops[u]
+            .align
+            .is_none_or(|k| self.row(t) as i64 % k == 0)
+    }
 }
 
 /// The search state: every op's place and the tallies the cost is made of.
@@ -531,12 +533,9 @@ struct Quick {
 /// An op's place: (op, cycle, slot, swap).
 type Move = (usize, i64, usize, bool);
 
-/// The most operands an op reads: one per input of its unit (see [`Input`]).
-const MAX_OPERANDS: usize = 8;
-
 /// An op and the placed ops whose values it reads (see [`State::affected`]; the search
 /// asks for them at every move, so they are kept off the heap).
-type Affected = arrayvec::ArrayVec<usize, { 1 + MAX_OPERANDS }>;
+type Affected = arrayvec::ArrayVec<usize, { 1 + MAX_ARGS }>;
 
 /// The ops in the way of a move (see [`State::blockers_at`] and [`State::operand_blockers`]):
 /// an ejection chain goes on only through a move that displaces at most one.
@@ -1030,7 +1029,7 @@ impl<'p> State<'p> {
         let mut best: Option<(i64, i64, usize, bool)> = None;
         let around = self.around(u);
         for t in times {
-            if p.ops[u].align.is_some_and(|k| t.rem_euclid(p.ii) % k != 0) {
+            if !p.aligned(u, t) {
                 continue;
             }
             let at = self.quick_at(u, &around, t);
@@ -1115,9 +1114,7 @@ impl<'p> State<'p> {
             let t = if forward { at + d } else { at - d };
             let at_t = self.quick_at(u, &around, t);
             for &(k, s) in &p.ops[u].options {
-                if !p.allowed(u, t, k)
-                    || p.ops[u].align.is_some_and(|a| t.rem_euclid(p.ii) % a != 0)
-                {
+                if !p.allowed(u, t, k) || !p.aligned(u, t) {
                     continue;
                 }
                 let c = self.quick(u, &around, at_t, t, k, s);
@@ -1683,8 +1680,8 @@ impl<'p> State<'p> {
         if self.placed[u] && !times.contains(&self.t[u]) {
             times.push(self.t[u]);
         }
-        if let Some(k) = p.ops[u].align {
-            times.retain(|&t| t.rem_euclid(p.ii) % k == 0);
+        if p.ops[u].align.is_some() {
+            times.retain(|&t| p.aligned(u, t));
         }
     }
 }
