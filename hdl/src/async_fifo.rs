@@ -26,6 +26,9 @@ pub(crate) struct AsyncFifoState<T> {
     write_domain: DomainId,
     read_domain: DomainId,
     capacity: usize,
+    /// Every value pushed and not popped, this cycle's included: a value enters at its push
+    /// and leaves at its pop, so a commit moves only the pointers. The other side cannot
+    /// see it early, as each side's view goes through the synchronised pointers.
     items: VecDeque<T>,
     /// Total pushes and pops committed so far (the binary pointers).
     write_ptr: u64,
@@ -33,7 +36,7 @@ pub(crate) struct AsyncFifoState<T> {
     /// The synchroniser chains carrying each pointer into the other domain.
     write_ptr_sync: Synchroniser,
     read_ptr_sync: Synchroniser,
-    pushed: Option<T>,
+    pushed: bool,
     popped: bool,
     /// Raised by a push or a pop: the simulator commits this FIFO again (it stops
     /// committing it once an edge would change nothing, see [`Channel::is_static`]).
@@ -64,7 +67,7 @@ pub(crate) fn new_async_fifo<T: 'static>(
         read_ptr: 0,
         write_ptr_sync: Synchroniser::new(sync_stages),
         read_ptr_sync: Synchroniser::new(sync_stages),
-        pushed: None,
+        pushed: false,
         popped: false,
         wake,
         ids,
@@ -129,7 +132,7 @@ impl<T> AsyncFifoState<T> {
     /// Nothing pushed or popped this cycle and every synchroniser stage holding the
     /// pointer it samples: edges of either clock change nothing until an end acts.
     fn is_static(&self) -> bool {
-        self.pushed.is_none()
+        !self.pushed
             && !self.popped
             && self.write_ptr_sync.holds_only(self.write_ptr)
             && self.read_ptr_sync.holds_only(self.read_ptr)
@@ -152,20 +155,21 @@ impl<T> AsyncFifoTx<T> {
     /// not pushed yet this cycle).
     pub fn can_push(&self) -> bool {
         let s = self.0.borrow();
-        s.pushed.is_none() && s.write_level() < s.capacity
+        !s.pushed && s.write_level() < s.capacity
     }
 
     /// Pushes one value (one per write-domain cycle).
     pub fn push(&mut self, v: T) -> Result<(), ContractError> {
         let mut s = self.0.borrow_mut();
-        if s.pushed.is_some() {
+        if s.pushed {
             return Err(ContractError::over_bandwidth(&s.path, 1));
         }
         if s.write_level() >= s.capacity {
             let capacity = s.capacity;
             return Err(ContractError::at(&s.path, Violation::Overflow { capacity }));
         }
-        s.pushed = Some(v);
+        s.items.push_back(v);
+        s.pushed = true;
         s.wake.set(true);
         Ok(())
     }
@@ -179,7 +183,7 @@ impl<T> AsyncFifoRx<T> {
     }
 }
 
-impl<T: Clone> AsyncFifoRx<T> {
+impl<T> AsyncFifoRx<T> {
     /// Whether the reader may pop this cycle.
     pub fn can_pop(&self) -> bool {
         let s = self.0.borrow();
@@ -200,7 +204,9 @@ impl<T: Clone> AsyncFifoRx<T> {
         }
         s.popped = true;
         s.wake.set(true);
-        Ok(s.items[0].clone())
+        Ok(s.items
+            .pop_front()
+            .expect("a value the reader sees is held"))
     }
 }
 
@@ -209,7 +215,7 @@ impl<T> Channel for AsyncFifoState<T> {
         // A side whose clock does not rise, or that neither moves a value nor has a
         // synchroniser still catching up, changes nothing at this edge.
         let write_quiet = !rising.contains(self.write_domain)
-            || (self.pushed.is_none() && self.read_ptr_sync.holds_only(self.read_ptr));
+            || (!self.pushed && self.read_ptr_sync.holds_only(self.read_ptr));
         let read_quiet = !rising.contains(self.read_domain)
             || (!self.popped && self.write_ptr_sync.holds_only(self.write_ptr));
         if write_quiet && read_quiet {
@@ -218,15 +224,13 @@ impl<T> Channel for AsyncFifoState<T> {
         // Sample both pointers before either side updates them.
         let (write_ptr, read_ptr) = (self.write_ptr, self.read_ptr);
         if rising.contains(self.write_domain) {
-            if let Some(v) = self.pushed.take() {
-                self.items.push_back(v);
+            if std::mem::take(&mut self.pushed) {
                 self.write_ptr += 1;
             }
             self.read_ptr_sync.sample(read_ptr);
         }
         if rising.contains(self.read_domain) {
             if std::mem::take(&mut self.popped) {
-                self.items.pop_front();
                 self.read_ptr += 1;
             }
             self.write_ptr_sync.sample(write_ptr);
@@ -248,17 +252,17 @@ impl<T> Channel for AsyncFifoState<T> {
 mod tests {
     use super::*;
 
+    /// A FIFO of four entries from domain 0 (writes, `DomainSet(1)`) to domain 1 (reads,
+    /// `DomainSet(2)`), with two synchroniser stages.
+    fn core_to_dram() -> (AsyncFifoTx<u8>, AsyncFifoRx<u8>, Rc<RefCell<dyn Channel>>) {
+        let domains = (DomainId(0), DomainId(1));
+        let ids = [SignalId(0), SignalId(1)];
+        new_async_fifo("f".into(), domains, 4, 2, ids, Rc::default())
+    }
+
     #[test]
     fn settled_once_both_synchronisers_have_caught_up() {
-        let (core, dram) = (DomainId(0), DomainId(1));
-        let (mut tx, mut rx, ch) = new_async_fifo::<u8>(
-            "f".into(),
-            (core, dram),
-            4,
-            2,
-            [SignalId(0), SignalId(1)],
-            Rc::default(),
-        );
+        let (mut tx, mut rx, ch) = core_to_dram();
         let (write, read) = (DomainSet(1), DomainSet(2));
         let edge = |d: DomainSet| ch.borrow_mut().commit(d).unwrap();
         assert!(tx.is_settled() && rx.is_settled());
@@ -282,5 +286,31 @@ mod tests {
             edge(d);
             assert!(tx.is_settled() && tx.can_push() && !rx.can_pop());
         }
+    }
+
+    #[test]
+    fn a_value_is_seen_at_the_readers_first_edge_after_its_push_lands_in_order() {
+        let (mut tx, mut rx, ch) = core_to_dram();
+        let (write, read, both) = (DomainSet(1), DomainSet(2), DomainSet(3));
+        let edge = |d: DomainSet| ch.borrow_mut().commit(d).unwrap();
+        tx.push(1).unwrap();
+        assert!(!rx.can_pop(), "the push has not landed");
+        // Both clocks rise at once: the reader samples the pointer from before the edge.
+        edge(both);
+        assert!(
+            !rx.can_pop(),
+            "the reader's synchroniser sampled the old pointer"
+        );
+        tx.push(2).unwrap();
+        edge(write);
+        assert!(!rx.can_pop(), "no read edge since the first push landed");
+        edge(read);
+        assert_eq!(rx.pop().unwrap(), 1);
+        assert!(!rx.can_pop(), "one pop per read cycle");
+        edge(read);
+        assert_eq!(rx.pop().unwrap(), 2);
+        edge(read);
+        assert!(!rx.can_pop());
+        assert_eq!(rx.pop(), Err(ContractError::at("f", Violation::Underflow)));
     }
 }

@@ -243,7 +243,7 @@ impl Scope<'_> {
     /// A synchronising FIFO `self.name` from `write` to `read` domain, with `sync_stages`
     /// ≥ 1 flip-flops in each pointer synchroniser; probes `self.name.write_level` and
     /// `self.name.read_level` are the occupancy each side sees.
-    pub fn async_fifo<T: Clone + 'static>(
+    pub fn async_fifo<T: 'static>(
         &mut self,
         name: &str,
         (write, read): (DomainId, DomainId),

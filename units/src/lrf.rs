@@ -263,11 +263,7 @@ impl Lrf {
     #[inline(always)]
     pub(crate) fn commit_for<const L: usize>(&mut self) {
         if !self.tracing && !cfg!(feature = "inject-bugs") {
-            // Only a write has anything to do (see the `tracing` field).
-            if self.write_entry != IDLE {
-                let e = std::mem::replace(&mut self.write_entry, IDLE);
-                self.land::<L>(e as u16);
-            }
+            self.commit_untraced::<L>();
             return;
         }
         // Most files see no access in a cycle: leave them after the cheapest test.
@@ -294,6 +290,18 @@ impl Lrf {
             std::mem::swap(&mut p.last_values, &mut self.write_values);
             std::mem::swap(&mut p.last_mask, &mut self.write_mask);
             p.last_masked = self.write_masked;
+        }
+    }
+
+    /// The edge without a tracer (and without injected bugs), where only a write has
+    /// anything to do (see the `tracing` field): for a caller that knows it is untraced,
+    /// as the machine does for all its files at once.
+    #[inline(always)]
+    pub(crate) fn commit_untraced<const L: usize>(&mut self) {
+        debug_assert!(!self.tracing && !cfg!(feature = "inject-bugs"));
+        if self.write_entry != IDLE {
+            let e = std::mem::replace(&mut self.write_entry, IDLE);
+            self.land::<L>(e as u16);
         }
     }
 

@@ -234,7 +234,7 @@ impl DramParams {
         }
         let (u, _) = div_rem(byte_addr, self.burst_bytes());
         let (u, channel) = div_rem(u, self.channels as u64);
-        let (u, burst) = div_rem(u, (self.columns / self.burst) as u64);
+        let (u, burst) = div_rem(u, self.bursts_per_row());
         let column = burst * self.burst as u64;
         let (row, bank) = div_rem(u, self.banks as u64);
         let channel = channel as usize;
@@ -246,9 +246,14 @@ impl DramParams {
         })
     }
 
+    /// Bursts in a row (a shift, not a division, in every built-in part's geometry).
+    fn bursts_per_row(&self) -> u64 {
+        div_rem(self.columns as u64, self.burst as u64).0
+    }
+
     /// The byte address of a location (the inverse of [`map`](Self::map), burst-aligned).
     pub fn unmap(&self, l: &Location) -> u64 {
-        let bursts = (self.columns / self.burst) as u64;
+        let bursts = self.bursts_per_row();
         let u = ((l.row as u64 * self.banks as u64 + l.bank.value() as u64) * bursts
             + l.column.value() as u64 / self.burst as u64)
             * self.channels as u64

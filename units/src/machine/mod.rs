@@ -1074,7 +1074,11 @@ impl Machine {
             return;
         }
         self.fus.commit();
-        self.lrfs.iter_mut().for_each(|u| u.commit_for::<L>());
+        if self.tracing || cfg!(feature = "inject-bugs") {
+            self.lrfs.iter_mut().for_each(|u| u.commit_for::<L>());
+        } else {
+            self.lrfs.iter_mut().for_each(|u| u.commit_untraced::<L>());
+        }
         self.cc.commit();
         self.scratchpads.iter_mut().for_each(|u| u.commit());
         self.comms.iter_mut().for_each(|u| u.commit());

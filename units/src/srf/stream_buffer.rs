@@ -173,6 +173,10 @@ impl StreamBuffer {
     /// (0: none) between this buffer and `srf`.
     #[inline]
     pub fn commit(&mut self, grant: usize, line: usize, srf: &mut [u32]) {
+        // Most buffers see neither the clusters nor the port in a cycle: nothing changes.
+        if grant == 0 && self.pending == 0 && !self.flush_req {
+            return;
+        }
         if grant > 0 {
             debug_assert!(grant <= self.line_left);
             self.line_left -= grant;
