@@ -212,16 +212,9 @@ impl<T> AsyncFifoRx<T> {
 
 impl<T> Channel for AsyncFifoState<T> {
     fn commit(&mut self, rising: DomainSet) -> Result<bool, ContractError> {
-        // A side whose clock does not rise, or that neither moves a value nor has a
-        // synchroniser still catching up, changes nothing at this edge.
-        let write_quiet = !rising.contains(self.write_domain)
-            || (!self.pushed && self.read_ptr_sync.holds_only(self.read_ptr));
-        let read_quiet = !rising.contains(self.read_domain)
-            || (!self.popped && self.write_ptr_sync.holds_only(self.write_ptr));
-        if write_quiet && read_quiet {
-            return Ok(self.is_static());
-        }
-        // Sample both pointers before either side updates them.
+        // Sample both pointers before either side updates them. (A synchroniser holding only
+        // the pointer it samples stays as it is, so a side with nothing to do changes
+        // nothing, without a test of its own.)
         let (write_ptr, read_ptr) = (self.write_ptr, self.read_ptr);
         if rising.contains(self.write_domain) {
             if std::mem::take(&mut self.pushed) {

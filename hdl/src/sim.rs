@@ -83,14 +83,22 @@ impl From<ClockError> for DesignError {
     }
 }
 
+/// A channel as the simulator commits it.
+struct WiredChannel {
+    channel: Rc<RefCell<dyn Channel>>,
+    /// Raised by the channel's endpoints when they act (see [`Channel::commit`]).
+    wake: Rc<Cell<bool>>,
+    /// The channel was static at its last commit: it is not committed again until `wake`
+    /// rises.
+    asleep: bool,
+}
+
 /// A design under construction: clocks, probes, channels and modules.
 pub struct Design {
     clocks: Clocks,
     probes: ProbeRegistry,
     clock_ids: Vec<SignalId>,
-    channels: Vec<Rc<RefCell<dyn Channel>>>,
-    /// Per channel, the flag its endpoints raise when they act (see [`Channel::is_static`]).
-    wakes: Vec<Rc<Cell<bool>>>,
+    channels: Vec<WiredChannel>,
     modules: Vec<Box<dyn Module>>,
     top: String,
 }
@@ -111,7 +119,6 @@ impl Design {
             probes,
             clock_ids,
             channels: Vec::new(),
-            wakes: Vec::new(),
             modules: Vec::new(),
             top: top.into(),
         })
@@ -138,8 +145,11 @@ impl Design {
     }
 
     fn add_channel(&mut self, channel: Rc<RefCell<dyn Channel>>, wake: Rc<Cell<bool>>) {
-        self.channels.push(channel);
-        self.wakes.push(wake);
+        self.channels.push(WiredChannel {
+            channel,
+            wake,
+            asleep: false,
+        });
     }
 }
 
@@ -283,15 +293,27 @@ fn positive(path: &str, what: &str, v: usize) -> Result<(), DesignError> {
     Ok(())
 }
 
+/// Per domain (of `domains`), the positions of the modules in `module_domains` it drives
+/// (a module of no domain of the design is driven by none, as no edge of it comes).
+fn driven_by(module_domains: &[DomainId], domains: usize) -> Vec<Vec<usize>> {
+    let mut driven = vec![Vec::new(); domains];
+    for (i, d) in module_domains.iter().enumerate() {
+        if let Some(modules) = driven.get_mut(usize::from(d.0)) {
+            modules.push(i);
+        }
+    }
+    driven
+}
+
 /// Runs a design.
 pub struct Sim {
     design: Design,
     /// Per module (in their order), the domain whose edges drive it: fixed once built, so
     /// not asked of each module at each edge.
     module_domains: Vec<DomainId>,
-    /// Per channel, whether it was static at its last commit: it is not committed again
-    /// until its wake flag rises (see [`Channel::is_static`]).
-    asleep: Vec<bool>,
+    /// Per domain, the positions of the modules its edges drive, in module order: an edge
+    /// of one domain (most edges) visits only those.
+    driven: Vec<Vec<usize>>,
     /// Domains other than the core's that hold no module.
     quiet: u64,
     #[cfg(feature = "probes")]
@@ -306,15 +328,15 @@ impl Sim {
         for m in &design.modules {
             busy |= 1 << m.domain().0;
         }
-        let module_domains = design.modules.iter().map(|m| m.domain()).collect();
-        let asleep = vec![false; design.channels.len()];
+        let module_domains: Vec<DomainId> = design.modules.iter().map(|m| m.domain()).collect();
+        let driven = driven_by(&module_domains, design.clocks.domains().len());
         for m in &mut design.modules {
             m.set_tracing(false);
         }
         Sim {
             design,
             module_domains,
-            asleep,
+            driven,
             quiet: !busy,
             #[cfg(feature = "probes")]
             trace: None,
@@ -364,8 +386,7 @@ impl Sim {
         self.design.modules.reverse();
         self.design.channels.reverse();
         self.module_domains.reverse();
-        self.design.wakes.reverse();
-        self.asleep.reverse();
+        self.driven = driven_by(&self.module_domains, self.driven.len());
     }
 
     /// The modules of type `M`, for inspecting their state.
@@ -487,7 +508,7 @@ impl Sim {
                     m.trace(t);
                 }
                 for c in &self.design.channels {
-                    c.borrow().trace(t);
+                    c.channel.borrow().trace(t);
                 }
             }
             if let Some(why) = t.tracer().abort() {
@@ -505,18 +526,33 @@ impl Sim {
             e.in_cycle(&clocks.domains()[d.0 as usize].name, cycle)
         };
         let modules = &mut self.design.modules;
-        for (m, &d) in modules.iter_mut().zip(&self.module_domains) {
-            if rising.contains(d) {
-                m.eval().map_err(|e| stamp(e, d))?;
+        if rising.0.is_power_of_two() {
+            let d = DomainId(rising.0.trailing_zeros() as u8);
+            let driven = &self.driven[d.0 as usize];
+            for &i in driven {
+                modules[i].eval().map_err(|e| stamp(e, d))?;
+            }
+            for &i in driven {
+                modules[i].commit();
+            }
+        } else {
+            for (m, &d) in modules.iter_mut().zip(&self.module_domains) {
+                if rising.contains(d) {
+                    m.eval().map_err(|e| stamp(e, d))?;
+                }
+            }
+            for (m, &d) in modules.iter_mut().zip(&self.module_domains) {
+                if rising.contains(d) {
+                    m.commit();
+                }
             }
         }
-        for (m, &d) in modules.iter_mut().zip(&self.module_domains) {
-            if rising.contains(d) {
-                m.commit();
-            }
-        }
-        let channels = self.design.channels.iter().zip(&self.design.wakes);
-        for ((c, wake), asleep) in channels.zip(&mut self.asleep) {
+        for WiredChannel {
+            channel: c,
+            wake,
+            asleep,
+        } in &mut self.design.channels
+        {
             // A static channel's commit would change nothing: skip it, without touching
             // it, until one of its endpoints acts.
             if *asleep && !wake.get() {

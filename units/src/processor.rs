@@ -375,13 +375,16 @@ impl Module for Processor {
         }
         // The address generators take turns at offering references first (round robin).
         let n = self.ags.len();
+        // (An idle generator's evaluation does nothing: it is not called.)
         for k in 0..n {
-            let a = (self.cycle as usize + k) % n;
-            self.ags[a].eval(
-                self.machine.srf_mut(),
-                &mut self.ports,
-                self.texture_cache.as_mut(),
-            )?;
+            let ag = &mut self.ags[(self.cycle as usize + k) % n];
+            if ag.is_busy() {
+                ag.eval(
+                    self.machine.srf_mut(),
+                    &mut self.ports,
+                    self.texture_cache.as_mut(),
+                )?;
+            }
         }
         if let Some(r) = &mut self.rasterizer {
             r.eval(self.machine.srf_mut())?;
