@@ -39,7 +39,7 @@ pub(crate) struct AsyncFifoState<T> {
     pushed: bool,
     popped: bool,
     /// Raised by a push or a pop: the simulator commits this FIFO again (it stops
-    /// committing it once an edge would change nothing, see [`Channel::is_static`]).
+    /// committing it once an edge would change nothing, see [`Channel::commit`]).
     wake: Rc<Cell<bool>>,
     ids: [SignalId; 2],
 }
