@@ -153,12 +153,14 @@ impl<T> AsyncFifoTx<T> {
 
     /// Whether the writer may push this cycle (its synchronised view shows room and it has
     /// not pushed yet this cycle).
+    #[inline]
     pub fn can_push(&self) -> bool {
         let s = self.0.borrow();
         !s.pushed && s.write_level() < s.capacity
     }
 
     /// Pushes one value (one per write-domain cycle).
+    #[inline]
     pub fn push(&mut self, v: T) -> Result<(), ContractError> {
         let mut s = self.0.borrow_mut();
         if s.pushed {
@@ -185,12 +187,14 @@ impl<T> AsyncFifoRx<T> {
 
 impl<T> AsyncFifoRx<T> {
     /// Whether the reader may pop this cycle.
+    #[inline]
     pub fn can_pop(&self) -> bool {
         let s = self.0.borrow();
         !s.popped && s.read_level() > 0
     }
 
     /// Pops one value (one per read-domain cycle).
+    #[inline]
     pub fn pop(&mut self) -> Result<T, ContractError> {
         let mut s = self.0.borrow_mut();
         if s.popped {

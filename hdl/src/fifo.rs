@@ -49,11 +49,13 @@ pub(crate) fn new_fifo<T: 'static>(
 
 impl<T> FifoTx<T> {
     /// Free entries as the writer sees them this cycle (committed occupancy).
+    #[inline]
     pub fn free(&self) -> usize {
         let s = self.0.borrow();
         s.capacity - s.items.len() - s.pushed.len()
     }
 
+    #[inline]
     pub fn push(&mut self, v: T) -> Result<(), ContractError> {
         let mut s = self.0.borrow_mut();
         if s.pushed.len() == s.bandwidth {
@@ -70,11 +72,13 @@ impl<T> FifoTx<T> {
 
 impl<T: Clone> FifoRx<T> {
     /// Entries the reader may still pop this cycle.
+    #[inline]
     pub fn available(&self) -> usize {
         let s = self.0.borrow();
         (s.items.len() - s.popped).min(s.bandwidth - s.popped)
     }
 
+    #[inline]
     pub fn pop(&mut self) -> Result<T, ContractError> {
         let mut s = self.0.borrow_mut();
         if s.popped == s.bandwidth {

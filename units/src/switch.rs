@@ -22,20 +22,27 @@ pub trait StreamSink {
 }
 
 /// Routes one result (a word per cluster, written where `mask` allows) to its destinations;
-/// compiled for `L` lanes ([`crate::lanes`]).
+/// compiled for `L` lanes ([`crate::lanes`]). Each LRF written is listed in `written` (at
+/// most once a cycle: its one write port refuses a second write), so that the edge visits
+/// only those.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 pub fn route<const L: usize>(
     dests: &Dests,
     values: &[u32],
     mask: Option<&[bool]>,
     all_lanes: &[bool],
     lrfs: &mut [Lrf],
+    written: &mut Vec<u16>,
     cc: &mut CcFile,
     streams: &mut impl StreamSink,
 ) -> Result<(), ContractError> {
     for dest in dests.iter().flatten() {
         match *dest {
-            Dest::Lrf { lrf, entry } => lrfs[lrf as usize].write_for::<L>(entry, values, mask)?,
+            Dest::Lrf { lrf, entry } => {
+                lrfs[lrf as usize].write_for::<L>(entry, values, mask)?;
+                written.push(lrf);
+            }
             Dest::Cc { index } => cc.write(index, values, mask.unwrap_or(all_lanes))?,
             Dest::Stream { stream } => streams.append(stream, values, mask)?,
         }

@@ -171,10 +171,10 @@ impl WaitingOn {
         }
     }
 
-    /// The waiting cycles of `segments` inside `window`.
+    /// The waiting cycles of `segments` (as [`attribute`] makes them) inside `window`.
     pub fn of(segments: &[Segment], window: Range<u64>) -> Self {
         let mut on = WaitingOn::default();
-        for s in segments {
+        for s in Segment::meeting(segments, &window) {
             let overlap = s.overlap(&window);
             if overlap > 0 {
                 on.add(&s.waiting_on.part(overlap, s.cycles.end - s.cycles.start));
@@ -251,6 +251,15 @@ impl Segment {
     fn overlap(&self, window: &Range<u64>) -> u64 {
         let from = self.cycles.start.max(window.start);
         self.cycles.end.min(window.end).saturating_sub(from)
+    }
+
+    /// The segments of `segments` (consecutive, in cycle order, as [`attribute`] makes
+    /// them) that meet `window`: found by bisection, as a frame's batches each ask for
+    /// their window of a frame's segments.
+    fn meeting<'s>(segments: &'s [Segment], window: &Range<u64>) -> &'s [Segment] {
+        let first = segments.partition_point(|s| s.cycles.end <= window.start);
+        let rest = &segments[first..];
+        &rest[..rest.partition_point(|s| s.cycles.start < window.end)]
     }
 }
 
@@ -383,10 +392,10 @@ pub struct Attribution {
 }
 
 impl Attribution {
-    /// The part of `segments` inside `window`.
+    /// The part of `segments` (as [`attribute`] makes them) inside `window`.
     pub fn of(segments: &[Segment], window: Range<u64>) -> Self {
         let mut a = Attribution::default();
-        for s in segments {
+        for s in Segment::meeting(segments, &window) {
             *a.slot(&s.category) += s.overlap(&window);
         }
         a
@@ -512,5 +521,53 @@ mod tests {
         }
         assert_eq!(on.part(5, 10).dram_bandwidth, 3);
         assert_eq!(on.part(10, 10), on);
+    }
+
+    #[test]
+    fn a_window_counts_the_segments_it_meets_as_a_scan_of_them_all_would() {
+        // Consecutive segments of lengths 1..=6, alternating between a kernel and a wait.
+        let mut segments = Vec::new();
+        let mut start = 10;
+        for len in 1..=6u64 {
+            let (category, waiting_on) = if len % 2 == 0 {
+                (Category::KernelDispatch, WaitingOn::default())
+            } else {
+                let on = WaitingOn {
+                    scoreboard: len,
+                    ..WaitingOn::default()
+                };
+                (Category::Waiting(Wait::Load), on)
+            };
+            segments.push(Segment {
+                cycles: start..start + len,
+                category,
+                waiting_on,
+            });
+            start += len;
+        }
+        let scan = |window: &Range<u64>| {
+            let (mut dispatch, mut waiting) = (0, 0);
+            for s in &segments {
+                let n = s.overlap(window);
+                match s.category {
+                    Category::KernelDispatch => dispatch += n,
+                    _ => waiting += n,
+                }
+            }
+            (dispatch, waiting)
+        };
+        for from in 0..start + 2 {
+            for to in from..start + 3 {
+                let window = from..to;
+                let a = Attribution::of(&segments, window.clone());
+                let on = WaitingOn::of(&segments, window.clone());
+                assert_eq!(
+                    (a.kernel_dispatch, a.waiting_load),
+                    scan(&window),
+                    "{window:?}"
+                );
+                assert_eq!(on.scoreboard, scan(&window).1, "{window:?}");
+            }
+        }
     }
 }

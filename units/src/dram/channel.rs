@@ -30,7 +30,7 @@ use imagine_hdl::{
 };
 
 use super::activity::{Activity, ActivityLog};
-use super::scheduler::{Entry, Scheduler};
+use super::scheduler::{Issued, Scheduler};
 use super::sdram::Sdram;
 use super::timing_check::{TimingChecker, TimingViolation};
 use super::{Command, DramParams, Policy, Reply, Request, Tag, TraceKind, TraceRequest};
@@ -82,14 +82,6 @@ struct Pending {
     data: [u32; 8],
 }
 
-/// The command-bus register's contents: the command and, for a column command, the
-/// reference it serves.
-#[derive(Clone, Copy, Debug)]
-struct Bus {
-    cmd: Command,
-    entry: Option<Entry>,
-}
-
 pub struct DramChannel {
     domain: DomainId,
     path: String,
@@ -100,8 +92,10 @@ pub struct DramChannel {
     scheduler: Scheduler,
     sdram: Sdram,
     checker: TimingChecker,
-    bus_q: Option<Bus>,
-    bus_d: Option<Bus>,
+    /// The command-bus register: the command and, for a column command, the reference
+    /// it serves.
+    bus_q: Option<Issued>,
+    bus_d: Option<Issued>,
     reads: VecDeque<Pending>,
     returns: VecDeque<Reply>,
     return_capacity: usize,
@@ -319,7 +313,7 @@ impl DramChannel {
         }
         // Nothing waits while idle: the counters stay as they are.
         self.activity_log.sample_over(c, n, self.activity());
-        self.bus_q = pending.then_some(Bus {
+        self.bus_q = pending.then_some(Issued {
             cmd: Command::Refresh,
             entry: None,
         });
@@ -501,10 +495,7 @@ impl Module for DramChannel {
         }
         // 3. The scheduler decides the next command.
         let read_room = self.reads.len() + self.returns.len() < self.return_capacity;
-        self.bus_d = self.scheduler.eval(cycle, read_room).map(|i| Bus {
-            cmd: i.cmd,
-            entry: i.entry,
-        });
+        self.bus_d = self.scheduler.eval(cycle, read_room);
         // 4. One request enters.
         self.arriving = None;
         if self.scheduler.has_room() {

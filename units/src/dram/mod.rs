@@ -228,6 +228,7 @@ impl DramParams {
 
     /// Splits a byte address into its channel and location (see the module doc), or
     /// `None` past the end of memory.
+    #[inline(always)]
     pub fn map(&self, byte_addr: u64) -> Option<Location> {
         if byte_addr >= self.capacity_bytes() {
             return None;

@@ -180,6 +180,7 @@ impl Scheduler {
     }
 
     /// A reference arriving this cycle (call only when [`has_room`](Self::has_room)).
+    #[inline]
     pub fn accept(&mut self, r: &Request, loc: Location, cycle: u64) {
         debug_assert!(self.has_room() && self.incoming.is_none());
         self.incoming = Some(Entry {
@@ -286,9 +287,12 @@ impl Scheduler {
         self.issued()
     }
 
+    /// The decided command. (A column command's arm returns its own value: one shared by
+    /// all arms moved the empty reference of the others' too, a copy that stalled.)
+    #[inline]
     fn issued(&self) -> Option<Issued> {
         let bank = |b: usize| u4::new(b as u8);
-        let (cmd, entry) = match self.decision {
+        let cmd = match self.decision {
             Decision::None => return None,
             Decision::Column(p) => {
                 let e = self.buffer.entry(p);
@@ -298,15 +302,18 @@ impl Scheduler {
                 } else {
                     Command::Read { bank, column }
                 };
-                (cmd, Some(*e))
+                return Some(Issued {
+                    cmd,
+                    entry: Some(*e),
+                });
             }
             Decision::Precharge(b) | Decision::RefreshPrecharge(b) => {
-                (Command::Precharge { bank: bank(b) }, None)
+                Command::Precharge { bank: bank(b) }
             }
-            Decision::Activate(b, row) => (Command::Activate { bank: bank(b), row }, None),
-            Decision::Refresh => (Command::Refresh, None),
+            Decision::Activate(b, row) => Command::Activate { bank: bank(b), row },
+            Decision::Refresh => Command::Refresh,
         };
-        Some(Issued { cmd, entry })
+        Some(Issued { cmd, entry: None })
     }
 
     fn refresh_decision(&self, bus: u64) -> Decision {

@@ -325,7 +325,7 @@ mod tests {
                 }
                 same(&mut fast, &mut slow, "after a jump");
                 refreshing +=
-                    usize::from(state(&mut fast).contains("\nbus Some(Bus { cmd: Refresh"));
+                    usize::from(state(&mut fast).contains("\nbus Some(Issued { cmd: Refresh"));
             }
         }
         assert!(done(&slow));
