@@ -22,27 +22,20 @@ pub trait StreamSink {
 }
 
 /// Routes one result (a word per cluster, written where `mask` allows) to its destinations;
-/// compiled for `L` lanes ([`crate::lanes`]). Each LRF written is listed in `written` (at
-/// most once a cycle: its one write port refuses a second write), so that the edge visits
-/// only those.
+/// compiled for `L` lanes ([`crate::lanes`]).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 pub fn route<const L: usize>(
     dests: &Dests,
     values: &[u32],
     mask: Option<&[bool]>,
     all_lanes: &[bool],
     lrfs: &mut [Lrf],
-    written: &mut Vec<u16>,
     cc: &mut CcFile,
     streams: &mut impl StreamSink,
 ) -> Result<(), ContractError> {
     for dest in dests.iter().flatten() {
         match *dest {
-            Dest::Lrf { lrf, entry } => {
-                lrfs[lrf as usize].write_for::<L>(entry, values, mask)?;
-                written.push(lrf);
-            }
+            Dest::Lrf { lrf, entry } => lrfs[lrf as usize].write_for::<L>(entry, values, mask)?,
             Dest::Cc { index } => cc.write(index, values, mask.unwrap_or(all_lanes))?,
             Dest::Stream { stream } => streams.append(stream, values, mask)?,
         }

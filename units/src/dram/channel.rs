@@ -498,44 +498,43 @@ impl Module for DramChannel {
         self.bus_d = self.scheduler.eval(cycle, read_room);
         // 4. One request enters.
         self.arriving = None;
-        if self.scheduler.has_room() {
-            let r = match &mut self.input {
-                ChannelInput::Local(rx) if rx.available() > 0 => Some(rx.pop()?),
-                ChannelInput::Crossing(rx) if rx.can_pop() => Some(rx.pop()?),
-                _ => None,
-            };
-            if let Some(r) = r {
-                let Some(loc) = self.p.map(r.byte_addr) else {
-                    return Err(self.error(
-                        "request",
-                        format!(
-                            "byte address {:#x} is past the end of memory ({} bytes)",
-                            r.byte_addr,
-                            self.p.capacity_bytes()
-                        ),
-                    ));
-                };
-                if loc.channel != self.index {
-                    return Err(self.error(
-                        "request",
-                        format!(
-                            "byte address {:#x} belongs to channel {}, not {}",
-                            r.byte_addr, loc.channel, self.index
-                        ),
-                    ));
-                }
-                self.scheduler.accept(&r, loc, cycle);
-                self.arriving = Some(TraceRequest {
-                    byte_addr: r.byte_addr,
-                    kind: if r.write {
-                        TraceKind::Write
-                    } else {
-                        TraceKind::Read
-                    },
-                    cycle,
-                });
-            }
+        if !self.scheduler.has_room() {
+            return Ok(());
         }
+        let r = match &mut self.input {
+            ChannelInput::Local(rx) if rx.available() > 0 => rx.pop()?,
+            ChannelInput::Crossing(rx) if rx.can_pop() => rx.pop()?,
+            _ => return Ok(()),
+        };
+        let Some(loc) = self.p.map(r.byte_addr) else {
+            return Err(self.error(
+                "request",
+                format!(
+                    "byte address {:#x} is past the end of memory ({} bytes)",
+                    r.byte_addr,
+                    self.p.capacity_bytes()
+                ),
+            ));
+        };
+        if loc.channel != self.index {
+            return Err(self.error(
+                "request",
+                format!(
+                    "byte address {:#x} belongs to channel {}, not {}",
+                    r.byte_addr, loc.channel, self.index
+                ),
+            ));
+        }
+        self.scheduler.accept(&r, loc, cycle);
+        self.arriving = Some(TraceRequest {
+            byte_addr: r.byte_addr,
+            kind: if r.write {
+                TraceKind::Write
+            } else {
+                TraceKind::Read
+            },
+            cycle,
+        });
         Ok(())
     }
 

@@ -276,7 +276,6 @@ where
 /// source's loop was not: this runs for every result.)
 struct Switch<'b, const L: usize> {
     lrfs: &'b mut [Lrf],
-    lrfs_written: &'b mut Vec<u16>,
     cc: &'b mut CcFile,
     all_lanes: &'b [bool],
     streams: Streams<'b>,
@@ -297,7 +296,6 @@ impl<'a, const L: usize> ResultSink<'a> for Switch<'_, L> {
             mask,
             all_lanes,
             self.lrfs,
-            self.lrfs_written,
             self.cc,
             &mut self.streams,
         )
@@ -370,9 +368,6 @@ pub struct Machine {
     path: String,
     fus: Fus,
     lrfs: Vec<Lrf>,
-    /// The LRFs written this cycle, which the edge commits (without a tracer, the others
-    /// have nothing to land).
-    lrfs_written: Vec<u16>,
     cc: CcFile,
     scratchpads: Vec<Scratchpad>,
     comms: Vec<CommUnit>,
@@ -446,7 +441,6 @@ impl Machine {
                 .iter()
                 .map(|n| Lrf::new(scope, n, desc.lrf_entries(n), lanes))
                 .collect(),
-            lrfs_written: Vec::with_capacity(names.len()),
             cc: CcFile::new(scope, c.condition_codes, lanes),
             scratchpads: (0..c.scratchpads)
                 .map(|i| {
@@ -868,7 +862,6 @@ impl Machine {
         };
         let mut switch = Switch::<L> {
             lrfs: &mut self.lrfs,
-            lrfs_written: &mut self.lrfs_written,
             cc: &mut self.cc,
             all_lanes: &self.all_lanes,
             streams: Streams {
@@ -1083,11 +1076,8 @@ impl Machine {
         self.fus.commit();
         if self.tracing || cfg!(feature = "inject-bugs") {
             self.lrfs.iter_mut().for_each(|u| u.commit_for::<L>());
-            self.lrfs_written.clear();
         } else {
-            for i in self.lrfs_written.drain(..) {
-                self.lrfs[i as usize].commit_untraced::<L>();
-            }
+            self.lrfs.iter_mut().for_each(|u| u.commit_untraced::<L>());
         }
         self.cc.commit();
         self.scratchpads.iter_mut().for_each(|u| u.commit());
