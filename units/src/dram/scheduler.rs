@@ -287,12 +287,9 @@ impl Scheduler {
         self.issued()
     }
 
-    /// The decided command. (A column command's arm returns its own value: one shared by
-    /// all arms moved the empty reference of the others' too, a copy that stalled.)
-    #[inline]
     fn issued(&self) -> Option<Issued> {
         let bank = |b: usize| u4::new(b as u8);
-        let cmd = match self.decision {
+        let (cmd, entry) = match self.decision {
             Decision::None => return None,
             Decision::Column(p) => {
                 let e = self.buffer.entry(p);
@@ -302,18 +299,15 @@ impl Scheduler {
                 } else {
                     Command::Read { bank, column }
                 };
-                return Some(Issued {
-                    cmd,
-                    entry: Some(*e),
-                });
+                (cmd, Some(*e))
             }
             Decision::Precharge(b) | Decision::RefreshPrecharge(b) => {
-                Command::Precharge { bank: bank(b) }
+                (Command::Precharge { bank: bank(b) }, None)
             }
-            Decision::Activate(b, row) => Command::Activate { bank: bank(b), row },
-            Decision::Refresh => Command::Refresh,
+            Decision::Activate(b, row) => (Command::Activate { bank: bank(b), row }, None),
+            Decision::Refresh => (Command::Refresh, None),
         };
-        Some(Issued { cmd, entry: None })
+        Some(Issued { cmd, entry })
     }
 
     fn refresh_decision(&self, bus: u64) -> Decision {
