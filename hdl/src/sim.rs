@@ -475,15 +475,10 @@ impl Sim {
         let tracing = self.tracing();
         // Without a tracer, falling edges and the edges of domains that hold no module
         // change nothing: skip them.
-        let quiet = if tracing { 0 } else { self.quiet };
-        let edge = loop {
-            if !tracing {
-                self.design.clocks.skip_falling_edges();
-            }
-            let edge = self.design.clocks.next_edge();
-            if (edge.rising.0 | edge.falling.0) & !quiet != 0 {
-                break edge;
-            }
+        let edge = if tracing {
+            self.design.clocks.next_edge()
+        } else {
+            self.design.clocks.next_rising_edge(DomainSet(!self.quiet))
         };
         if !edge.rising.is_empty() {
             self.clock_edge(edge.rising)?;
