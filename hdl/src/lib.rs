@@ -15,6 +15,7 @@ pub mod async_fifo;
 pub mod bits;
 pub mod clock;
 pub mod demo;
+mod edge_counts;
 pub mod error;
 pub mod fifo;
 #[cfg(feature = "inject-bugs")]

@@ -4,9 +4,11 @@
 //! hierarchical names and register their probes, registers and channels. The [`Sim`] then
 //! advances the [`Clocks`]; at each instant where clocks rise it calls `eval` on every
 //! module of the rising domains (each computes its next state from the committed state of
-//! itself and its inputs), then `commit` on all of them, then commits every channel. No
-//! event queue and no iteration to a fixed point: evaluation order cannot change results,
-//! and [`Sim::reverse_eval_order`] exists so tests can prove it.
+//! itself and its inputs), then `commit` on all of them, then commits every channel (the
+//! synchronising FIFOs excepted: their registers are a function of the edges each clock has
+//! committed, which the simulator counts; see [`crate::async_fifo`]). No event queue and no
+//! iteration to a fixed point: evaluation order cannot change results, and
+//! [`Sim::reverse_eval_order`] exists so tests can prove it.
 
 use std::any::Any;
 use std::cell::{Cell, RefCell};
@@ -15,6 +17,7 @@ use std::io;
 use std::rc::Rc;
 
 use crate::async_fifo::{AsyncFifoRx, AsyncFifoTx, new_async_fifo};
+use crate::edge_counts::EdgeCounts;
 use crate::fifo::{FifoRx, FifoTx, new_fifo};
 use crate::pipe::{PipeRx, PipeTx, new_pipe};
 use crate::{
@@ -46,7 +49,7 @@ pub trait Channel {
     /// Ends the cycle of the domains in `rising`. Returns whether the channel is now
     /// static: edges of any clock change nothing here until an endpoint next acts (and
     /// raises the channel's wake flag), so the simulator stops committing it. (One call
-    /// rather than a second query: a design commits its crossings on every edge.)
+    /// rather than a second query: a busy channel is committed on every edge.)
     fn commit(&mut self, rising: DomainSet) -> Result<bool, ContractError>;
     /// The domain whose cycle count locates this channel's errors.
     fn domain(&self) -> DomainId;
@@ -96,9 +99,15 @@ struct WiredChannel {
 /// A design under construction: clocks, probes, channels and modules.
 pub struct Design {
     clocks: Clocks,
+    /// The edges each domain has committed, as the synchronising FIFOs read them.
+    edges: Rc<EdgeCounts>,
     probes: ProbeRegistry,
     clock_ids: Vec<SignalId>,
     channels: Vec<WiredChannel>,
+    /// Every channel, in construction order, for tracing: those above and the
+    /// synchronising FIFOs, which are never committed (their state is a function of the
+    /// committed edges).
+    traced: Vec<Rc<RefCell<dyn Channel>>>,
     modules: Vec<Box<dyn Module>>,
     top: String,
 }
@@ -115,10 +124,12 @@ impl Design {
             .map(|d| probes.register(format!("{top}.clk_{}", d.name), 1, SignalKind::Clock))
             .collect();
         Ok(Design {
+            edges: Rc::new(EdgeCounts::new(clocks.domains().len())),
             clocks,
             probes,
             clock_ids,
             channels: Vec::new(),
+            traced: Vec::new(),
             modules: Vec::new(),
             top: top.into(),
         })
@@ -145,6 +156,7 @@ impl Design {
     }
 
     fn add_channel(&mut self, channel: Rc<RefCell<dyn Channel>>, wake: Rc<Cell<bool>>) {
+        self.traced.push(channel.clone());
         self.channels.push(WiredChannel {
             channel,
             wake,
@@ -269,16 +281,9 @@ impl Scope<'_> {
             s.signal("write_level", width, SignalKind::Wire),
             s.signal("read_level", width, SignalKind::Wire),
         ];
-        let wake = Rc::new(Cell::new(true));
-        let (tx, rx, ch) = new_async_fifo(
-            path,
-            (write, read),
-            capacity,
-            sync_stages,
-            ids,
-            wake.clone(),
-        );
-        self.design.add_channel(ch, wake);
+        let edges = self.design.edges.clone();
+        let (tx, rx, ch) = new_async_fifo(path, (write, read), capacity, sync_stages, ids, edges);
+        self.design.traced.push(ch);
         Ok((tx, rx))
     }
 }
@@ -385,6 +390,7 @@ impl Sim {
     pub fn reverse_eval_order(&mut self) {
         self.design.modules.reverse();
         self.design.channels.reverse();
+        self.design.traced.reverse();
         self.module_domains.reverse();
         self.driven = driven_by(&self.module_domains, self.driven.len());
     }
@@ -449,7 +455,9 @@ impl Sim {
     /// would change nothing. Returns `false`, changing nothing, unless
     /// [`can_skip_cycles`](Self::can_skip_cycles).
     pub fn skip_cycles(&mut self, n: u64) -> bool {
-        self.can_skip_cycles() && self.design.clocks.skip_rising_edges(n)
+        let skipped = self.can_skip_cycles() && self.design.clocks.skip_rising_edges(n);
+        self.design.edges.sync(&self.design.clocks);
+        skipped
     }
 
     /// The rising edges each domain will have had once the core clock has had
@@ -466,7 +474,9 @@ impl Sim {
     /// committing them would change nothing. Returns `false`, changing nothing, unless
     /// [`can_skip`](Self::can_skip) and `core_cycles` is ahead.
     pub fn skip_to(&mut self, core_cycles: u64) -> bool {
-        self.can_skip() && self.design.clocks.skip_to(self.core, core_cycles)
+        let skipped = self.can_skip() && self.design.clocks.skip_to(self.core, core_cycles);
+        self.design.edges.sync(&self.design.clocks);
+        skipped
     }
 
     /// Advances to the next clock edge of any domain (without a tracer, the next rising
@@ -481,7 +491,10 @@ impl Sim {
             self.design.clocks.next_rising_edge(DomainSet(!self.quiet))
         };
         if !edge.rising.is_empty() {
-            self.clock_edge(edge.rising)?;
+            self.design.edges.begin(edge.rising);
+            let committed = self.clock_edge(edge.rising);
+            self.design.edges.end();
+            committed?;
         }
         #[cfg(feature = "probes")]
         if let Some(t) = &mut self.trace
@@ -502,8 +515,8 @@ impl Sim {
                 for m in &self.design.modules {
                     m.trace(t);
                 }
-                for c in &self.design.channels {
-                    c.channel.borrow().trace(t);
+                for c in &self.design.traced {
+                    c.borrow().trace(t);
                 }
             }
             if let Some(why) = t.tracer().abort() {

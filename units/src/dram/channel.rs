@@ -503,7 +503,10 @@ impl Module for DramChannel {
         }
         let r = match &mut self.input {
             ChannelInput::Local(rx) if rx.available() > 0 => rx.pop()?,
-            ChannelInput::Crossing(rx) if rx.can_pop() => rx.pop()?,
+            ChannelInput::Crossing(rx) => match rx.try_pop()? {
+                Some(r) => r,
+                None => return Ok(()),
+            },
             _ => return Ok(()),
         };
         let Some(loc) = self.p.map(r.byte_addr) else {

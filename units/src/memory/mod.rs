@@ -51,8 +51,8 @@ impl MemPorts {
     /// Pops at most one reply per channel this cycle.
     pub fn pop_replies(&mut self, out: &mut Vec<Reply>) -> Result<(), ContractError> {
         for rx in &mut self.replies {
-            if rx.can_pop() {
-                out.push(rx.pop()?);
+            if let Some(r) = rx.try_pop()? {
+                out.push(r);
             }
         }
         Ok(())
