@@ -326,13 +326,7 @@ impl Processor {
             }
             self.sc.complete(t.id, cycle);
         }
-        // (Taken only when there is one: most cycles a copy of the empty register would
-        // stall on its narrowly written tag.)
-        let issue = if self.issue.is_some() {
-            self.issue.take()
-        } else {
-            None
-        };
+        let issue = self.issue.take();
         self.issued_last = issue.as_ref().map(|is| is.id);
         if let Some(is) = &issue {
             self.start(is)?;
@@ -353,7 +347,7 @@ impl Module for Processor {
         }
         let rasterizer_free = !self.rasterizer_busy();
         let ags = &self.ags;
-        let issue = self.sc.select(
+        self.issue = self.sc.select(
             |a| !ags[a].is_busy(),
             ags.len(),
             self.kernel.is_none(),
@@ -361,12 +355,6 @@ impl Module for Processor {
             self.host_transfer.is_none(),
             rasterizer_free,
         );
-        // Most cycles issue nothing: set the register's tag alone then, rather than copy
-        // the whole empty value (whose tag was just written narrowly: a stalled copy).
-        match issue {
-            Some(is) => self.issue = Some(is),
-            None => self.issue = None,
-        }
         self.replies.clear();
         self.ports.pop_replies(&mut self.replies)?;
         for r in &self.replies {
@@ -388,9 +376,8 @@ impl Module for Processor {
         // The address generators take turns at offering references first (round robin).
         let n = self.ags.len();
         // (An idle generator's evaluation does nothing: it is not called.)
-        let first = (self.cycle % n.max(1) as u64) as usize;
         for k in 0..n {
-            let ag = &mut self.ags[crate::ring_position::after(first, k, n)];
+            let ag = &mut self.ags[(self.cycle as usize + k) % n];
             if ag.is_busy() {
                 ag.eval(
                     self.machine.srf_mut(),
