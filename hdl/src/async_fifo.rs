@@ -29,7 +29,7 @@ use std::collections::VecDeque;
 use std::rc::Rc;
 
 use crate::edge_counts::EdgeCounts;
-use crate::{Channel, ContractError, DomainId, DomainSet, SignalId, Trace, Violation};
+use crate::{ContractError, DomainId, SignalId, Trace, Traced, Violation};
 
 pub(crate) struct AsyncFifoState<T> {
     path: String,
@@ -71,7 +71,11 @@ pub(crate) fn new_async_fifo<T: 'static>(
     sync_stages: usize,
     ids: [SignalId; 2],
     edges: Rc<EdgeCounts>,
-) -> (AsyncFifoTx<T>, AsyncFifoRx<T>, Rc<RefCell<dyn Channel>>) {
+) -> (
+    AsyncFifoTx<T>,
+    AsyncFifoRx<T>,
+    Rc<RefCell<AsyncFifoState<T>>>,
+) {
     let state = Rc::new(RefCell::new(AsyncFifoState {
         path,
         write_domain,
@@ -187,15 +191,25 @@ impl<T> AsyncFifoState<T> {
         let from = self.seen_from(self.write_domain, w);
         self.pops += 1;
         self.last_pop = Some((read_edges, from));
-        while self.pops_seen_from.front().is_some_and(|&f| f <= w) {
-            self.pops_seen_from.pop_front();
-        }
+        self.forget_seen_pops(w);
         self.pops_seen_from.push_back(from);
         Ok(self
             .items
             .pop_front()
             .expect("a value the reader sees is held")
             .1)
+    }
+    /// Pops the writer sees, with `write_edges` committed, are counted in `pops`: only
+    /// those it may not see yet are kept.
+    #[inline]
+    fn forget_seen_pops(&mut self, write_edges: u64) {
+        while self
+            .pops_seen_from
+            .front()
+            .is_some_and(|&f| f <= write_edges)
+        {
+            self.pops_seen_from.pop_front();
+        }
     }
     #[cold]
     fn outside_its_cycle(&self, end: &str, domain: DomainId) -> ContractError {
@@ -243,10 +257,7 @@ impl<T> AsyncFifoTx<T> {
         s.items.push_back((from, v));
         s.pushes += 1;
         s.last_push = Some((w, from));
-        // Pops the writer sees are counted; only those it may not see yet are kept.
-        while s.pops_seen_from.front().is_some_and(|&f| f <= w) {
-            s.pops_seen_from.pop_front();
-        }
+        s.forget_seen_pops(w);
         Ok(())
     }
 }
@@ -298,17 +309,9 @@ impl<T> AsyncFifoRx<T> {
     }
 }
 
-impl<T> Channel for AsyncFifoState<T> {
-    /// Nothing lands at an edge: the FIFO's registers are a function of the committed
-    /// edges (see the module doc), so the simulator only traces it.
-    fn commit(&mut self, _rising: DomainSet) -> Result<bool, ContractError> {
-        Ok(true)
-    }
-
-    fn domain(&self) -> DomainId {
-        self.write_domain
-    }
-
+/// Nothing lands at an edge: the FIFO's registers are a function of the committed edges
+/// (see the module doc), so the simulator only traces it.
+impl<T> Traced for AsyncFifoState<T> {
     fn trace(&self, t: &mut Trace) {
         t.value(self.ids[0], self.write_level() as u64);
         t.value(self.ids[1], self.read_level() as u64);
@@ -318,6 +321,7 @@ impl<T> Channel for AsyncFifoState<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::DomainSet;
 
     /// A FIFO of four entries from domain 0 (writes) to domain 1 (reads), with two
     /// synchroniser stages, and the edge counts that time it.

@@ -9,7 +9,7 @@ use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::rc::Rc;
 
-use crate::{Channel, ContractError, DomainId, DomainSet, SignalId, Trace, Violation};
+use crate::{Channel, ContractError, DomainId, DomainSet, SignalId, Trace, Traced, Violation};
 
 pub(crate) struct FifoState<T> {
     path: String,
@@ -33,7 +33,7 @@ pub(crate) fn new_fifo<T: 'static>(
     capacity: usize,
     bandwidth: usize,
     level_id: SignalId,
-) -> (FifoTx<T>, FifoRx<T>, Rc<RefCell<dyn Channel>>) {
+) -> (FifoTx<T>, FifoRx<T>, Rc<RefCell<FifoState<T>>>) {
     let state = Rc::new(RefCell::new(FifoState {
         path,
         domain,
@@ -109,7 +109,9 @@ impl<T> Channel for FifoState<T> {
     fn domain(&self) -> DomainId {
         self.domain
     }
+}
 
+impl<T> Traced for FifoState<T> {
     fn trace(&self, t: &mut Trace) {
         t.value(self.level_id, self.items.len() as u64);
     }

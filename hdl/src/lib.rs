@@ -35,4 +35,4 @@ pub use pipe::{PipeRx, PipeTx};
 pub use probe::{Display, ProbeRegistry, SignalDecl, SignalId, SignalKind, Trace, Tracer};
 pub use recorder::{Recorder, Recording};
 pub use reg::Reg;
-pub use sim::{Channel, Design, DesignError, Module, Scope, Sim};
+pub use sim::{Channel, Design, DesignError, Module, Scope, Sim, Traced};

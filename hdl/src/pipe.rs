@@ -11,7 +11,7 @@ use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::rc::Rc;
 
-use crate::{Channel, ContractError, DomainId, DomainSet, SignalId, Trace, Violation};
+use crate::{Channel, ContractError, DomainId, DomainSet, SignalId, Trace, Traced, Violation};
 
 pub(crate) struct PipeState<T> {
     path: String,
@@ -35,7 +35,7 @@ pub(crate) fn new_pipe<T: 'static>(
     latency: usize,
     bandwidth: usize,
     valid_id: SignalId,
-) -> (PipeTx<T>, PipeRx<T>, Rc<RefCell<dyn Channel>>) {
+) -> (PipeTx<T>, PipeRx<T>, Rc<RefCell<PipeState<T>>>) {
     let state = Rc::new(RefCell::new(PipeState {
         path,
         domain,
@@ -95,7 +95,9 @@ impl<T> Channel for PipeState<T> {
     fn domain(&self) -> DomainId {
         self.domain
     }
+}
 
+impl<T> Traced for PipeState<T> {
     fn trace(&self, t: &mut Trace) {
         t.value(self.valid_id, self.stages[0].len() as u64);
     }

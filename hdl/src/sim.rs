@@ -44,8 +44,15 @@ pub trait Module: Any {
     fn set_tracing(&mut self, _on: bool) {}
 }
 
+/// Shared state between modules whose probes the simulator reports after each edge: the
+/// channels and the synchronising FIFOs (which are never committed, see
+/// [`crate::async_fifo`]).
+pub trait Traced {
+    fn trace(&self, t: &mut Trace);
+}
+
 /// Shared state between two modules that commits on clock edges (pipes, FIFOs).
-pub trait Channel {
+pub trait Channel: Traced {
     /// Ends the cycle of the domains in `rising`. Returns whether the channel is now
     /// static: edges of any clock change nothing here until an endpoint next acts (and
     /// raises the channel's wake flag), so the simulator stops committing it. (One call
@@ -53,7 +60,6 @@ pub trait Channel {
     fn commit(&mut self, rising: DomainSet) -> Result<bool, ContractError>;
     /// The domain whose cycle count locates this channel's errors.
     fn domain(&self) -> DomainId;
-    fn trace(&self, t: &mut Trace);
 }
 
 /// A mistake in how a design is put together.
@@ -107,7 +113,7 @@ pub struct Design {
     /// Every channel, in construction order, for tracing: those above and the
     /// synchronising FIFOs, which are never committed (their state is a function of the
     /// committed edges).
-    traced: Vec<Rc<RefCell<dyn Channel>>>,
+    traced: Vec<Rc<RefCell<dyn Traced>>>,
     modules: Vec<Box<dyn Module>>,
     top: String,
 }
@@ -155,7 +161,7 @@ impl Design {
         &self.probes
     }
 
-    fn add_channel(&mut self, channel: Rc<RefCell<dyn Channel>>, wake: Rc<Cell<bool>>) {
+    fn add_channel<C: Channel + 'static>(&mut self, channel: Rc<RefCell<C>>, wake: Rc<Cell<bool>>) {
         self.traced.push(channel.clone());
         self.channels.push(WiredChannel {
             channel,
