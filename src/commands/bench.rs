@@ -45,6 +45,7 @@ pub fn machine(machine: &str, cycles: u64, datapath: Datapath) -> Result<ExitCod
     let rate = s.cycles as f64 / host;
     println!("machine            {}", desc.name);
     println!("datapath           {datapath}");
+    println!("build              {}", build_kind());
     println!("simulated cycles   {}", s.cycles);
     println!("host time          {host:.3} s");
     println!("simulated rate     {:.2} M cycles/s", rate / 1e6);
@@ -94,6 +95,17 @@ struct SceneBench {
     simulated_cycles_per_second: f64,
 }
 
+/// How this binary was built: `scripts/build-pgo` sets `IMAGINE_BUILD=pgo` for its
+/// profile-guided build; a plain `cargo build` leaves it unset.
+fn build_kind() -> &'static str {
+    match option_env!("IMAGINE_BUILD") {
+        Some("pgo") => "profile-guided (scripts/build-pgo)",
+        Some("pgo-instrumented") => "instrumented for profiling (slow)",
+        _ if cfg!(debug_assertions) => "debug",
+        _ => "release",
+    }
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -125,10 +137,11 @@ pub fn frames(a: BenchArgs) -> Result<ExitCode> {
         );
     }
     println!(
-        "machine {}; {} warm run(s) per scene, medians; host: {} logical CPUs",
+        "machine {}; {} warm run(s) per scene, medians; host: {} logical CPUs; build: {}",
         desc.name,
         a.runs,
-        std::thread::available_parallelism().map_or(1, |n| n.get())
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        build_kind()
     );
     if let Some(path) = &a.json {
         std::fs::write(path, serde_json::to_string_pretty(&rows)? + "\n")
