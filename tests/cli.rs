@@ -1861,3 +1861,58 @@ fn kernel_takes_the_reyes_pipelines_kernels() {
     let o = imagine(&["kernel", "list", "--stop-length", "2"]);
     assert!(stderr(&o).contains("--stop-length is for the Reyes pipeline"));
 }
+
+/// `imagine bench` on a tiny scene: a cold compile that takes longer than the cache read,
+/// the same cycles in every warm run (it checks that itself), rates worked out from the
+/// times it reports, and the build it ran on named in the table and in every JSON row.
+#[test]
+fn bench_reports_a_frame_and_names_its_build() {
+    let dir = std::env::temp_dir().join(format!("imagine-bench-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("tiny.toml");
+    std::fs::write(
+        &scene,
+        "name = \"TINY\"\n[window]\nwidth = 16\nheight = 16\n[pipeline]\n\
+         depth_test = \"less\"\ncull = \"none\"\n[[object]]\n\
+         primitive = { kind = \"rate\", size = 8 }\ntriangles = \"separate\"\n",
+    )
+    .unwrap();
+    let json = dir.join("bench.json");
+    let o = imagine(&[
+        "bench",
+        scene.to_str().unwrap(),
+        "--runs",
+        "2",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let build = if cfg!(debug_assertions) {
+        "debug"
+    } else {
+        "release"
+    };
+    assert!(
+        stdout(&o).contains(&format!("build: {build}")),
+        "{}",
+        stdout(&o)
+    );
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 1);
+    let row = &rows[0];
+    assert_eq!(row["scene"], "TINY");
+    assert_eq!(row["machine"], "gold8");
+    assert_eq!(row["build"], build);
+    let f = |k: &str| row[k].as_f64().unwrap_or_else(|| panic!("{k}: {row}"));
+    assert!(f("simulated_cycles") > 0.0);
+    assert!(f("compile_cold") > f("compile_warm"), "{row}");
+    let rate = f("simulated_cycles") / f("simulate");
+    assert!(
+        (f("simulated_cycles_per_second") - rate).abs() <= 1e-9 * rate,
+        "{row}"
+    );
+    assert!(f("host_per_frame") >= f("simulate"), "{row}");
+}

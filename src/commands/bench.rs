@@ -93,6 +93,9 @@ struct SceneBench {
     /// Everything a warm frame takes: building, compiling, simulating, comparing (median).
     host_per_frame: f64,
     simulated_cycles_per_second: f64,
+    /// How the simulator was built (see `build_kind`): rows of two builds compare only
+    /// with that said.
+    build: &'static str,
 }
 
 /// How this binary was built: `scripts/build-pgo` sets `IMAGINE_BUILD=pgo` for its
@@ -197,6 +200,7 @@ fn bench_scenes(
             simulate,
             host_per_frame: median(warm.iter().map(|w| w.3).collect()),
             simulated_cycles_per_second: cycles as f64 / simulate.max(1e-9),
+            build: build_kind(),
         });
     }
     Ok(rows)
