@@ -155,6 +155,12 @@ impl<T> AsyncFifoState<T> {
             .front()
             .is_some_and(|(from, _)| *from <= read_edges)
     }
+    /// Whether the reader, with `read_edges` committed, may pop: it has not this cycle and
+    /// it sees a value.
+    #[inline]
+    fn may_pop(&self, read_edges: u64) -> bool {
+        !self.popped(read_edges) && self.sees_a_value(read_edges)
+    }
     /// Nothing pushed or popped this cycle and every synchroniser stage holding the
     /// pointer it samples: edges of either clock change nothing until an end acts. (A
     /// stage samples the value last seen from a count on: all hold it `stages − 1` edges
@@ -275,8 +281,7 @@ impl<T> AsyncFifoRx<T> {
     #[inline]
     pub fn can_pop(&self) -> bool {
         let s = self.0.borrow();
-        let r = s.edges.committed(s.read_domain);
-        !s.popped(r) && s.sees_a_value(r)
+        s.may_pop(s.edges.committed(s.read_domain))
     }
 
     /// Pops a value if the reader may ([`can_pop`](Self::can_pop)), in one look at the
@@ -285,7 +290,7 @@ impl<T> AsyncFifoRx<T> {
     pub fn try_pop(&mut self) -> Result<Option<T>, ContractError> {
         let mut s = self.0.borrow_mut();
         let r = s.edges.committed(s.read_domain);
-        if s.popped(r) || !s.sees_a_value(r) {
+        if !s.may_pop(r) {
             return Ok(None);
         }
         s.take(r).map(Some)
